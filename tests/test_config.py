@@ -1,0 +1,68 @@
+"""Machine files load, validate, and name the field on every error."""
+
+import math
+
+import pytest
+
+from twin.config import available_machines, load_machine, machine_from_toml_dict
+from twin.errors import ConfigError
+
+
+@pytest.mark.parametrize("name", ["tomsk_xy", "laser_belt"])
+def test_presets_load(name):
+    cfg = load_machine(name)
+    assert cfg.name == name
+    assert set(cfg.axes) == {"x", "y"}
+    assert name in available_machines()
+
+
+def test_tomsk_encoder_gives_five_counts_per_micrometre():
+    ax = load_machine("tomsk_xy").axes["x"]
+    # 2500 counts/rev, i = 12, 6 mm lead: 0.5 mm per motor revolution.
+    assert ax.transmission.ratio == pytest.approx(6e-3 / (2 * math.pi * 12))
+    assert ax.counts_per_metre == pytest.approx(5e6)
+
+
+def test_series_stiffness():
+    tr = load_machine("tomsk_xy").axes["x"].transmission
+    assert tr.axial_stiffness == pytest.approx(1 / sum(1 / k for k in tr.stiffness.values()))
+    assert tr.axial_stiffness < min(tr.stiffness.values())
+
+
+@pytest.mark.parametrize(
+    ("override", "field"),
+    [
+        ({"axes.x.mechanics.carriage_mass": -1.0}, "axes.x.mechanics.carriage_mass"),
+        ({"axes.y.motor.armature_resistance": 0.0}, "axes.y.motor.armature_resistance"),
+        ({"controller.period": float("nan")}, "controller.period"),
+        ({"axes.x.motor.emf_constant": "fast"}, "axes.x.motor.emf_constant"),
+        ({"controller.regulator.kpp": 1.0}, "controller.regulator.kpp"),
+    ],
+)
+def test_bad_values_name_the_field(override, field):
+    cfg = load_machine("tomsk_xy")
+    with pytest.raises(ConfigError) as exc:
+        cfg.with_overrides(override)
+    assert exc.value.field == field
+
+
+def test_unknown_key_lists_valid_ones():
+    with pytest.raises(ConfigError, match="valid here: .*kp"):
+        load_machine("tomsk_xy").with_overrides({"controller.regulator.gain": 1.0})
+
+
+def test_missing_parameter_is_named():
+    doc = {"machine": {"name": "m"}, "axis_defaults": {}, "controller": {}}
+    with pytest.raises(ConfigError, match=r"axes\.x\.mechanics: missing"):
+        machine_from_toml_dict(doc)
+
+
+def test_wildcard_override_sets_both_axes():
+    cfg = load_machine("tomsk_xy").with_overrides({"axes.*.mechanics.slide_coulomb": 7.0})
+    assert cfg.axes["x"].mechanics.slide_coulomb == 7.0
+    assert cfg.axes["y"].mechanics.slide_coulomb == 7.0
+
+
+def test_unknown_preset():
+    with pytest.raises(ConfigError, match="presets: .*tomsk_xy"):
+        load_machine("no_such_machine")

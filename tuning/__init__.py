@@ -1,0 +1,1 @@
+"""Tuning jobs: analytic DCU baseline, CMA-ES/Optuna, stable-baselines3."""

@@ -1,0 +1,73 @@
+"""Typed exceptions of xy-twin. Every one subclasses a built-in so callers may catch either."""
+
+from __future__ import annotations
+
+__all__ = [
+    "ConfigError",
+    "DriverError",
+    "GCodeError",
+    "PlanningError",
+    "SimulationError",
+    "TwinError",
+]
+
+
+class TwinError(Exception):
+    """Base of every xy-twin error."""
+
+
+class ConfigError(TwinError, ValueError):
+    """A configuration value is missing or invalid.
+
+    Parameters
+    ----------
+    field : str
+        Dotted path of the offending field, e.g. ``axes.x.mechanics.carriage_mass``.
+    message : str
+        What is wrong with it.
+    """
+
+    def __init__(self, field: str, message: str):
+        self.field = field
+        self.message = message
+        super().__init__(f"{field}: {message}")
+
+
+class GCodeError(TwinError, ValueError):
+    """An error in a G-code program, with its place.
+
+    Attributes
+    ----------
+    line : int
+        1-based line number.
+    column : int
+        1-based column of the offending word (1 when the whole block is at fault).
+    code : str
+        Short machine-readable code, e.g. ``"modal-conflict"``.
+    source : str
+        The text of the offending line.
+    """
+
+    def __init__(self, line: int, column: int, message: str, *, code: str = "syntax",
+                 source: str = ""):
+        self.line = line
+        self.column = column
+        self.code = code
+        self.source = source
+        self.message = message
+        text = f"line {line}, col {column}: {message}"
+        if source:
+            text += f"\n    {source.rstrip()}\n    {' ' * max(column - 1, 0)}^"
+        super().__init__(text)
+
+
+class PlanningError(TwinError, ValueError):
+    """A motion cannot be planned within the given limits."""
+
+
+class SimulationError(TwinError, RuntimeError):
+    """The simulation reached a state it cannot continue from (NaN, divergence)."""
+
+
+class DriverError(TwinError, RuntimeError):
+    """A hardware driver failed: timeout, lost connection, malformed response."""

@@ -1,0 +1,1 @@
+"""Drivers that implement ``twin.controller.MachineIO``."""

@@ -1,0 +1,1 @@
+"""Telemetry sinks (rerun) behind a small ``Sink`` protocol."""
