@@ -6,7 +6,7 @@ os.environ.setdefault("RERUN_ANALYTICS", "0")
 os.environ.setdefault("RERUN_DISABLE_ANALYTICS", "1")
 os.environ.setdefault("MPLBACKEND", "Agg")
 
-from hypothesis import settings  # noqa: E402
+from hypothesis import settings
 
 settings.register_profile("ci", max_examples=200, deadline=None, derandomize=True)
 settings.register_profile("dev", max_examples=100, deadline=None)

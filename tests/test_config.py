@@ -47,7 +47,7 @@ def test_bad_values_name_the_field(override, field):
 
 
 def test_unknown_key_lists_valid_ones():
-    with pytest.raises(ConfigError, match="valid here: .*kp"):
+    with pytest.raises(ConfigError, match=r"valid here: .*kp"):
         load_machine("tomsk_xy").with_overrides({"controller.regulator.gain": 1.0})
 
 
@@ -64,5 +64,5 @@ def test_wildcard_override_sets_both_axes():
 
 
 def test_unknown_preset():
-    with pytest.raises(ConfigError, match="presets: .*tomsk_xy"):
+    with pytest.raises(ConfigError, match=r"presets: .*tomsk_xy"):
         load_machine("no_such_machine")

@@ -319,7 +319,9 @@ class ControllerSettings(_Validated):
     """The CNC: period, contour limits, planner and regulator settings."""
 
     period: float = _num(5e-3, "s", gt=0, le=0.1)
-    limits: LimitsConfig = field(default_factory=lambda: LimitsConfig(max_velocity=0.015, max_acceleration=0.2, max_jerk=5.0))
+    limits: LimitsConfig = field(
+        default_factory=lambda: LimitsConfig(max_velocity=0.015, max_acceleration=0.2,
+                                             max_jerk=5.0))
     rapid_velocity: float = _num(0.015, "m/s", gt=0)
     contour_tolerance: float = _num(20e-6, "m", gt=0)
     profile: str = "parabolic"
@@ -436,7 +438,8 @@ def _coerce(tp: Any, value: Any, path: str) -> Any:
         args = typing.get_args(tp)
         if len(args) != len(value):
             raise ConfigError(path, f"must have {len(args)} items, got {len(value)}")
-        return tuple(_coerce(a, v, f"{path}[{i}]") for i, (a, v) in enumerate(zip(args, value)))
+        pairs = enumerate(zip(args, value, strict=True))
+        return tuple(_coerce(a, v, f"{path}[{i}]") for i, (a, v) in pairs)
     if tp is float:
         if isinstance(value, bool) or not isinstance(value, int | float):
             raise ConfigError(path, f"must be a number, got {value!r}")
