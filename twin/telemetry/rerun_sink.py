@@ -1,0 +1,123 @@
+"""Stream a run to rerun: to an ``.rrd`` file (written atomically), a spawned viewer, or a
+served gRPC endpoint — or a file and a live viewer at once.
+
+Everything is sent with ``send_columns`` in batches, on one timeline ``sim_time``; nothing is
+logged row by row in the cyclic path, so telemetry stays a small share of a run.
+"""
+
+from __future__ import annotations
+
+import os
+from collections.abc import Mapping
+from pathlib import Path
+
+import numpy as np
+import rerun as rr
+
+from twin.telemetry.blueprint import default_blueprint
+
+__all__ = ["APPLICATION_ID", "TIMELINE", "RerunSink"]
+
+APPLICATION_ID = "xy_twin"
+TIMELINE = "sim_time"
+
+_LEVELS = {"INFO": "INFO", "WARN": "WARN", "ERROR": "ERROR", "DEBUG": "DEBUG"}
+
+
+class RerunSink:
+    """A ``Sink`` backed by a rerun ``RecordingStream``.
+
+    Parameters
+    ----------
+    path : str or Path or None
+        Where to write the ``.rrd``. The file is written to ``<path>.partial`` and renamed
+        on ``close()``, so a reader never sees a half-written recording under the final name.
+    live : {"spawn", "serve", None}
+        Also stream to a spawned native viewer, or serve gRPC for a viewer to connect to.
+    recording_id : str
+        Identifies the run; several runs (e.g. one per acceleration law) with distinct ids
+        can share one file and are overlaid by the viewer.
+    recording_name : str, optional
+        Human-readable name shown in the viewer.
+    blueprint : bool
+        Send the default blueprint (path view + error plots).
+    """
+
+    def __init__(self, path: str | Path | None = None, *, live: str | None = None,
+                 recording_id: str = "run", recording_name: str | None = None,
+                 blueprint: bool = True):
+        if live not in (None, "spawn", "serve"):
+            raise ValueError(f"live must be 'spawn', 'serve' or None, got {live!r}")
+        if path is None and live is None:
+            raise ValueError("RerunSink needs a path, a live viewer, or both")
+        self.path = Path(path) if path is not None else None
+        self.url: str | None = None
+        self._partial = self.path.with_name(self.path.name + ".partial") if self.path else None
+        self._rec = rr.RecordingStream(APPLICATION_ID, recording_id=recording_id)
+        sinks: list = []
+        if self._partial is not None:
+            self._partial.parent.mkdir(parents=True, exist_ok=True)
+            sinks.append(rr.FileSink(str(self._partial)))
+        if live == "spawn":
+            rr.spawn(connect=False)
+            sinks.append(rr.GrpcSink())
+        if sinks:
+            self._rec.set_sinks(*sinks)
+        if live == "serve":
+            self.url = self._rec.serve_grpc()
+        if recording_name:
+            self._rec.send_recording_name(recording_name)
+        if blueprint:
+            self._rec.send_blueprint(default_blueprint())
+        self._closed = False
+
+    # -- Sink protocol ------------------------------------------------------------------
+    def static_path(self, entity: str, points: np.ndarray, *,
+                    color: tuple[int, int, int] = (160, 160, 160)) -> None:
+        """Log a polyline (m) that does not change with time."""
+        pts = np.asarray(points, dtype=np.float64).reshape(-1, 2)
+        self._rec.log(entity, rr.LineStrips2D([pts], colors=[color]), static=True)
+
+    def scalars(self, t: np.ndarray, columns: Mapping[str, np.ndarray]) -> None:
+        """Send scalar columns (float64, exact) for samples at times ``t`` (s)."""
+        index = [rr.TimeColumn(TIMELINE, duration=np.asarray(t, dtype=np.float64))]
+        for entity, values in columns.items():
+            self._rec.send_columns(entity, indexes=index,
+                                   columns=rr.Scalars.columns(scalars=np.asarray(values)))
+
+    def points(self, t: np.ndarray, columns: Mapping[str, np.ndarray]) -> None:
+        """Send one 2-D point per sample (m) for each entity."""
+        t = np.asarray(t, dtype=np.float64)
+        index = [rr.TimeColumn(TIMELINE, duration=t)]
+        ones = np.ones(len(t), dtype=np.int64)
+        for entity, values in columns.items():
+            cols = rr.Points2D.columns(positions=np.asarray(values).reshape(-1, 2))
+            self._rec.send_columns(entity, indexes=index, columns=cols.partition(ones))
+
+    def event(self, t: float, text: str, *, level: str = "INFO") -> None:
+        """Log a text event on the ``events`` entity at time ``t`` (s)."""
+        self._rec.set_time(TIMELINE, duration=float(t))
+        self._rec.log("events", rr.TextLog(text, level=_LEVELS.get(level.upper(), "INFO")))
+
+    def style(self, entity: str, *, name: str, color: tuple[int, int, int] | None = None) -> None:
+        """Name (and colour) a scalar series in the viewer's legend."""
+        kwargs = {"names": [name]}
+        if color is not None:
+            kwargs["colors"] = [color]
+        self._rec.log(entity, rr.SeriesLines(**kwargs), static=True)
+
+    def close(self) -> None:
+        """Flush and finish the file: rename ``.partial`` to the final name (atomic)."""
+        if self._closed:
+            return
+        self._closed = True
+        self._rec.flush()
+        self._rec.disconnect()
+        if self._partial is not None and self.path is not None and self._partial.exists():
+            os.replace(self._partial, self.path)
+
+    def __enter__(self) -> RerunSink:
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self.close()

@@ -1,0 +1,63 @@
+"""The telemetry port: a small ``Sink`` protocol and the do-nothing ``NullSink``.
+
+A run hands a sink batches of columns on the ``sim_time`` timeline; a sink never sees the
+controller or the plant. Entity paths are rerun-style (``axes/x/position/actual``).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping
+from typing import Protocol, runtime_checkable
+
+import numpy as np
+
+__all__ = ["NullSink", "Sink"]
+
+
+@runtime_checkable
+class Sink(Protocol):
+    """Where a run's signals go.
+
+    Every method takes SI values; ``t`` is simulated time (s), shape (n,), increasing.
+    """
+
+    def static_path(self, entity: str, points: np.ndarray, *,
+                    color: tuple[int, int, int] = (160, 160, 160)) -> None:
+        """A time-independent polyline, e.g. the programmed path; points (n, 2) (m)."""
+        ...
+
+    def scalars(self, t: np.ndarray, columns: Mapping[str, np.ndarray]) -> None:
+        """Scalar series: each value array has shape (n,)."""
+        ...
+
+    def points(self, t: np.ndarray, columns: Mapping[str, np.ndarray]) -> None:
+        """One 2-D point per sample: each value array has shape (n, 2) (m)."""
+        ...
+
+    def event(self, t: float, text: str, *, level: str = "INFO") -> None:
+        """A discrete event (block start, limit switch, trip) at time t (s)."""
+        ...
+
+    def close(self) -> None:
+        """Flush everything; the recording is complete and readable afterwards."""
+        ...
+
+
+class NullSink:
+    """A sink that drops everything (the default when telemetry is off)."""
+
+    def static_path(self, entity: str, points: np.ndarray, *,
+                    color: tuple[int, int, int] = (160, 160, 160)) -> None:
+        """Drop it."""
+
+    def scalars(self, t: np.ndarray, columns: Mapping[str, np.ndarray]) -> None:
+        """Drop it."""
+
+    def points(self, t: np.ndarray, columns: Mapping[str, np.ndarray]) -> None:
+        """Drop it."""
+
+    def event(self, t: float, text: str, *, level: str = "INFO") -> None:
+        """Drop it."""
+
+    def close(self) -> None:
+        """Nothing to flush."""
