@@ -1,0 +1,383 @@
+"""Position regulator of the axes: PID + FF1/FF2/FF3 feed-forward + DCU, saturation, DAC.
+
+Per axis and per tick (seed 004's extended-interface regulator plus seed 000's DCU)::
+
+    e   = x_ref - x
+    u   = kp·e + ki·T·Σe + kd·(e - e_prev)/T                  (P, I, D)
+        + ff1·v_ref + ff2·a_ref + ff3·j_ref                   (FF, LinuxCNC pid names)
+        + α1·∇x_ref + α2·∇²x_ref + α3·∇³x_ref                 (DCU, ∇ = 1 - z^-1)
+    out = dac(clamp(u, ±output_limit))
+
+Anti-windup is **conditional integration** (clamping): the integral is not advanced in a tick
+where the output saturates and the error would drive it further into saturation; it keeps
+integrating whenever the error pulls the output back. No extra tuning constant is needed.
+
+DAC mapping: a bipolar ``dac_bits`` converter spanning ±``output_limit``;
+``lsb = 2·output_limit / 2**dac_bits`` (12 bit, ±10 V: 20 V/4096 = 4.8828 mV); the code is
+``c = floor(u/lsb + 1/2)`` clamped to ``-2**(bits-1) … 2**(bits-1) - 1`` and the output is
+``c·lsb`` volts (offset-binary word ``c + 2**(bits-1)``), so +10 V comes out as 9.99512 V.
+
+``update`` is the cyclic path: plain Python float arithmetic over the axes (arrays are read
+once as lists, no numpy temporaries), and it never raises for expected conditions. A
+following error beyond the limit, or a non-finite input, zeroes the outputs and latches
+``FOLLOWING_ERROR`` (``INVALID_INPUT``) until ``reset``.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Sequence
+from dataclasses import dataclass
+from enum import IntEnum
+
+import numpy as np
+
+from twin.controller.dcu import dcu_as_feedforward, dcu_coefficients
+from twin.controller.linear import LinearAxisModel, position_gain
+from twin.errors import ConfigError
+
+__all__ = [
+    "TERMS",
+    "PositionRegulator",
+    "RegulatorGains",
+    "RegulatorStatus",
+    "default_gains",
+]
+
+TERMS = ("p", "i", "d", "ff", "dcu")
+"""Column names of ``PositionRegulator.terms`` (V)."""
+
+Gain = float | tuple[float, ...]
+_NDARRAY = np.ndarray
+
+
+def _gain(name: str, value: object, *, nonnegative: bool = False,
+          allow_inf: bool = False) -> Gain:
+    """A scalar or per-axis gain as float / tuple of float, validated."""
+    arr = np.asarray(value, dtype=float) if not isinstance(value, str) else None
+    if arr is None or arr.ndim > 1 or arr.size == 0:
+        raise ConfigError(name, f"must be a number or a sequence of numbers, got {value!r}")
+    if np.any(np.isnan(arr)) or (not allow_inf and np.any(np.isinf(arr))):
+        raise ConfigError(name, f"must be finite, got {value!r}")
+    if nonnegative and np.any(arr < 0.0):
+        raise ConfigError(name, f"must be >= 0, got {value!r}")
+    return float(arr) if arr.ndim == 0 else tuple(float(v) for v in arr)
+
+
+@dataclass(frozen=True, kw_only=True)
+class RegulatorGains:
+    """Gains and limits of the position regulator.
+
+    Each gain is one float for all axes or a sequence with one value per axis (stored as
+    a tuple).
+
+    Attributes
+    ----------
+    kp : float or tuple
+        Proportional gain (V/m), ≥ 0.
+    ki : float or tuple
+        Integral gain (V/(m·s)), ≥ 0.
+    kd : float or tuple
+        Derivative gain (V·s/m), ≥ 0.
+    ff1, ff2, ff3 : float or tuple
+        Velocity (V·s/m), acceleration (V·s²/m) and jerk (V·s³/m) feed-forward.
+    dcu_alpha : tuple, shape (3,) or (n_axes, 3)
+        DCU coefficients ``α1, α2, α3`` (V/m); zeros: no DCU.
+    output_limit : float
+        Output saturation and DAC full scale, ±``output_limit`` (V), > 0.
+    dac_bits : int or None
+        DAC resolution (bit), 1 … 32; None: no quantisation.
+    following_error_limit : float or tuple
+        Trip threshold on ``|x_ref - x|`` (m), > 0; ``math.inf`` disables the trip.
+    """
+
+    kp: Gain
+    ki: Gain = 0.0
+    kd: Gain = 0.0
+    ff1: Gain = 0.0
+    ff2: Gain = 0.0
+    ff3: Gain = 0.0
+    dcu_alpha: tuple = (0.0, 0.0, 0.0)
+    output_limit: float = 10.0
+    dac_bits: int | None = 12
+    following_error_limit: Gain = 2e-3
+
+    def __post_init__(self) -> None:
+        put = object.__setattr__
+        for name in ("kp", "ki", "kd"):
+            put(self, name, _gain(name, getattr(self, name), nonnegative=True))
+        for name in ("ff1", "ff2", "ff3"):
+            put(self, name, _gain(name, getattr(self, name)))
+        alpha = np.asarray(self.dcu_alpha, dtype=float)
+        if alpha.shape[-1:] != (3,) or alpha.ndim > 2 or not np.all(np.isfinite(alpha)):
+            raise ConfigError("dcu_alpha", "must be 3 finite numbers or one row of 3 per "
+                              f"axis, got {self.dcu_alpha!r}")
+        put(self, "dcu_alpha", tuple(tuple(float(a) for a in row) for row in alpha)
+            if alpha.ndim == 2 else tuple(float(a) for a in alpha))
+        limit = _gain("output_limit", self.output_limit)
+        if not isinstance(limit, float) or limit <= 0.0:
+            raise ConfigError("output_limit", f"must be one number > 0 (V), got "
+                              f"{self.output_limit!r}")
+        put(self, "output_limit", limit)
+        bits = self.dac_bits
+        if bits is not None and (isinstance(bits, bool) or not isinstance(bits, int)
+                                 or not 1 <= bits <= 32):
+            raise ConfigError("dac_bits", f"must be an integer 1…32 or None, got {bits!r}")
+        fel = _gain("following_error_limit", self.following_error_limit, allow_inf=True)
+        if min(fel if isinstance(fel, tuple) else (fel,)) <= 0.0:
+            raise ConfigError("following_error_limit", f"must be > 0 (m), got {fel!r}")
+        put(self, "following_error_limit", fel)
+
+    @property
+    def dac_lsb(self) -> float:
+        """DAC step (V): ``2·output_limit / 2**dac_bits``; 0 without quantisation."""
+        return 0.0 if self.dac_bits is None else 2.0 * self.output_limit / 2**self.dac_bits
+
+
+class RegulatorStatus(IntEnum):
+    """Result of one ``PositionRegulator.update``."""
+
+    OK = 0
+    """Regulating within the output range."""
+    SATURATED = 1
+    """At least one axis' output is clamped at ±output_limit (integration held)."""
+    FOLLOWING_ERROR = 2
+    """|x_ref - x| exceeded the limit on some axis: outputs zero, latched until reset."""
+    INVALID_INPUT = 3
+    """A non-finite reference or position: outputs zero, latched until reset."""
+
+
+def _per_axis(gains: RegulatorGains, name: str, n: int) -> list[float]:
+    value = getattr(gains, name)
+    if isinstance(value, tuple):
+        if len(value) != n:
+            raise ConfigError(name, f"has {len(value)} values, the regulator has {n} axes")
+        return list(value)
+    return [value] * n
+
+
+class PositionRegulator:
+    """The position regulator of ``n_axes`` axes.
+
+    Parameters
+    ----------
+    gains : RegulatorGains
+        Gains and limits.
+    period : float
+        Loop period ``T`` (s).
+    n_axes : int
+        Number of axes.
+
+    Attributes
+    ----------
+    output : ndarray, shape (n_axes,)
+        DAC output of the last update (V), saturated and quantised.
+    error : ndarray, shape (n_axes,)
+        ``x_ref - x`` of the last update (m).
+    terms : ndarray, shape (n_axes, 5)
+        P, I, D, FF and DCU contributions of the last update (V), columns ``TERMS``;
+        their sum is the output before saturation and quantisation.
+    status : RegulatorStatus
+        Status of the last update.
+    """
+
+    def __init__(self, gains: RegulatorGains, period: float, *, n_axes: int = 2):
+        if not (isinstance(period, int | float) and math.isfinite(period) and period > 0.0):
+            raise ConfigError("period", f"must be a finite number > 0 (s), got {period!r}")
+        if isinstance(n_axes, bool) or not isinstance(n_axes, int) or n_axes < 1:
+            raise ConfigError("n_axes", f"must be an integer >= 1, got {n_axes!r}")
+        self.gains = gains
+        self.period = float(period)
+        self.n_axes = n_axes
+        n = n_axes
+        self._axes = range(n)
+        self._kp = _per_axis(gains, "kp", n)
+        self._ki_t = [k * period for k in _per_axis(gains, "ki", n)]
+        self._kd_t = [k / period for k in _per_axis(gains, "kd", n)]
+        self._ff1 = _per_axis(gains, "ff1", n)
+        self._ff2 = _per_axis(gains, "ff2", n)
+        self._ff3 = _per_axis(gains, "ff3", n)
+        self._fel = _per_axis(gains, "following_error_limit", n)
+        alpha = np.broadcast_to(np.asarray(gains.dcu_alpha, dtype=float), (n, 3)) \
+            if np.ndim(gains.dcu_alpha) == 1 or len(gains.dcu_alpha) == n else None
+        if alpha is None:
+            raise ConfigError("dcu_alpha", f"has {len(gains.dcu_alpha)} rows, the regulator "
+                              f"has {n} axes")
+        self._a1, self._a2, self._a3 = (alpha[:, i].tolist() for i in range(3))
+        self._limit = gains.output_limit
+        self._lsb = gains.dac_lsb
+        half = 0 if gains.dac_bits is None else 2 ** (gains.dac_bits - 1)
+        self._code_min, self._code_max = -half, half - 1
+        self.output = np.zeros(n)
+        self.error = np.zeros(n)
+        self.terms = np.zeros((n, len(TERMS)))
+        self._rows = list(self.terms)
+        self.reset(np.zeros(n))
+
+    @property
+    def tripped(self) -> bool:
+        """True while a following-error or invalid-input trip is latched."""
+        return self._latched != RegulatorStatus.OK
+
+    def reset(self, position: Sequence[float] | np.ndarray) -> None:
+        """Start regulating at rest at ``position`` (m): clear the integral, the derivative
+        and DCU history (the reference is taken as standing at ``position``) and the trip."""
+        pos = [float(p) for p in position]
+        if len(pos) != self.n_axes or not all(map(math.isfinite, pos)):
+            raise ConfigError("position", f"must be {self.n_axes} finite numbers (m), "
+                              f"got {position!r}")
+        n = self.n_axes
+        self._integral = [0.0] * n
+        self._e_prev = [0.0] * n
+        self._h1, self._h2, self._h3 = list(pos), list(pos), list(pos)
+        self._latched = RegulatorStatus.OK
+        self.status = RegulatorStatus.OK
+        self.output[:] = 0.0
+        self.error[:] = 0.0
+        self.terms[:] = 0.0
+
+    def update(self, x_ref, v_ref, a_ref, j_ref, x_actual) -> RegulatorStatus:
+        """One regulation tick.
+
+        Parameters
+        ----------
+        x_ref, v_ref, a_ref, j_ref : sequence of float, length n_axes
+            Position (m), velocity (m/s), acceleration (m/s²) and jerk (m/s³) references.
+        x_actual : sequence of float, length n_axes
+            Measured position (m).
+
+        Returns
+        -------
+        RegulatorStatus
+            Also stored in ``status``; ``output``, ``error`` and ``terms`` are written.
+        """
+        err = self.error
+        # numpy scalars are slow in float arithmetic: take arrays as lists of Python floats
+        if type(x_ref) is _NDARRAY:
+            x_ref = x_ref.tolist()
+        if type(x_actual) is _NDARRAY:
+            x_actual = x_actual.tolist()
+        if type(v_ref) is _NDARRAY:
+            v_ref = v_ref.tolist()
+        if type(a_ref) is _NDARRAY:
+            a_ref = a_ref.tolist()
+        if type(j_ref) is _NDARRAY:
+            j_ref = j_ref.tolist()
+        if self._latched:
+            for k in self._axes:
+                err[k] = x_ref[k] - x_actual[k]
+            return self._latched
+        out, rows, lsb, limit = self.output, self._rows, self._lsb, self._limit
+        integral, e_prev, h1, h2, h3 = (self._integral, self._e_prev, self._h1, self._h2,
+                                        self._h3)
+        status = RegulatorStatus.OK
+        for k in self._axes:
+            xr = x_ref[k]
+            e = xr - x_actual[k]
+            err[k] = e
+            if not abs(e) <= self._fel[k]:
+                return self._trip(RegulatorStatus.FOLLOWING_ERROR if e - e == 0.0
+                                  else RegulatorStatus.INVALID_INPUT)
+            p = self._kp[k] * e
+            i_old = integral[k]
+            i = i_old + self._ki_t[k] * e
+            d = self._kd_t[k] * (e - e_prev[k])
+            ff = self._ff1[k] * v_ref[k] + self._ff2[k] * a_ref[k] + self._ff3[k] * j_ref[k]
+            x1, x2 = h1[k], h2[k]
+            d1 = xr - x1
+            d1p = x1 - x2
+            d2 = d1 - d1p
+            dcu = (self._a1[k] * d1 + self._a2[k] * d2
+                   + self._a3[k] * (d2 - d1p + (x2 - h3[k])))
+            u = p + i + d + ff + dcu
+            if u - u != 0.0:                       # NaN or inf from a feed-forward input
+                return self._trip(RegulatorStatus.INVALID_INPUT)
+            if u > limit or u < -limit:
+                if (u > 0.0) == (e > 0.0):         # conditional integration: hold
+                    u += i_old - i
+                    i = i_old
+                if u > limit:
+                    u = limit
+                    status = RegulatorStatus.SATURATED
+                elif u < -limit:
+                    u = -limit
+                    status = RegulatorStatus.SATURATED
+            if lsb:
+                c = math.floor(u / lsb + 0.5)
+                u = lsb * (self._code_max if c > self._code_max else
+                           self._code_min if c < self._code_min else c)
+            out[k] = u
+            row = rows[k]
+            row[0] = p
+            row[1] = i
+            row[2] = d
+            row[3] = ff
+            row[4] = dcu
+            integral[k] = i
+            e_prev[k] = e
+            h3[k] = x2
+            h2[k] = x1
+            h1[k] = xr
+        self.status = status
+        return status
+
+    def _trip(self, status: RegulatorStatus) -> RegulatorStatus:
+        self._latched = status
+        self.status = status
+        self.output[:] = 0.0
+        self.terms[:] = 0.0
+        return status
+
+
+# --------------------------------------------------------------------------- gain rules
+def default_gains(model: LinearAxisModel | Sequence[LinearAxisModel], period: float, *,
+                  dcu_order: int = 0, ff: bool = False,
+                  phase_margin: float = math.radians(70.0), delay_ticks: int = 1,
+                  following_error_limit: float = 2e-3) -> RegulatorGains:
+    """Gains from the linear axis model(s): P by ``position_gain``, feed-forward from the DCU.
+
+    ``ki = kd = 0``: the drive's PI speed loop already rejects load torque, and with the
+    free integrator a P position loop has no steady error at rest. With ``dcu_order`` k the
+    DCU coefficients make ``C0 … Ck`` vanish (``dcu_coefficients``). ``ff=True`` instead
+    sets FF1…FF3 to the float-channel equivalent of the order-3 DCU
+    (``dcu_as_feedforward``): ``FF1 = 1/K_H`` and FF2, FF3 compensating ZOH and delay.
+
+    Parameters
+    ----------
+    model : LinearAxisModel or sequence of LinearAxisModel
+        One model for all axes, or one per axis.
+    period : float
+        Loop period (s).
+    dcu_order : int
+        0 … 3.
+    ff : bool
+        Use FF1…FF3 instead of the DCU (they are two forms of one feed-forward).
+    phase_margin : float
+        For ``position_gain`` (rad).
+    delay_ticks : int
+        Computation delay (periods).
+    following_error_limit : float
+        Trip threshold (m).
+    """
+    if ff and dcu_order:
+        raise ConfigError("ff", "FF1…FF3 and the DCU are two forms of the same feed-forward; "
+                          "choose ff=True or dcu_order > 0, not both")
+    models = [model] if isinstance(model, LinearAxisModel) else list(model)
+    kp, alphas, ffs = [], [], []
+    for m in models:
+        kp.append(position_gain(m, period, phase_margin=phase_margin,
+                                delay_ticks=delay_ticks))
+        alpha = dcu_coefficients(m, period, 3 if ff else dcu_order, delay_ticks=delay_ticks)
+        ffs.append(dcu_as_feedforward(alpha, period) if ff else np.zeros(3))
+        alphas.append(np.zeros(3) if ff else alpha)
+    one = isinstance(model, LinearAxisModel)
+
+    def pack(values: list) -> Gain:
+        return float(values[0]) if one else tuple(float(v) for v in values)
+
+    return RegulatorGains(
+        kp=pack(kp), ff1=pack([f[0] for f in ffs]), ff2=pack([f[1] for f in ffs]),
+        ff3=pack([f[2] for f in ffs]),
+        dcu_alpha=tuple(alphas[0]) if one else tuple(tuple(a) for a in alphas),
+        following_error_limit=following_error_limit)
+
