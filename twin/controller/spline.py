@@ -289,11 +289,12 @@ def _validated(x, y) -> tuple[np.ndarray, np.ndarray]:
         bad = np.flatnonzero(~np.isfinite(arr.reshape(x.size, -1)).all(axis=1))
         if bad.size:
             k = bad[0]
-            raise ValueError(f"{name}[{k}] is not finite: {arr[k]}")
+            raise ValueError(f"{name}[{k}] is not finite: {arr[k].tolist()}")
     step = np.diff(x)
     bad = np.flatnonzero(~(step > 0.0))
     if bad.size:
         k = bad[0] + 1
         raise ValueError(
-            f"x must be strictly increasing: x[{k}] = {x[k]!r} ≤ x[{k - 1}] = {x[k - 1]!r}")
+            f"x must be strictly increasing: x[{k}] = {float(x[k])!r} ≤ x[{k - 1}] = "
+            f"{float(x[k - 1])!r}")
     return x, y
