@@ -13,6 +13,8 @@ import math
 import numpy as np
 import pytest
 import scipy.signal
+from hypothesis import given
+from hypothesis import strategies as st
 
 from twin.controller.dcu import dcu_as_feedforward, dcu_coefficients
 from twin.controller.linear import LinearAxisModel, position_gain
@@ -205,6 +207,24 @@ def test_non_finite_input_trips_without_raising(field, value):
     status = reg.update(args["x_ref"], args["v"], args["a"], args["j"], args["x"])
     assert status == RegulatorStatus.INVALID_INPUT
     assert reg.output.tolist() == [0.0, 0.0] and reg.tripped
+
+
+anything = st.floats(allow_nan=True, allow_infinity=True, width=64)
+ticks = st.lists(st.lists(anything, min_size=10, max_size=10), min_size=1, max_size=30)
+
+
+@given(ticks)
+def test_update_never_raises_and_the_output_stays_a_valid_dac_code(sequence):
+    reg = PositionRegulator(RegulatorGains(kp=8000.0, ki=3e4, kd=20.0, ff1=600.0, ff2=15.0,
+                                           ff3=0.2, dcu_alpha=(1.2e5, 6e5, 2e6)), T)
+    for row in sequence:
+        x_ref, v, a, j, x = (row[i:i + 2] for i in range(0, 10, 2))
+        status = reg.update(x_ref, v, a, j, x)
+        assert status in tuple(RegulatorStatus)
+        assert np.all(np.abs(reg.output) <= 10.0)
+        assert np.all(np.mod(reg.output, LSB_12) == 0.0)
+        if reg.tripped:
+            assert reg.output.tolist() == [0.0, 0.0]
 
 
 # ------------------------------------------------------------------ feed-forward
