@@ -208,7 +208,8 @@ class LinearAxisModel:
             ``q[0] == 1`` and ``b(1)/q(1) == K_H·T``.
         """
         _check_param("period", period, lower=0.0, strict=True)
-        if isinstance(delay_ticks, bool) or not isinstance(delay_ticks, int) or delay_ticks < 0:
+        if isinstance(delay_ticks, bool) or not isinstance(delay_ticks, int | np.integer) \
+                or delay_ticks < 0:
             raise ConfigError("delay_ticks", f"must be an integer >= 0, got {delay_ticks!r}")
         vden = self._den[:-1]                       # reference → velocity: num / vden
         m = vden.size - 1
@@ -234,7 +235,7 @@ class LinearAxisModel:
                 f[k] = cs @ x
                 x = phi @ x
         b = np.convolve(q, f)[: m + 2]
-        return np.concatenate([np.zeros(delay_ticks), b]), q
+        return np.concatenate([np.zeros(int(delay_ticks)), b]), q
 
     def discrete(self, period: float, *,
                  delay_ticks: int = 1) -> tuple[np.ndarray, np.ndarray]:
