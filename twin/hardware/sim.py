@@ -1,0 +1,63 @@
+"""``SimDriver``: the twin behind the ``MachineIO`` port, in lock-step.
+
+``read()`` samples the plant's sensors; ``write()`` applies the outputs and advances the plant
+by exactly one controller period, so simulated time runs as fast as the machine allows and a
+run is deterministic. The controller cannot tell this driver from a real I/O module.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from twin.controller.io import Inputs, Outputs
+from twin.plant import Plant
+
+__all__ = ["SimDriver"]
+
+
+class SimDriver:
+    """Lock-step driver over a ``Plant``.
+
+    Parameters
+    ----------
+    plant : Plant
+        The twin. Its state is whatever it is at construction (call ``plant.reset`` first).
+    period : float
+        Controller period (s); each ``write`` advances the plant by this much.
+    dry_run : bool
+        Run the controller without driving the motors (seed 001's dry run): the drives stay
+        disabled whatever the controller asks.
+    """
+
+    def __init__(self, plant: Plant, period: float, *, dry_run: bool = False):
+        if not period > 0:
+            raise ValueError(f"period must be > 0 s, got {period}")
+        self.plant = plant
+        self.period = period
+        self.dry_run = dry_run
+        self.last_status = None
+        self._zero = np.zeros(2)
+
+    def read(self) -> Inputs:
+        """Sample encoders, tachos and switches now."""
+        r = self.plant.read()
+        return Inputs(
+            encoder_counts=r.encoder_counts,
+            tacho_volts=r.tacho_volts,
+            limit_min=r.limit_min,
+            limit_max=r.limit_max,
+            home=r.home,
+            drive_ready=not bool(np.any(self.plant.truth().drive_fault)),
+            time=self.plant.time,
+        )
+
+    def write(self, outputs: Outputs) -> None:
+        """Apply the outputs and advance the plant one period."""
+        enable = bool(outputs.enable) and not self.dry_run
+        self.plant.enable(enable)
+        self.last_status = self.plant.step(outputs.dac_volts if enable else self._zero,
+                                           self.period)
+
+    def close(self) -> None:
+        """Disable the drives (the plant keeps its state for inspection)."""
+        self.plant.enable(False)
