@@ -1,0 +1,284 @@
+"""The axis drives as one object: the plant's interface to the converter/motor/loop model.
+
+:class:`Drives` holds the state of all axes in flat float64 arrays and advances them with one
+compiled call (:func:`twin.drive.kernel.drive_step`) per update interval. What each update
+models, per axis:
+
+- reference filter T1 on the speed reference (V), which the plant has already quantised and
+  saturated like the DAC does;
+- tachogenerator K_C·ω through its filter T_f (plus optional noise on the sampled signal);
+- at each firing instant t_j = j·T_p (the same grid for every axis, phase 0 at time 0): the
+  PI speed regulator (symmetric optimum) with the current limit, the bridge logic, the PI
+  current regulator (modulus optimum, back-EMF compensation) and the firing angle;
+- converter: a non-circulating pair of 6-pulse thyristor bridges (arccos firing: mean voltage
+  U_d0·cos α, constant between firing instants, clamped by the firing-angle limits; a bridge
+  conducts in one sense only, so the current stops at zero and stays there until the
+  voltage exceeds the EMF again; a reversal waits for zero current, removes the pulses and
+  releases the other bridge after ``converter.reversal_pause``), or a PWM bridge (averaged
+  voltage held over each PWM period, i.e. a delay of half a period, clamped at ±U_dc, current
+  of either sign);
+- armature L·di/dt = u − k·ω − R·i solved exactly, with ω(t) extrapolated linearly inside
+  the interval from the last two speeds the plant passed; the returned torque is k times the
+  interval-average current.
+
+The model is a mean-value one: the 300 Hz voltage ripple of the bridge is not modelled (it
+presumes the smoothing inductance included in ``armature_inductance`` keeps the ripple
+current small), so discontinuous conduction arises where the mean-value bridge must stop
+its current: while the regulators ask for less current than zero at light load (braking
+with little friction, speed reversal, low-speed regulation), not from ripple.
+
+Enable and faults
+    ``enable(False)`` (and a fault) block the converter at the next firing instant: the
+    regulators and the reference filter are reset, a flowing current is forced to zero
+    (bridge at the inverter end stop α_max; PWM freewheels against the DC link) and the
+    pulses are then removed. A fault trips when the current reference stays at the current
+    limit for longer than ``overload_time`` (a stalled or overloaded axis: the drive's
+    overload protection). It latches until ``enable(False)`` or ``reset()``.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Sequence
+
+import numpy as np
+
+from twin.config import AXES, AxisConfig, MachineConfig
+from twin.drive import kernel as K
+from twin.drive.design import DriveDesign, design, moving_masses
+from twin.errors import ConfigError, SimulationError
+
+__all__ = ["Drives"]
+
+_INPUT_NAMES = {K.STATUS_NONFINITE_UREF: "speed reference u_ref",
+                K.STATUS_NONFINITE_OMEGA: "rotor speed omega",
+                K.STATUS_NONFINITE_RESULT: "drive state (result)"}
+
+
+def _params(d: DriveDesign, axis: AxisConfig, overload_time: float,
+            extrapolate: bool) -> np.ndarray:
+    p = np.zeros(K.NP)
+    p[K.P_R] = d.resistance
+    p[K.P_TA] = d.armature_time_constant
+    p[K.P_K] = d.emf_constant
+    p[K.P_KC] = d.tacho_gain
+    p[K.P_TF] = d.tacho_filter
+    p[K.P_T1] = d.reference_filter
+    p[K.P_KPS] = d.speed_kp
+    p[K.P_TIS] = d.speed_ti
+    p[K.P_KPC] = d.current_kp
+    p[K.P_TIC] = d.current_ti
+    p[K.P_ILIM] = d.current_limit
+    p[K.P_TP] = d.sampling_period
+    p[K.P_UMAX] = d.max_voltage
+    p[K.P_VLO], p[K.P_VHI] = d.voltage_range
+    p[K.P_PWM] = 1.0 if d.converter == "pwm" else 0.0
+    p[K.P_PAUSE] = axis.converter.reversal_pause
+    p[K.P_ITH] = d.bridge_threshold
+    p[K.P_EMFC] = 1.0 if d.emf_compensation else 0.0
+    p[K.P_NOISE] = axis.tacho.noise
+    p[K.P_OVERLOAD] = overload_time
+    p[K.P_EXTRAP] = 1.0 if extrapolate else 0.0
+    return p
+
+
+class Drives:
+    """All axis drives of a machine, advanced together every ``dt``.
+
+    Parameters
+    ----------
+    axes : sequence of AxisConfig
+        One entry per axis (the plant passes x, y).
+    dt : float
+        Update interval (s); the plant calls :meth:`step` every ``dt``.
+    rng : numpy.random.Generator, optional
+        Source of the tacho noise (``tacho.noise`` > 0); default ``default_rng(0)``. Noise
+        draws happen only when some axis has noise, so runs stay deterministic.
+    moving_masses : sequence of float, optional
+        Mass moved by each axis (kg) for the speed-loop design; default each axis' own
+        carriage mass. :meth:`from_machine` passes the cross-table masses.
+    emf_compensation : bool, optional
+        Back-EMF compensation in the current regulators (default True).
+    overload_time : float, optional
+        Time at the current limit that trips the fault (s), default 1.0.
+    extrapolate_speed : bool, optional
+        Inside an interval take ω(t) linear, extrapolated from the last two ``omega``
+        inputs (default True, second-order coupling); False holds ω at its start value.
+    names : sequence of str, optional
+        Axis names for messages; default ``("x", "y")`` for two axes, else indices.
+
+    Raises
+    ------
+    ConfigError
+        If ``dt``, ``overload_time`` or the axis parameters are invalid.
+
+    Examples
+    --------
+    >>> drives = Drives([cfg.axes["x"], cfg.axes["y"]], dt=1e-3)   # doctest: +SKIP
+    >>> tau = drives.step(np.array([1.0, 0.0]), omega)               # doctest: +SKIP
+    """
+
+    def __init__(self, axes: Sequence[AxisConfig], dt: float, *,
+                 rng: np.random.Generator | None = None,
+                 moving_masses: Sequence[float] | None = None,
+                 emf_compensation: bool = True, overload_time: float = 1.0,
+                 extrapolate_speed: bool = True, names: Sequence[str] | None = None):
+        axes = list(axes)
+        if not axes:
+            raise ConfigError("axes", "need at least one axis")
+        if not (isinstance(dt, int | float) and math.isfinite(dt) and dt > 0.0):
+            raise ConfigError("dt", f"must be a finite interval > 0 (s), got {dt!r}")
+        if not (math.isfinite(overload_time) and overload_time > 0.0):
+            raise ConfigError("overload_time", f"must be > 0 (s), got {overload_time!r}")
+        n = len(axes)
+        masses = [None] * n if moving_masses is None else list(moving_masses)
+        if len(masses) != n:
+            raise ConfigError("moving_masses", f"needs {n} entries, got {len(masses)}")
+        if names is None:
+            names = AXES if n == len(AXES) else tuple(str(k) for k in range(n))
+        if len(names) != n:
+            raise ConfigError("names", f"needs {n} entries, got {len(names)}")
+        self.names: tuple[str, ...] = tuple(names)
+        self.designs: tuple[DriveDesign, ...] = tuple(
+            design(ax, moving_mass=m, emf_compensation=emf_compensation)
+            for ax, m in zip(axes, masses, strict=True))
+        self.dt = float(dt)
+        self._params = np.ascontiguousarray(
+            [_params(d, ax, overload_time, extrapolate_speed)
+             for d, ax in zip(self.designs, axes, strict=True)])
+        self._noisy = bool(np.any(self._params[:, K.P_NOISE] > 0.0))
+        self._rng = rng if rng is not None else np.random.default_rng(0)
+        firings = math.ceil(self.dt / float(np.min(self._params[:, K.P_TP]))) + 2
+        self._noise = np.zeros((n, firings))
+        self._state = K.empty_state(n)
+        self._n_step = 0
+        self._enabled = True
+        self.reset()
+
+    @classmethod
+    def from_machine(cls, machine: MachineConfig, *, dt: float | None = None,
+                     **options) -> Drives:
+        """Drives of both axes of ``machine``; the X axis carries the Y carriage.
+
+        ``dt`` defaults to ``simulation.timestep · simulation.drive_substeps``; further
+        keyword options go to the constructor.
+        """
+        if dt is None:
+            dt = machine.simulation.timestep * machine.simulation.drive_substeps
+        masses = moving_masses(machine)
+        return cls([machine.axes[a] for a in AXES], dt,
+                   moving_masses=[masses[a] for a in AXES], **options)
+
+    # ------------------------------------------------------------------ cyclic use
+    def reset(self) -> None:
+        """Zero state at time 0: no current, blocked bridges, enabled, faults cleared."""
+        self._state[:] = K.empty_state(len(self.designs))
+        self._n_step = 0
+        self._enabled = True
+
+    def enable(self, flag: bool) -> None:
+        """Drive enable input. ``False`` blocks the converters (and acknowledges faults)."""
+        self._enabled = bool(flag)
+        if not self._enabled:
+            self._state[:, K.S_FAULT] = 0.0
+
+    def step(self, u_ref: np.ndarray, omega: np.ndarray) -> np.ndarray:
+        """Advance all drives by ``dt``.
+
+        Parameters
+        ----------
+        u_ref : ndarray, shape (n,)
+            Speed references at the drive inputs (V), already quantised and saturated.
+        omega : ndarray, shape (n,)
+            Rotor speeds at the start of the interval (rad/s).
+
+        Returns
+        -------
+        ndarray, shape (n,)
+            Average motor torque over the interval (N·m).
+
+        Raises
+        ------
+        SimulationError
+            If an input is not finite (naming the input and the axis); nothing changes then.
+        """
+        u = np.ascontiguousarray(u_ref, dtype=np.float64)
+        w = np.ascontiguousarray(omega, dtype=np.float64)
+        n = len(self.designs)
+        if u.shape != (n,) or w.shape != (n,):
+            raise ValueError(f"u_ref and omega must have shape ({n},), got {u.shape} and "
+                             f"{w.shape}")
+        if self._noisy:
+            self._noise[:] = self._rng.standard_normal(self._noise.shape)
+        status = K.drive_step(self._params, self._state, u, w, self._noise, self._n_step,
+                              self.dt, self._enabled)
+        if status:
+            code, axis = divmod(status, 1000)
+            value = {K.STATUS_NONFINITE_UREF: u, K.STATUS_NONFINITE_OMEGA: w}.get(code)
+            got = f" = {value[axis]}" if value is not None else ""
+            raise SimulationError(f"drive {self.names[axis]}: {_INPUT_NAMES[code]} is not "
+                                  f"finite{got} at t = {self.time:.6f} s")
+        self._n_step += 1
+        return self._state[:, K.S_TORQUE].copy()
+
+    # ------------------------------------------------------------------ readouts
+    def _column(self, col: int) -> np.ndarray:
+        return self._state[:, col].copy()
+
+    @property
+    def time(self) -> float:
+        """Time of the drives (s): number of updates · dt."""
+        return self._n_step * self.dt
+
+    @property
+    def enabled(self) -> bool:
+        """The enable input."""
+        return self._enabled
+
+    @property
+    def tacho_volts(self) -> np.ndarray:
+        """Filtered tacho output as the ADC reads it (V), shape (n,)."""
+        return self._column(K.S_ADC)
+
+    @property
+    def current(self) -> np.ndarray:
+        """Armature current at the end of the last interval (A), shape (n,)."""
+        return self._column(K.S_I)
+
+    @property
+    def current_reference(self) -> np.ndarray:
+        """Speed-regulator output = current reference (A), shape (n,)."""
+        return self._column(K.S_IREF)
+
+    @property
+    def voltage(self) -> np.ndarray:
+        """Converter mean output voltage commanded now (V), shape (n,); 0 when blocked."""
+        return self._column(K.S_V)
+
+    @property
+    def torque(self) -> np.ndarray:
+        """Average motor torque over the last interval (N·m), shape (n,)."""
+        return self._column(K.S_TORQUE)
+
+    @property
+    def firing_angle(self) -> np.ndarray:
+        """Firing angle α (rad), shape (n,); NaN for PWM and while the pulses are removed."""
+        return self._column(K.S_ALPHA)
+
+    @property
+    def bridge(self) -> np.ndarray:
+        """Active converter, shape (n,), int: +1 forward, −1 reverse, 0 blocked or pause.
+
+        A PWM converter reports +1 while enabled (one four-quadrant bridge).
+        """
+        return self._state[:, K.S_BRIDGE].astype(np.int64)
+
+    @property
+    def speed_reference(self) -> np.ndarray:
+        """Speed reference after the T1 filter (V), shape (n,)."""
+        return self._column(K.S_REF)
+
+    @property
+    def fault(self) -> np.ndarray:
+        """Latched overload trip (current reference at its limit > overload_time), (n,)."""
+        return self._state[:, K.S_FAULT] != 0.0
