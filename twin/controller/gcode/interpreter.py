@@ -282,7 +282,7 @@ class Interpreter:
         if abs(end[0] - start[0]) <= COINCIDENT and abs(end[1] - start[1]) <= COINCIDENT:
             end = [*start]
         target = (end[0], end[1])
-        feed = modal.feed
+        feed = None if motion == "rapid" else modal.feed
         if motion != "rapid":
             feed_column = values["F"][1] if "F" in values else column
             if feed is None:
