@@ -53,10 +53,11 @@ def machines(
         print(json.dumps({"machines": rows}))
         return
     table = Table(title="machines")
-    for key in rows[0]:
+    keys = [k for k in rows[0] if k != "description"]
+    for key in keys:
         table.add_column(key)
     for r in rows:
-        table.add_row(*(f"{v:g}" if isinstance(v, float) else str(v) for v in r.values()))
+        table.add_row(*(f"{r[k]:g}" if isinstance(r[k], float) else str(r[k]) for k in keys))
     Console().print(table)
 
 

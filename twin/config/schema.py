@@ -1,15 +1,8 @@
-"""Machine parameter sets: TOML files validated into frozen dataclasses.
+"""The machine schema: frozen, validated dataclasses for every section of a machine file.
 
-A machine file has ``[machine]``, ``[axis_defaults.*]`` (applied to both axes), ``[axes.x.*]``
-and ``[axes.y.*]`` (per-axis overrides, deep-merged over the defaults), ``[controller.*]`` and
-``[simulation]``. Every value is SI unless its name carries a unit suffix (``_rpm``). Every
-error names the dotted field: ``axes.x.mechanics.carriage_mass: must be > 0, got -1``.
-
-Typical use::
-
-    cfg = load_machine("tomsk_xy")             # a preset in twin/machines/
-    cfg = load_machine("my_machine.toml")      # or a path
-    cfg = cfg.with_overrides({"controller.regulator.kp": 2000.0})
+Every numeric field carries its unit and bounds in its metadata; ``__post_init__`` checks
+them and raises ``ConfigError`` naming the field. Loading (TOML, dotted overrides) is in
+``twin.config.loader``.
 """
 
 from __future__ import annotations
@@ -17,18 +10,13 @@ from __future__ import annotations
 import copy
 import dataclasses
 import math
-import tomllib
-import types
-import typing
 from dataclasses import dataclass, field
-from pathlib import Path
 from typing import Any
 
 from twin.errors import ConfigError
 
 __all__ = [
     "AXES",
-    "MACHINES_DIR",
     "AxisConfig",
     "ControllerSettings",
     "ConverterConfig",
@@ -44,13 +32,9 @@ __all__ = [
     "SwitchConfig",
     "TachoConfig",
     "TransmissionConfig",
-    "available_machines",
-    "from_dict",
-    "load_machine",
 ]
 
 AXES = ("x", "y")
-MACHINES_DIR = Path(__file__).parent / "machines"
 
 
 def _spec(unit: str, *, gt: float | None = None, ge: float | None = None,
@@ -360,7 +344,9 @@ class MachineConfig(_Validated):
         ``axes.*.x`` style keys apply to both axes. Unknown keys raise ``ConfigError``
         listing the valid keys at that level.
         """
-        raw = copy.deepcopy(self._raw)
+        from twin.config.loader import _build, _set_path, _to_raw
+
+        raw = copy.deepcopy(_to_raw(self))
         for key, value in overrides.items():
             parts = key.split(".")
             if parts[0] == "axes" and len(parts) > 1 and parts[1] == "*":
@@ -369,171 +355,3 @@ class MachineConfig(_Validated):
             else:
                 _set_path(raw, parts, value, key)
         return _build(raw, self.source)
-
-    @property
-    def _raw(self) -> dict[str, Any]:
-        return _to_raw(self)
-
-
-def _to_raw(obj: Any) -> Any:
-    if dataclasses.is_dataclass(obj):
-        return {f.name: _to_raw(getattr(obj, f.name)) for f in dataclasses.fields(obj)
-                if f.name != "source"}
-    if isinstance(obj, dict):
-        return {k: _to_raw(v) for k, v in obj.items()}
-    if isinstance(obj, tuple):
-        return list(obj)
-    return obj
-
-
-def _set_path(raw: dict[str, Any], parts: list[str], value: Any, key: str) -> None:
-    node: Any = raw
-    for i, p in enumerate(parts[:-1]):
-        if not isinstance(node, dict) or p not in node:
-            valid = sorted(node) if isinstance(node, dict) else []
-            raise ConfigError(key, f"unknown key {'.'.join(parts[: i + 1])!r}; "
-                              f"valid here: {', '.join(valid)}")
-        node = node[p]
-    leaf = parts[-1]
-    if not isinstance(node, dict) or (leaf not in node and not _open_dict(parts)):
-        valid = sorted(node) if isinstance(node, dict) else []
-        raise ConfigError(key, f"unknown key {key!r}; valid here: {', '.join(valid)}")
-    node[leaf] = value
-
-
-def _open_dict(parts: list[str]) -> bool:
-    return len(parts) >= 2 and parts[-2] == "stiffness"
-
-
-# --------------------------------------------------------------------------- loading
-def _deep_merge(base: dict[str, Any], over: dict[str, Any]) -> dict[str, Any]:
-    out = copy.deepcopy(base)
-    for k, v in over.items():
-        if isinstance(v, dict) and isinstance(out.get(k), dict) and k != "stiffness":
-            out[k] = _deep_merge(out[k], v)
-        else:
-            out[k] = copy.deepcopy(v)
-    return out
-
-
-def _coerce(tp: Any, value: Any, path: str) -> Any:
-    origin = typing.get_origin(tp)
-    if origin in (typing.Union, types.UnionType):
-        args = [a for a in typing.get_args(tp) if a is not type(None)]
-        if value is None:
-            return None
-        return _coerce(args[0], value, path)
-    if dataclasses.is_dataclass(tp):
-        if not isinstance(value, dict):
-            raise ConfigError(path, f"must be a table, got {type(value).__name__}")
-        return from_dict(tp, value, path)
-    if origin is dict:
-        if not isinstance(value, dict):
-            raise ConfigError(path, f"must be a table, got {type(value).__name__}")
-        _, vt = typing.get_args(tp)
-        return {k: _coerce(vt, v, f"{path}.{k}") for k, v in value.items()}
-    if origin is tuple:
-        if not isinstance(value, list | tuple):
-            raise ConfigError(path, f"must be an array, got {value!r}")
-        args = typing.get_args(tp)
-        if len(args) != len(value):
-            raise ConfigError(path, f"must have {len(args)} items, got {len(value)}")
-        pairs = enumerate(zip(args, value, strict=True))
-        return tuple(_coerce(a, v, f"{path}[{i}]") for i, (a, v) in pairs)
-    if tp is float:
-        if isinstance(value, bool) or not isinstance(value, int | float):
-            raise ConfigError(path, f"must be a number, got {value!r}")
-        if not math.isfinite(value):
-            raise ConfigError(path, f"must be finite, got {value}")
-        return float(value)
-    if tp is int:
-        if isinstance(value, bool) or not isinstance(value, int):
-            raise ConfigError(path, f"must be an integer, got {value!r}")
-        return value
-    if tp is str:
-        if not isinstance(value, str):
-            raise ConfigError(path, f"must be a string, got {value!r}")
-        return value
-    if tp is bool:
-        if not isinstance(value, bool):
-            raise ConfigError(path, f"must be true or false, got {value!r}")
-        return value
-    return value
-
-
-def from_dict(cls: type, data: dict[str, Any], path: str = "") -> Any:
-    """Build dataclass ``cls`` from a plain dict, naming the dotted field on any error."""
-    hints = typing.get_type_hints(cls)
-    names = {f.name for f in dataclasses.fields(cls) if f.init}
-    prefix = f"{path}." if path else ""
-    for key in data:
-        if key not in names:
-            raise ConfigError(f"{prefix}{key}", f"unknown key; valid: {', '.join(sorted(names))}")
-    kwargs = {}
-    for f in dataclasses.fields(cls):
-        if not f.init:
-            continue
-        fpath = f"{prefix}{f.name}"
-        if f.name in data:
-            kwargs[f.name] = _coerce(hints[f.name], data[f.name], fpath)
-        elif f.default is dataclasses.MISSING and f.default_factory is dataclasses.MISSING:
-            raise ConfigError(fpath, "missing")
-    try:
-        return cls(**kwargs)
-    except ConfigError as exc:
-        if exc.field.startswith(prefix) and prefix:
-            raise
-        raise ConfigError(f"{prefix}{exc.field}", exc.message) from None
-
-
-def _build(raw: dict[str, Any], source: str) -> MachineConfig:
-    cfg = from_dict(MachineConfig, raw)
-    return dataclasses.replace(cfg, source=source)
-
-
-def available_machines() -> list[str]:
-    """Names of the presets shipped in ``twin/machines``."""
-    return sorted(p.stem for p in MACHINES_DIR.glob("*.toml"))
-
-
-def load_machine(name_or_path: str | Path) -> MachineConfig:
-    """Load and validate a machine by preset name or TOML path.
-
-    Raises
-    ------
-    ConfigError
-        If the file is missing, not valid TOML, or a field is missing or out of range.
-    """
-    p = Path(name_or_path)
-    if not p.suffix and not p.exists():
-        p = MACHINES_DIR / f"{name_or_path}.toml"
-    if not p.is_file():
-        raise ConfigError("machine", f"no machine file {str(name_or_path)!r}; presets: "
-                          f"{', '.join(available_machines())}")
-    try:
-        doc = tomllib.loads(p.read_text(encoding="utf-8"))
-    except tomllib.TOMLDecodeError as exc:
-        raise ConfigError(str(p), f"invalid TOML: {exc}") from None
-    return machine_from_toml_dict(doc, source=str(p))
-
-
-def machine_from_toml_dict(doc: dict[str, Any], *, source: str = "<dict>") -> MachineConfig:
-    """Validate a parsed machine document (``[machine]``, ``[axis_defaults]``, ``[axes]``...)."""
-    doc = copy.deepcopy(doc)
-    head = doc.pop("machine", None)
-    if not isinstance(head, dict) or "name" not in head:
-        raise ConfigError("machine.name", "missing")
-    defaults = doc.pop("axis_defaults", {})
-    axes_over = doc.pop("axes", {})
-    if not isinstance(axes_over, dict):
-        raise ConfigError("axes", "must be a table")
-    for ax in axes_over:
-        if ax not in AXES:
-            raise ConfigError(f"axes.{ax}", f"unknown axis; valid: {', '.join(AXES)}")
-    raw: dict[str, Any] = {
-        "name": head["name"],
-        "description": head.get("description", ""),
-        "axes": {ax: _deep_merge(defaults, axes_over.get(ax, {})) for ax in AXES},
-        **doc,
-    }
-    return _build(raw, source)

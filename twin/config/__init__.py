@@ -1,0 +1,63 @@
+"""Machine parameter sets: TOML files validated into frozen dataclasses.
+
+A machine file has ``[machine]``, ``[axis_defaults.*]`` (applied to both axes), ``[axes.x.*]``
+and ``[axes.y.*]`` (per-axis overrides, deep-merged over the defaults), ``[controller.*]`` and
+``[simulation]``. Every value is SI unless its name carries a unit suffix (``_rpm``). Every
+error names the dotted field: ``axes.x.mechanics.carriage_mass: must be > 0, got -1``.
+
+Typical use::
+
+    cfg = load_machine("tomsk_xy")             # a preset in twin/machines/
+    cfg = load_machine("my_machine.toml")      # or a path
+    cfg = cfg.with_overrides({"controller.regulator.kp": 2000.0})
+"""
+
+from twin.config.loader import (
+    MACHINES_DIR,
+    available_machines,
+    from_dict,
+    load_machine,
+    machine_from_toml_dict,
+)
+from twin.config.schema import (
+    AXES,
+    AxisConfig,
+    ControllerSettings,
+    ConverterConfig,
+    DacConfig,
+    EncoderConfig,
+    LimitsConfig,
+    MachineConfig,
+    MechanicsConfig,
+    MotorConfig,
+    RegulatorSettings,
+    SimulationConfig,
+    SpeedLoopConfig,
+    SwitchConfig,
+    TachoConfig,
+    TransmissionConfig,
+)
+
+__all__ = [
+    "AXES",
+    "MACHINES_DIR",
+    "AxisConfig",
+    "ControllerSettings",
+    "ConverterConfig",
+    "DacConfig",
+    "EncoderConfig",
+    "LimitsConfig",
+    "MachineConfig",
+    "MechanicsConfig",
+    "MotorConfig",
+    "RegulatorSettings",
+    "SimulationConfig",
+    "SpeedLoopConfig",
+    "SwitchConfig",
+    "TachoConfig",
+    "TransmissionConfig",
+    "available_machines",
+    "from_dict",
+    "load_machine",
+    "machine_from_toml_dict",
+]
