@@ -1,0 +1,512 @@
+"""Error metrics of a run: what seed 000's rig plotted and seed 001 optimised.
+
+All inputs and results are SI (m, s, m/s); :meth:`RunMetrics.to_report` is the one place
+that converts to µm and mm/min. Arrays of positions are ``(n, 2)``, columns x and y.
+
+* coordinate error: ``reference − actual`` per axis;
+* contour error: shortest distance from the actual point to the programmed path, exact for
+  lines, arcs and splines (each segment answers its own exact distance); bounding boxes
+  prune the search so that 10⁶ samples on 10³ segments take about a second;
+* vector error: ``|reference − actual|``;
+* velocity error per axis;
+* corner error of seed 001 at a node B between segments AB and BC;
+* residual vibration after the motion ends, overshoot past the target;
+* cycle time and productivity (path length / time, seed 001).
+
+Typical use::
+
+    err = contour_error(path, rec["position"], hint=rec["segment"])      # (n,) m
+    m = summarize(t, ref_pos, ref_vel, pos, vel, path, segment=rec["segment"])
+    print(m.to_report()["max_contour_error_um"])
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Sequence
+from dataclasses import dataclass, fields
+
+import numpy as np
+
+from twin.controller.geometry import Line, Segment
+from twin.controller.io import AXES
+from twin.errors import ConfigError
+from twin.units import to_mm, to_mm_per_min, to_um
+
+__all__ = [
+    "CornerError",
+    "RunMetrics",
+    "contour_error",
+    "coordinate_error",
+    "corner_error",
+    "cycle_time",
+    "overshoot",
+    "productivity",
+    "residual_vibration",
+    "summarize",
+    "vector_error",
+    "velocity_error",
+]
+
+
+def _xy(name: str, value, n: int | None = None) -> np.ndarray:
+    arr = np.asarray(value, dtype=float)
+    if arr.ndim != 2 or arr.shape[1] != 2:
+        raise ValueError(f"{name} must have shape (n, 2), got {arr.shape}")
+    if n is not None and arr.shape[0] != n:
+        raise ValueError(f"{name} must have {n} rows like the other inputs, got {arr.shape[0]}")
+    return arr
+
+
+def _times(t, n: int) -> np.ndarray:
+    arr = np.asarray(t, dtype=float)
+    if arr.shape != (n,):
+        raise ValueError(f"t must have shape ({n},), got {arr.shape}")
+    return arr
+
+
+def _unit(name: str, value) -> np.ndarray:
+    arr = np.asarray(value, dtype=float)
+    norm = float(np.hypot(*arr)) if arr.shape == (2,) else 0.0
+    if not (norm > 0.0 and math.isfinite(norm)):
+        raise ValueError(f"{name} must be a finite non-zero vector of shape (2,), got {value!r}")
+    return arr / norm
+
+
+# ------------------------------------------------------------------ pointwise errors
+def coordinate_error(ref, actual) -> np.ndarray:
+    """Coordinate error per axis, ``ref − actual``.
+
+    Parameters
+    ----------
+    ref, actual : array_like, shape (n, 2)
+        Reference and actual position (m).
+
+    Returns
+    -------
+    ndarray, shape (n, 2)
+        Error (m).
+    """
+    ref = _xy("ref", ref)
+    return ref - _xy("actual", actual, ref.shape[0])
+
+
+def vector_error(ref, actual) -> np.ndarray:
+    """Vector error ``|ref − actual|`` (m), shape (n,); inputs (n, 2) (m)."""
+    return np.hypot(*coordinate_error(ref, actual).T)
+
+
+def velocity_error(ref_velocity, velocity) -> np.ndarray:
+    """Velocity error per axis ``ref_velocity − velocity`` (m/s), shape (n, 2)."""
+    ref = _xy("ref_velocity", ref_velocity)
+    return ref - _xy("velocity", velocity, ref.shape[0])
+
+
+# --------------------------------------------------------------------- contour error
+def contour_error(path: Sequence[Segment], actual, *, hint=None, window: int = 1
+                  ) -> np.ndarray:
+    """Distance from each actual point to the programmed path.
+
+    Parameters
+    ----------
+    path : sequence of Segment
+        The programmed path (lines, arcs, splines), in order.
+    actual : array_like, shape (n, 2)
+        Actual positions (m).
+    hint : array_like of int, shape (n,), optional
+        Index of the active segment per sample (values outside ``[0, len(path))`` are
+        clipped). Then only segments ``hint − window … hint + window`` are searched:
+        the exact distance whenever the nearest point of the path lies on one of them,
+        which holds unless the path comes back within the error distance of itself.
+        Without it the whole path is searched, exactly.
+    window : int
+        Segments searched on each side of the hint (≥ 0).
+
+    Returns
+    -------
+    ndarray, shape (n,)
+        Contour error (m), ≥ 0.
+
+    Notes
+    -----
+    Without a hint each segment is tried only on the samples inside its bounding box grown
+    by a search radius (found from coordinate-sorted samples, x or y, whichever strip holds
+    fewer) whose box distance does not exceed their best distance so far; samples whose
+    best distance is within the radius are final (a nearer segment would have been tried),
+    the others are searched again with four times the radius.
+    """
+    segments = list(path)
+    if not segments:
+        raise ValueError("path must hold at least one segment")
+    pts = _xy("actual", actual)
+    n = pts.shape[0]
+    best = np.full(n, np.inf)
+    if n == 0:
+        return best
+    if hint is not None:
+        if isinstance(window, bool) or not isinstance(window, int | np.integer) or window < 0:
+            raise ValueError(f"window must be an integer >= 0, got {window!r}")
+        hint = np.asarray(hint)
+        if hint.shape != (n,) or not np.issubdtype(hint.dtype, np.integer):
+            raise ValueError(f"hint must be an integer array of shape ({n},), got "
+                             f"{hint.dtype} {hint.shape}")
+        _search_window(segments, pts, best, hint, int(window))
+        return best
+    _search_all(segments, pts, best)
+    return best
+
+
+def _search_window(segments: list[Segment], pts: np.ndarray, best: np.ndarray,
+                   hint: np.ndarray, window: int) -> None:
+    m = len(segments)
+    hint = np.clip(hint, 0, m - 1)
+    order = np.argsort(hint, kind="stable")
+    first = np.searchsorted(hint[order], np.arange(m + 1))  # samples of segment j: [j, j+1)
+    for j, seg in enumerate(segments):
+        idx = order[first[max(j - window, 0)]:first[min(j + window, m - 1) + 1]]
+        if idx.size:
+            best[idx] = np.minimum(best[idx], seg.distance(pts[idx]))
+
+
+def _search_all(segments: list[Segment], pts: np.ndarray, best: np.ndarray) -> None:
+    boxes = np.array([np.concatenate(seg.bounding_box()) for seg in segments])  # (m, 4)
+    lower, upper = boxes[:, :2], boxes[:, 2:]
+    radius = max(1e-4 * float(np.hypot(*(upper.max(axis=0) - lower.min(axis=0)))), 1e-12)
+    finite = np.isfinite(pts).all(axis=1)
+    best[~finite] = np.nan
+    todo = np.flatnonzero(finite)
+    while todo.size:
+        sub, sub_best = pts[todo], best[todo]
+        by_x, by_y = np.argsort(sub[:, 0]), np.argsort(sub[:, 1])
+        xs, ys = sub[by_x, 0], sub[by_y, 1]
+        x0, y0 = (np.searchsorted(v, lower[:, k] - radius, side="left")
+                  for k, v in enumerate((xs, ys)))
+        x1, y1 = (np.searchsorted(v, upper[:, k] + radius, side="right")
+                  for k, v in enumerate((xs, ys)))
+        for j, seg in enumerate(segments):
+            narrow_x = x1[j] - x0[j] <= y1[j] - y0[j]
+            cand = by_x[x0[j]:x1[j]] if narrow_x else by_y[y0[j]:y1[j]]
+            if not cand.size:
+                continue
+            p = sub[cand]
+            gap = np.maximum(np.maximum(lower[j] - p, p - upper[j]), 0.0)  # to the box (m)
+            cand = cand[np.hypot(*gap.T) <= np.minimum(sub_best[cand], radius)]
+            if cand.size:
+                sub_best[cand] = np.minimum(sub_best[cand], seg.distance(sub[cand]))
+        best[todo] = sub_best
+        todo = todo[sub_best > radius]
+        radius *= 4.0
+
+
+# ---------------------------------------------------------------------- corner error
+@dataclass(frozen=True)
+class CornerError:
+    """Seed 001 contour error at a corner B between segments AB and BC.
+
+    Attributes
+    ----------
+    delta_max : float
+        ``max(delta_path_max, delta_node)`` (m).
+    delta_path_max : float
+        ``max_n min(dist(T_n, AB), dist(T_n, BC))`` (m).
+    delta_node : float
+        ``min_n |B − T_n|``, how close the tool came to the corner (m).
+    index : int
+        Sample at which ``delta_max`` is attained.
+    """
+
+    delta_max: float
+    delta_path_max: float
+    delta_node: float
+    index: int
+
+
+def corner_error(a, b, c, points) -> CornerError:
+    """Seed 001 maximum contour error of a trajectory around the corner A-B-C.
+
+    Parameters
+    ----------
+    a, b, c : array_like, shape (2,)
+        Corner points (m): the path runs A → B → C.
+    points : array_like, shape (n, 2)
+        Trajectory samples T_n (m), n ≥ 1.
+
+    Returns
+    -------
+    CornerError
+        ``δ_n = min(dist(T_n, AB), dist(T_n, BC))``, ``δ_B = min_n |B − T_n|``,
+        ``δ_max = max(max_n δ_n, δ_B)`` and the sample where ``δ_max`` is attained.
+    """
+    pts = _xy("points", points)
+    if pts.shape[0] == 0:
+        raise ValueError("points must hold at least one sample")
+    first, second = Line(a, b), Line(b, c)
+    along = np.minimum(first.distance(pts), second.distance(pts))
+    to_node = np.hypot(*(pts - second.start).T)
+    i_path, i_node = int(np.argmax(along)), int(np.argmin(to_node))
+    path_max, node = float(along[i_path]), float(to_node[i_node])
+    if path_max >= node:
+        return CornerError(path_max, path_max, node, i_path)
+    return CornerError(node, path_max, node, i_node)
+
+
+# -------------------------------------------------------------- after-motion metrics
+def residual_vibration(t, position, t_end: float, *, target=None) -> float:
+    """Peak deviation of the position from its final (or target) value after ``t_end``.
+
+    Parameters
+    ----------
+    t : array_like, shape (n,)
+        Sample times (s).
+    position : array_like, shape (n, 2)
+        Actual position (m).
+    t_end : float
+        End of the commanded motion (s); samples with ``t > t_end`` are examined.
+    target : array_like, shape (2,), optional
+        Rest position (m). Default: the last sample.
+
+    Returns
+    -------
+    float
+        ``max |position − target|`` over the samples after ``t_end`` (m).
+
+    Raises
+    ------
+    ValueError
+        If no sample lies after ``t_end`` (record past the end of the motion).
+    """
+    pos = _xy("position", position)
+    times = _times(t, pos.shape[0])
+    after = times > t_end
+    if not after.any():
+        raise ValueError(f"no sample after t_end = {t_end} s: record past the end of the "
+                         "motion to measure residual vibration")
+    rest = pos[-1] if target is None else np.asarray(target, dtype=float)
+    return float(np.hypot(*(pos[after] - rest).T).max())
+
+
+def overshoot(t, position, target, direction, *, after: float | None = None) -> float:
+    """Largest travel past ``target`` along ``direction`` (m), 0 if it never passes.
+
+    Parameters
+    ----------
+    t : array_like, shape (n,)
+        Sample times (s).
+    position : array_like, shape (n, 2)
+        Actual position (m).
+    target : array_like, shape (2,)
+        Target point (m).
+    direction : array_like, shape (2,)
+        Direction of the approach (any length, not zero).
+    after : float, optional
+        Only samples with ``t >= after`` count (s), e.g. once the reference has arrived, so
+        that a path passing the target's level earlier is not mistaken for an overshoot.
+    """
+    pos = _xy("position", position)
+    times = _times(t, pos.shape[0])
+    if after is not None:
+        pos = pos[times >= after]
+    if pos.shape[0] == 0:
+        return 0.0
+    past = (pos - np.asarray(target, dtype=float)) @ _unit("direction", direction)
+    return max(float(past.max()), 0.0)
+
+
+def cycle_time(t, moving) -> float:
+    """Time from the first moving sample to the sample after the last one (s).
+
+    Parameters
+    ----------
+    t : array_like, shape (n,)
+        Sample times (s), increasing.
+    moving : array_like of bool, shape (n,)
+        True where the machine is in motion (e.g. the reference velocity is not zero).
+
+    Returns
+    -------
+    float
+        ``t[last + 1] − t[first]`` (``t[-1] − t[first]`` if the motion lasts to the end);
+        0 when nothing moves. With period T, k moving samples in a row give k·T.
+    """
+    moving = np.asarray(moving, dtype=bool)
+    times = _times(t, moving.shape[0] if moving.ndim == 1 else -1)
+    idx = np.flatnonzero(moving)
+    if idx.size == 0:
+        return 0.0
+    stop = min(int(idx[-1]) + 1, times.size - 1)
+    return float(times[stop] - times[idx[0]])
+
+
+def productivity(path_length: float, duration: float) -> float:
+    """Seed 001 productivity index: path length over program time (m/s).
+
+    Parameters
+    ----------
+    path_length : float
+        Length of the programmed path (m), ≥ 0.
+    duration : float
+        Program time (s), > 0.
+    """
+    if not (math.isfinite(path_length) and path_length >= 0.0):
+        raise ValueError(f"path_length must be finite and >= 0 (m), got {path_length!r}")
+    if not (math.isfinite(duration) and duration > 0.0):
+        raise ValueError(f"duration must be finite and > 0 (s), got {duration!r}")
+    return path_length / duration
+
+
+# --------------------------------------------------------------------------- summary
+_PER_AXIS = ("max_coordinate_error", "rms_coordinate_error", "max_velocity_error",
+             "rms_velocity_error")
+
+
+@dataclass(frozen=True)
+class RunMetrics:
+    """Every metric of one run, SI. ``to_report()`` gives µm, mm, mm/min and s.
+
+    Attributes
+    ----------
+    samples : int
+        Number of samples.
+    max_coordinate_error, rms_coordinate_error : tuple of float, (x, y)
+        Largest absolute and RMS coordinate error per axis (m).
+    max_contour_error, rms_contour_error : float
+        Largest and RMS contour error (m).
+    max_vector_error, rms_vector_error : float
+        Largest and RMS vector error (m).
+    max_velocity_error, rms_velocity_error : tuple of float, (x, y)
+        Largest absolute and RMS velocity error per axis (m/s).
+    residual_vibration : float
+        Peak deviation from the final position after the motion (m); NaN if the record
+        stops with the motion.
+    overshoot : float
+        Travel past the programmed end point along the final tangent after the motion (m).
+    cycle_time : float
+        Program time, first to last commanded motion (s).
+    path_length : float
+        Length of the programmed path (m).
+    productivity : float
+        ``path_length / cycle_time`` (m/s); 0 if nothing moved.
+    """
+
+    samples: int
+    max_coordinate_error: tuple[float, float]
+    rms_coordinate_error: tuple[float, float]
+    max_contour_error: float
+    rms_contour_error: float
+    max_vector_error: float
+    rms_vector_error: float
+    max_velocity_error: tuple[float, float]
+    rms_velocity_error: tuple[float, float]
+    residual_vibration: float
+    overshoot: float
+    cycle_time: float
+    path_length: float
+    productivity: float
+
+    def __post_init__(self) -> None:
+        for f in fields(self):
+            value = getattr(self, f.name)
+            values = value if f.name in _PER_AXIS else (value,)
+            if f.name in _PER_AXIS and len(values) != len(AXES):
+                raise ConfigError(f.name, f"must hold one value per axis {AXES}, got {value!r}")
+            if any(v < 0 for v in values):  # NaN passes: a diverged run has no value
+                raise ConfigError(f.name, f"must be >= 0, got {value!r}")
+
+    def to_report(self) -> dict[str, float]:
+        """Flat dict for reports and JSON: lengths in µm (mm for the path), speeds in mm/min.
+
+        Keys: ``samples``, ``max_coordinate_error_{x,y}_um``, ``rms_coordinate_error_{x,y}_um``,
+        ``max_contour_error_um``, ``rms_contour_error_um``, ``max_vector_error_um``,
+        ``rms_vector_error_um``, ``max_velocity_error_{x,y}_mm_per_min``,
+        ``rms_velocity_error_{x,y}_mm_per_min``, ``residual_vibration_um``, ``overshoot_um``,
+        ``cycle_time_s``, ``path_length_mm``, ``productivity_mm_per_min``.
+        """
+        report: dict[str, float] = {"samples": self.samples}
+        for name in ("max_coordinate_error", "rms_coordinate_error"):
+            for axis, value in zip(AXES, getattr(self, name), strict=True):
+                report[f"{name}_{axis}_um"] = to_um(value)
+        for name in ("max_contour_error", "rms_contour_error", "max_vector_error",
+                     "rms_vector_error"):
+            report[f"{name}_um"] = to_um(getattr(self, name))
+        for name in ("max_velocity_error", "rms_velocity_error"):
+            for axis, value in zip(AXES, getattr(self, name), strict=True):
+                report[f"{name}_{axis}_mm_per_min"] = to_mm_per_min(value)
+        report["residual_vibration_um"] = to_um(self.residual_vibration)
+        report["overshoot_um"] = to_um(self.overshoot)
+        report["cycle_time_s"] = self.cycle_time
+        report["path_length_mm"] = to_mm(self.path_length)
+        report["productivity_mm_per_min"] = to_mm_per_min(self.productivity)
+        return report
+
+
+def _rms(values: np.ndarray, axis=None):
+    return np.sqrt(np.mean(np.square(values), axis=axis))
+
+
+def summarize(t, ref_position, ref_velocity, position, velocity, path: Sequence[Segment], *,
+              segment=None, t_end: float | None = None, window: int = 1) -> RunMetrics:
+    """All metrics of a recorded run.
+
+    Parameters
+    ----------
+    t : array_like, shape (n,)
+        Sample times (s), increasing, n ≥ 1.
+    ref_position, position : array_like, shape (n, 2)
+        Reference and actual position (m).
+    ref_velocity, velocity : array_like, shape (n, 2)
+        Reference and actual velocity (m/s).
+    path : sequence of Segment
+        The programmed path.
+    segment : array_like of int, shape (n,), optional
+        Active segment per sample; speeds up the contour error (see :func:`contour_error`).
+    t_end : float, optional
+        End of the commanded motion (s). Default: the sample after the last one with a
+        non-zero reference velocity.
+    window : int
+        Segments searched on each side of ``segment`` for the contour error.
+
+    Returns
+    -------
+    RunMetrics
+        Samples that move are those with a non-zero reference velocity; residual vibration
+        is measured after ``t_end`` about the final position, overshoot after ``t_end``
+        past the end of the path along its final tangent.
+    """
+    pos = _xy("position", position)
+    n = pos.shape[0]
+    if n == 0:
+        raise ValueError("a run needs at least one sample")
+    times = _times(t, n)
+    ref_pos = _xy("ref_position", ref_position, n)
+    coord = coordinate_error(ref_pos, pos)
+    vector = np.hypot(*coord.T)
+    vel = velocity_error(_xy("ref_velocity", ref_velocity, n), _xy("velocity", velocity, n))
+    contour = contour_error(path, pos, hint=segment, window=window)
+    moving = np.any(np.asarray(ref_velocity, dtype=float) != 0.0, axis=1)
+    duration = cycle_time(times, moving)
+    if t_end is None:
+        idx = np.flatnonzero(moving)
+        t_end = float(times[min(int(idx[-1]) + 1, n - 1)]) if idx.size else float(times[0])
+    try:
+        vibration = residual_vibration(times, pos, t_end)
+    except ValueError:
+        vibration = math.nan
+    segments = list(path)
+    length = math.fsum(seg.length for seg in segments)
+    return RunMetrics(
+        samples=n,
+        max_coordinate_error=tuple(np.abs(coord).max(axis=0).tolist()),
+        rms_coordinate_error=tuple(_rms(coord, axis=0).tolist()),
+        max_contour_error=float(contour.max()),
+        rms_contour_error=float(_rms(contour)),
+        max_vector_error=float(vector.max()),
+        rms_vector_error=float(_rms(vector)),
+        max_velocity_error=tuple(np.abs(vel).max(axis=0).tolist()),
+        rms_velocity_error=tuple(_rms(vel, axis=0).tolist()),
+        residual_vibration=vibration,
+        overshoot=overshoot(times, pos, segments[-1].end, segments[-1].end_tangent,
+                            after=t_end),
+        cycle_time=duration,
+        path_length=length,
+        productivity=productivity(length, duration) if duration > 0.0 else 0.0,
+    )
