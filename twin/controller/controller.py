@@ -1,0 +1,435 @@
+"""The cyclic CNC controller: one ``tick(inputs) -> outputs`` per position-loop period.
+
+Each tick runs, in this order (seed 000's single-PC loop):
+
+1. encoder unwrap: raw counters → table position (m);
+2. safety: limit switches, drive ready;
+3. interpolation: the next reference (position, velocity, acceleration, jerk) of the
+   planned program (`Interpolator` over `Planner.plan`);
+4. regulation: PID + FF1..FF3 + DCU (`PositionRegulator`), saturation, DAC quantisation;
+5. outputs and one row of the record (`Controller.record`).
+
+The cyclic path never raises for expected conditions; it reports a `ControllerStatus`:
+
+* a limit switch that closes, or a reference moving toward a closed one → ``LIMIT_TRIP``;
+* a following error beyond the limit → ``FOLLOWING_ERROR``; NaN inputs → ``INVALID_INPUT``;
+* the drive reporting not ready → ``DRIVE_FAULT``;
+* a G-code or soft-limit error met while streaming → the blocks before it run out (they end
+  at rest), then ``PROGRAM_ERROR`` (``Controller.error`` holds the exception).
+
+Each of these latches with the outputs at zero and the drives disabled until ``reset()``.
+
+End of program: the loop stays closed on the end point for ``settle_time`` (``SETTLING``;
+the record then shows the residual vibration), then the outputs go to zero and the drives
+are disabled (``FINISHED``). A lead-screw table holds its position without torque, and a
+disabled drive cannot oscillate.
+
+Soft limits: a program held in memory (``Program``, list, tuple) is checked against the
+work zone in the constructor, which raises ``PlanningError`` naming the G-code line before
+any motion; a streamed program is checked block by block as it is planned.
+
+Manual mode hooks (issue 4): ``jog(target)`` runs a single planned move when the controller
+is at rest; ``home(axis)`` moves toward the home switch until it closes, brakes, and declares
+the latched position to be the configured home position.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+from collections.abc import Iterable, Mapping, Sequence
+from enum import IntEnum
+from typing import Any
+
+from twin.config import AXES, AxisConfig, ControllerSettings, MachineConfig
+from twin.controller.corner import CornerModel
+from twin.controller.encoder import EncoderUnwrapper
+from twin.controller.geometry import Line
+from twin.controller.interpolator import Interpolator, InterpolatorStatus
+from twin.controller.io import Inputs, MachineIO, Outputs
+from twin.controller.linear import LinearAxisModel
+from twin.controller.planner import MotionBlock, PlannedBlock, Planner
+from twin.controller.record import Record
+from twin.controller.regulator import (
+    TERMS,
+    PositionRegulator,
+    RegulatorGains,
+    RegulatorStatus,
+    default_gains,
+)
+from twin.errors import ConfigError, PlanningError, TwinError
+
+__all__ = ["RECORD_FIELDS", "Controller", "ControllerStatus", "estimated_axis_model"]
+
+
+class ControllerStatus(IntEnum):
+    """What the controller is doing; values ≥ ``LIMIT_TRIP`` are latched faults."""
+
+    IDLE = 0
+    """Nothing to run: outputs zero, drives disabled."""
+    RUNNING = 1
+    """Following the program (or a jog)."""
+    DWELLING = 2
+    """G4: holding position with the loop closed."""
+    HOMING = 3
+    """Moving toward a home switch, or braking after it closed."""
+    SETTLING = 4
+    """Motion done; loop closed on the end point for ``settle_time``."""
+    FINISHED = 5
+    """Done: outputs zero, drives disabled."""
+    LIMIT_TRIP = 6
+    """An end limit switch closed: outputs zero, disabled."""
+    FOLLOWING_ERROR = 7
+    """|x_ref − x| exceeded the limit: outputs zero, disabled."""
+    INVALID_INPUT = 8
+    """A non-finite reference or measurement: outputs zero, disabled."""
+    DRIVE_FAULT = 9
+    """The drives reported not ready: outputs zero, disabled."""
+    PROGRAM_ERROR = 10
+    """The program failed while streaming (see ``Controller.error``); stopped at rest."""
+    HOMING_FAILED = 11
+    """The homing move ended without the home switch closing."""
+
+
+RECORD_FIELDS = (
+    ("t", 1), ("ref_position", 2), ("ref_velocity", 2), ("ref_acceleration", 2),
+    ("ref_jerk", 2), ("position", 2), ("following_error", 2), ("dac_volts", 2),
+    ("tacho_volts", 2), ("terms", (2, len(TERMS))), ("enable", 1), ("block", 1),
+    ("line", 1), ("status", 1))
+"""Fields of ``Controller.record``: time (s), references (m, m/s, m/s², m/s³), measured
+position (m), following error x_ref − x (m), DAC and tacho volts (V), regulator terms (V,
+columns ``regulator.TERMS``: p, i, d, ff, dcu), drive enable, active block index, source line
+and ``ControllerStatus`` code."""
+
+_INTEGER_FIELDS = ("enable", "block", "line", "status")
+_FAULTS = {RegulatorStatus.FOLLOWING_ERROR: ControllerStatus.FOLLOWING_ERROR,
+           RegulatorStatus.INVALID_INPUT: ControllerStatus.INVALID_INPUT}
+
+
+def estimated_axis_model(axis: AxisConfig) -> LinearAxisModel:
+    """A first-order estimate ``K_H/(p(T·p + 1))`` of an axis from its configuration.
+
+    ``K_H = 1/volts_per_speed`` (m/s per V). T is the closed speed loop by the tuning rules
+    the drive uses: converter dead time ``T_μ = firing_period/2``, current loop (modulus
+    optimum) ≈ ``2·T_μ``, speed-loop small time constant ``T_σ = 2·T_μ + T_tacho``, and
+    the symmetric optimum with its reference filter ≈ a first-order lag ``a²·T_σ``. Pass
+    the twin's own linear model (``axis_models=``) where accuracy matters (issue 5).
+    """
+    t_mu = 0.5 * axis.converter.firing_period
+    t_sigma = 2.0 * t_mu + axis.tacho.filter_time_constant
+    a = axis.speed_loop.symmetric_optimum_a
+    return LinearAxisModel.servo(1.0 / axis.volts_per_speed, a * a * t_sigma)
+
+
+def _gains(settings: ControllerSettings, axes: Sequence[AxisConfig],
+           models: Sequence[LinearAxisModel], dcu_order: int) -> RegulatorGains:
+    """Gains from the settings; values left ``None`` there come from ``default_gains``."""
+    reg = settings.regulator
+    base = default_gains(list(models), settings.period, dcu_order=dcu_order,
+                         following_error_limit=reg.following_error_limit)
+    given = {name: getattr(reg, name) for name in ("kp", "ki", "kd", "ff1", "ff2", "ff3")
+             if getattr(reg, name) is not None}
+    dac = axes[0].dac
+    return dataclasses.replace(base, output_limit=dac.full_scale, dac_bits=dac.bits, **given)
+
+
+class Controller:
+    """The cyclic controller of a two-axis table (see the module docstring).
+
+    Parameters
+    ----------
+    settings : ControllerSettings
+        Period, limits, planner and regulator settings.
+    axes : mapping of "x", "y" to AxisConfig
+        The axes (limits, encoder, DAC, switches, travel).
+    program : Program, iterable or None
+        G-code items (``Program``, ``gcode.read_file``), ``MotionBlock``s, already
+        ``PlannedBlock``s, or None to start idle (for ``jog``/``home``).
+    gains : RegulatorGains, optional
+        Default: ``settings.regulator`` with the unset gains from ``default_gains`` of the
+        axis models.
+    axis_models : sequence of 2 LinearAxisModel, optional
+        Reference (V) → position (m) models for the gain rules and the DCU; default
+        `estimated_axis_model` of each axis.
+    profile : str, optional
+        Acceleration law; default ``settings.profile``.
+    planner : str, optional
+        ``"lookahead"`` or ``"stop"``; default ``settings.planner``.
+    dcu_order : int, optional
+        0 … 3; default ``settings.regulator.dcu_order`` (ignored when ``gains`` is given).
+    mode : {"extended", "traditional"}
+        Interpolator interface (seed 004).
+    corner_model : CornerModel, optional
+        For the planner; default its seed-001 model.
+    lookahead : int, optional
+        Window (blocks); default ``settings.lookahead``.
+    start : sequence of 2 float, optional
+        Table position at the first tick (m); default the program's start point.
+    settle_time : float
+        Closed-loop hold after the motion ends (s).
+    record_capacity : int
+        Rows per chunk of the record.
+
+    Raises
+    ------
+    PlanningError
+        An in-memory program leaves the work zone (naming its line).
+    ConfigError
+        An invalid option.
+    """
+
+    def __init__(self, settings: ControllerSettings, axes: Mapping[str, AxisConfig],
+                 program: Iterable[Any] | None, *, gains: RegulatorGains | None = None,
+                 axis_models: Sequence[LinearAxisModel] | None = None,
+                 profile: str | None = None, planner: str | None = None,
+                 dcu_order: int | None = None, mode: str = "extended",
+                 corner_model: CornerModel | None = None, lookahead: int | None = None,
+                 start: Sequence[float] | None = None, settle_time: float = 0.25,
+                 record_capacity: int = 65536):
+        if sorted(axes) != sorted(AXES):
+            raise ConfigError("axes", f"must be {AXES}, got {tuple(axes)}")
+        if not (math.isfinite(settle_time) and settle_time >= 0.0):
+            raise ConfigError("settle_time", f"must be >= 0 (s), got {settle_time!r}")
+        self.settings = settings
+        self.axes = [axes[a] for a in AXES]
+        self.period = settings.period
+        self.mode = mode
+        self.settle_time = float(settle_time)
+        options: dict[str, Any] = {"law": profile or settings.profile,
+                                   "mode": planner or settings.planner,
+                                   "lookahead": lookahead or settings.lookahead}
+        if corner_model is not None:
+            options["corner_model"] = corner_model
+        self.planner = Planner.from_settings(settings, axes, **options)
+        """Planner: the look-ahead planner (its ``work_zone`` holds the soft limits)."""
+        self._free_planner = Planner.from_settings(settings, axes, **options, work_zone=None)
+        models = list(axis_models) if axis_models is not None else [
+            estimated_axis_model(ax) for ax in self.axes]
+        if gains is None:
+            order = settings.regulator.dcu_order if dcu_order is None else dcu_order
+            gains = _gains(settings, self.axes, models, order)
+        self.gains = gains
+        self.regulator = PositionRegulator(gains, self.period, n_axes=2)
+        self.encoder = EncoderUnwrapper([ax.counts_per_metre for ax in self.axes],
+                                        bits=[ax.encoder.bits for ax in self.axes])
+        self.record = Record(RECORD_FIELDS, integer=_INTEGER_FIELDS, capacity=record_capacity)
+        """Record: one row per tick, fields ``RECORD_FIELDS``; ``record.as_arrays()``."""
+        self.outputs = Outputs()
+        """Outputs: written in place and returned by every ``tick``."""
+        self.error: TwinError | None = None
+        """The exception behind ``PROGRAM_ERROR``, if any."""
+        self.status = ControllerStatus.IDLE
+        self._ticks = 0
+        self._settled = 0.0
+        self._limits_prev = [False] * 4
+        self._homing: tuple[int, float] | None = None
+        self._home_latch: float | None = None
+        self.interpolator = self._interpolator(self._blocks(program), start)
+        if program is not None:
+            self.status = ControllerStatus.RUNNING
+        self._start = [float(p) for p in self.interpolator.reference.position]
+
+    @classmethod
+    def from_machine(cls, cfg: MachineConfig, program: Iterable[Any] | None,
+                     **options: Any) -> Controller:
+        """A controller for a whole machine configuration; options as the constructor's."""
+        return cls(cfg.controller, cfg.axes, program, **options)
+
+    # ------------------------------------------------------------------ set-up helpers
+    def _blocks(self, program: Iterable[Any] | None) -> Iterable[Any]:
+        if program is None:
+            return ()
+        if isinstance(program, Sequence) or hasattr(program, "items"):
+            items = list(program)
+            if items and isinstance(items[0], PlannedBlock):
+                return items
+            self.planner.check(items)
+            return self.planner.plan(items)
+        return self.planner.plan(program)
+
+    def _interpolator(self, blocks: Iterable[Any], start: Sequence[float] | None
+                      ) -> Interpolator:
+        return Interpolator(blocks, period=self.period, start=start, mode=self.mode,
+                            counts_per_metre=[ax.counts_per_metre for ax in self.axes])
+
+    # ------------------------------------------------------------------ the cyclic path
+    def tick(self, inputs: Inputs) -> Outputs:
+        """Run one period: read ``inputs``, compute and return the outputs (never raises
+        for expected conditions; see ``status``)."""
+        self._ticks += 1
+        enc = self.encoder
+        if not enc.ready:
+            enc.reset(inputs.encoder_counts, position=self._start)
+            self.regulator.reset(self._start)
+        pos = enc.update(inputs.encoder_counts)
+        status = self.status
+        interp = self.interpolator
+        reg = self.regulator
+        ref = interp.reference
+        if status < ControllerStatus.FINISHED:
+            status = self._safety(inputs, ref.velocity)
+        if status < ControllerStatus.FINISHED and status != ControllerStatus.IDLE:
+            istatus = interp.update()
+            rstatus = reg.update(ref.position, ref.velocity, ref.acceleration, ref.jerk, pos)
+            if rstatus >= RegulatorStatus.FOLLOWING_ERROR:
+                status = _FAULTS[RegulatorStatus(rstatus)]
+            else:
+                status = self._progress(status, istatus, inputs, pos)
+        out = self.outputs
+        if status < ControllerStatus.FINISHED and status != ControllerStatus.IDLE:
+            out.dac_volts[:] = reg.output
+            out.enable = True
+        else:
+            out.dac_volts[:] = 0.0
+            out.enable = False
+        self.status = status
+        self._log(pos, inputs, status)
+        return out
+
+    def _safety(self, inputs: Inputs, v_ref: Any) -> ControllerStatus:
+        """Limit switches (rising edge, or moving toward a closed one) and drive ready."""
+        if not inputs.drive_ready:
+            return ControllerStatus.DRIVE_FAULT
+        lo, hi = inputs.limit_min, inputs.limit_max
+        prev = self._limits_prev
+        trip = False
+        for k in (0, 1):
+            a, b = bool(lo[k]), bool(hi[k])
+            if (a and (not prev[2 * k] or v_ref[k] < 0.0)) or (
+                    b and (not prev[2 * k + 1] or v_ref[k] > 0.0)):
+                trip = True
+            prev[2 * k], prev[2 * k + 1] = a, b
+        return ControllerStatus.LIMIT_TRIP if trip else self.status
+
+    def _progress(self, status: ControllerStatus, istatus: InterpolatorStatus,
+                  inputs: Inputs, pos: Any) -> ControllerStatus:
+        """Status after a healthy tick: running, homing, settling, finished."""
+        if self._homing is not None and self._home_latch is None:
+            k = self._homing[0]
+            if inputs.home[k]:
+                self._home_latch = float(pos[k])
+                self.interpolator.stop()
+            elif istatus >= InterpolatorStatus.FINISHED:
+                self._homing = None
+                return ControllerStatus.HOMING_FAILED
+        if istatus < InterpolatorStatus.FINISHED:
+            if self._homing is not None:
+                return ControllerStatus.HOMING
+            return (ControllerStatus.DWELLING if istatus == InterpolatorStatus.DWELLING
+                    else ControllerStatus.RUNNING)
+        if status != ControllerStatus.SETTLING:
+            if self._homing is not None:
+                self._finish_homing()
+            self._settled = 0.0
+            return ControllerStatus.SETTLING
+        self._settled += self.period
+        if self._settled < self.settle_time - 1e-12:
+            return ControllerStatus.SETTLING
+        if istatus == InterpolatorStatus.ERROR:
+            self.error = self.interpolator.error
+            return ControllerStatus.PROGRAM_ERROR
+        return ControllerStatus.FINISHED
+
+    def _log(self, pos: Any, inputs: Inputs, status: ControllerStatus) -> None:
+        ref = self.interpolator.reference
+        reg = self.regulator
+        p, v, a, j = ref.position, ref.velocity, ref.acceleration, ref.jerk
+        e, u, tach = reg.error, self.outputs.dac_volts, inputs.tacho_volts
+        self.record.append((
+            self._ticks * self.period, p[0], p[1], v[0], v[1], a[0], a[1], j[0], j[1],
+            pos[0], pos[1], e[0], e[1], u[0], u[1], tach[0], tach[1],
+            *reg.terms.ravel(), self.outputs.enable, ref.block, ref.line, status))
+
+    # ------------------------------------------------------------------ commands
+    @property
+    def done(self) -> bool:
+        """True when the controller is at rest for good: finished, idle or tripped."""
+        return self.status >= ControllerStatus.FINISHED or self.status == ControllerStatus.IDLE
+
+    @property
+    def position_reference(self) -> tuple[float, float]:
+        """The current position reference (m)."""
+        return tuple(float(p) for p in self.interpolator.reference.position)  # type: ignore
+
+    def reset(self) -> None:
+        """Clear a latched fault; the controller becomes IDLE at its present reference."""
+        self.error = None
+        self._homing = self._home_latch = None
+        self.regulator.reset(self.interpolator.reference.position)
+        self.interpolator = self._interpolator((), self.position_reference)
+        self.status = ControllerStatus.IDLE
+
+    def _start_motion(self, blocks: Iterable[Any], status: ControllerStatus) -> None:
+        if self.status not in (ControllerStatus.IDLE, ControllerStatus.FINISHED):
+            raise PlanningError(f"cannot start a motion while {self.status.name}; "
+                                "wait for FINISHED or call reset()")
+        here = self.position_reference
+        self.interpolator = self._interpolator(blocks, here)
+        self.regulator.reset(here)
+        self.status = status
+
+    def run_program(self, program: Iterable[Any]) -> None:
+        """Start another program from rest (checked against the work zone first)."""
+        self._start_motion(self._blocks(program), ControllerStatus.RUNNING)
+
+    def jog(self, target: Sequence[float], *, feed: float | None = None) -> None:
+        """Move in a straight line to ``target`` (m) at ``feed`` (m/s; default the contour
+        ``max_velocity``). Raises ``PlanningError`` if the target leaves the work zone or
+        the controller is not at rest."""
+        line = Line(self.position_reference, target)
+        feed = self.settings.limits.max_velocity if feed is None else feed
+        block = MotionBlock(line, feed)
+        self.planner.check([block])
+        self._start_motion(self.planner.plan([block]), ControllerStatus.RUNNING)
+
+    def home(self, axis: str, *, feed: float | None = None, direction: int | None = None
+             ) -> None:
+        """Search the home switch of ``axis``: move toward it until ``inputs.home`` closes,
+        brake, and declare the latched position to be ``switches.home``.
+
+        Parameters
+        ----------
+        axis : {"x", "y"}
+        feed : float, optional
+            Search speed (m/s); default a quarter of the axis' max velocity.
+        direction : {-1, +1}, optional
+            Default toward the nearer end of travel from the home switch.
+        """
+        if axis not in AXES:
+            raise ConfigError("axis", f"must be one of {AXES}, got {axis!r}")
+        k = AXES.index(axis)
+        cfg = self.axes[k]
+        sw, travel = cfg.switches, cfg.mechanics.travel
+        if direction is None:
+            direction = -1 if sw.home - travel[0] <= travel[1] - sw.home else 1
+        if direction not in (-1, 1):
+            raise ConfigError("direction", f"must be -1 or +1, got {direction!r}")
+        here = self.position_reference
+        target = list(here)
+        target[k] += direction * (travel[1] - travel[0])
+        feed = 0.25 * cfg.limits.max_velocity if feed is None else feed
+        blocks = self._free_planner.plan([MotionBlock(Line(here, target), feed)])
+        self._start_motion(blocks, ControllerStatus.HOMING)
+        self._homing = (k, float(sw.home))
+        self._home_latch = None
+
+    def _finish_homing(self) -> None:
+        """After the braking: shift the coordinates so the latch is at the home position."""
+        k, home = self._homing  # type: ignore[misc]
+        offset = [0.0, 0.0]
+        offset[k] = home - self._home_latch  # type: ignore[operator]
+        self.encoder.rebase(offset)
+        here = list(self.position_reference)
+        here[k] += offset[k]
+        self.interpolator = self._interpolator((), here)
+        self.regulator.reset(here)
+        self._homing = self._home_latch = None
+
+    def run(self, io: MachineIO, *, max_time: float = math.inf) -> ControllerStatus:
+        """Tick against ``io`` until ``done`` (or ``max_time`` of controller time, s)."""
+        limit = math.inf if math.isinf(max_time) else round(max_time / self.period)
+        n = 0
+        while not self.done and n < limit:
+            io.write(self.tick(io.read()))
+            n += 1
+        return self.status

@@ -1,0 +1,427 @@
+"""Look-ahead feed planner (seed 001): node and segment speeds over a bounded window.
+
+Seed 001 assigns every node (junction of two blocks) and every segment the highest speed
+that all three kinds of limit allow::
+
+    V_node    = min(V_node_tech, V_node_accuracy, V_node_length)
+    V_segment = min(V_seg_tech,  V_seg_accuracy,  V_seg_length)
+
+* technological: the programmed feed of both blocks at a node (the rapid speed for G0);
+* accuracy: at a node, the corner model ``tolerance / δ*(angle)`` (`twin.controller.corner`);
+  on a segment, the per-axis velocity limits projected on its direction, the contour
+  ``max_velocity``, and on curved segments the centripetal acceleration and the jerk;
+* length: every block must be able to brake before the end of the look-ahead window, which
+  is assumed to end at rest (backward pass), and every node must be reachable from the one
+  before it (forward pass), both with the chosen acceleration law (`max_end_speed`).
+
+Streaming and incremental
+-------------------------
+``Planner.plan(items)`` is a generator: it reads motion items one at a time, holds at most
+``lookahead`` blocks, and yields each block once it leaves the window, so a program of any
+length is planned in constant memory. Like grbl's ``planner.c`` it re-plans incrementally.
+For each node it keeps ``fw``, the forward envelope (the speed reachable from the window's
+fixed start, capped by the node limit), which never changes once computed, and the planned
+entry speed ``entry = min(fw, max_end_speed(law, next entry, length))``. Appending a block
+only *raises* entries (the window's end moves away), so the backward pass walks from the
+newest block and stops at the first entry that does not change: typically after one or two
+blocks. When a block leaves the window the next block's entry is committed; if that lowers
+a forward envelope the change is propagated forward until it stops mattering.
+
+Blocks therefore come out identical for any window that covers the braking distance (the
+backward pass from the window's end saturates before it reaches the block).
+
+Decisions
+---------
+* The machine starts at rest; nodes next to a rapid (G0) are exact stops (seed 003: G0
+  brakes at block end), and so are Dwell, Event and ProgramEnd items: they flush the window
+  and pass through in order. Nothing after a ProgramEnd is read.
+* Contour ``max_velocity`` limits feed moves; rapids are limited by ``rapid_velocity`` and
+  the per-axis limits only.
+* Segment caps (per-axis projections, centripetal acceleration and jerk on curves) are
+  computed by `twin.controller.segment_limits`.
+* Soft limits: with a ``work_zone`` every segment's bounding box is checked when it enters
+  the window. A violation (or a G-code error in a streamed file) stops reading: the blocks
+  already in the window are still yielded — they were planned to end at rest — and then the
+  ``PlanningError`` naming the G-code line is raised. ``check`` runs the same test over a
+  whole in-memory program before any motion.
+"""
+
+from __future__ import annotations
+
+import math
+from collections import deque
+from collections.abc import Iterable, Iterator, Mapping, Sequence
+from dataclasses import dataclass
+from typing import Any, NamedTuple
+
+from twin.config import AxisConfig, ControllerSettings
+from twin.controller.corner import CornerModel, SeedCornerModel
+from twin.controller.gcode.items import Move, ProgramEnd
+from twin.controller.geometry import Arc, Line, Segment
+from twin.controller.profiles import Limits, Profile, max_end_speed, plan_move
+from twin.controller.profiles.laws import check_law
+from twin.controller.segment_limits import SegmentLimits
+from twin.errors import ConfigError, PlanningError, TwinError
+
+__all__ = [
+    "MODES",
+    "MotionBlock",
+    "PlannedBlock",
+    "Planner",
+    "WorkZone",
+    "segments_from_program",
+]
+
+MODES = ("lookahead", "stop")
+"""``Planner(mode=...)``: look-ahead speeds, or the classic stop at every node."""
+
+@dataclass(frozen=True, slots=True)
+class MotionBlock:
+    """A segment to travel at a programmed feed: the planner's motion input.
+
+    Attributes
+    ----------
+    segment : Segment
+        The path piece (m).
+    feed : float or None
+        Programmed contour feed (m/s); None for a rapid (the machine's rapid speed).
+    line : int
+        Source line for messages (0 when not from a program).
+    """
+
+    segment: Segment
+    feed: float | None
+    line: int = 0
+
+
+class PlannedBlock(NamedTuple):
+    """One block with its planned speeds (an immutable tuple: cheap to make per block).
+
+    Attributes
+    ----------
+    segment : Segment
+        The path piece (m).
+    feed : float or None
+        Programmed feed (m/s), None for a rapid.
+    v_start, v_nominal, v_end : float
+        Speed at the start node, the segment's speed cap, speed at the end node (m/s).
+    law : str
+        Acceleration law.
+    limits : Limits
+        Tangential limits on this segment (m/s, m/s², m/s³); ``max_velocity == v_nominal``.
+    line : int
+        Source line (0 when not from a program).
+    index : int
+        0-based number of the motion block in the program.
+    """
+
+    segment: Segment
+    feed: float | None
+    v_start: float
+    v_nominal: float
+    v_end: float
+    law: str
+    limits: Limits
+    line: int
+    index: int
+
+    @property
+    def rapid(self) -> bool:
+        """True for a G0 block."""
+        return self.feed is None
+
+    def profile(self) -> Profile:
+        """The block's speed profile along its segment (``plan_move`` of its law)."""
+        return plan_move(self.law, self.segment.length, v_start=self.v_start,
+                         v_end=self.v_end, v_max=self.v_nominal, limits=self.limits)
+
+
+@dataclass(frozen=True)
+class WorkZone:
+    """The rectangle the tool may reach (soft limits).
+
+    Attributes
+    ----------
+    lower, upper : tuple of float
+        Corners (m), ``lower < upper`` on each axis.
+    """
+
+    lower: tuple[float, float]
+    upper: tuple[float, float]
+
+    def __post_init__(self) -> None:
+        if not all(lo < hi for lo, hi in zip(self.lower, self.upper, strict=True)):
+            raise ConfigError("work_zone", f"need lower < upper, got {self.lower}, {self.upper}")
+
+    @classmethod
+    def from_axes(cls, axes: Mapping[str, AxisConfig]) -> WorkZone:
+        """Travel of each axis, narrowed to the inside of its end limit switches."""
+        lo = tuple(max(axes[a].mechanics.travel[0], axes[a].switches.limit_min) for a in "xy")
+        hi = tuple(min(axes[a].mechanics.travel[1], axes[a].switches.limit_max) for a in "xy")
+        return cls(lo, hi)  # type: ignore[arg-type]
+
+    def contains(self, point: Sequence[float]) -> bool:
+        """Whether ``point`` (m) lies in the zone (edges included)."""
+        return (self.lower[0] <= point[0] <= self.upper[0]
+                and self.lower[1] <= point[1] <= self.upper[1])
+
+    def check(self, segment: Segment, line: int = 0) -> None:
+        """Raise ``PlanningError`` naming ``line`` if ``segment`` leaves the zone."""
+        if isinstance(segment, Line):
+            lo, hi = segment.start, segment.end
+            inside = self.contains(lo) and self.contains(hi)
+        else:
+            lo, hi = segment.bounding_box()
+            inside = self.contains(lo) and self.contains(hi)
+        if not inside:
+            box_lo, box_hi = segment.bounding_box()
+            raise PlanningError(
+                f"line {line}: the move leaves the work zone x {self.lower[0]:.6g} … "
+                f"{self.upper[0]:.6g} m, y {self.lower[1]:.6g} … {self.upper[1]:.6g} m "
+                f"(it spans x {box_lo[0]:.6g} … {box_hi[0]:.6g}, "
+                f"y {box_lo[1]:.6g} … {box_hi[1]:.6g} m)")
+
+
+def segments_from_program(items: Iterable[Any]) -> Iterator[Any]:
+    """Turn G-code ``Move`` items into ``MotionBlock``s of ``Line``/``Arc`` segments.
+
+    ``MotionBlock``s, Dwell, Event and ProgramEnd items pass through unchanged; zero-length
+    lines are dropped. Lazy: consumes ``items`` (a ``Program`` or any iterable, e.g.
+    ``gcode.read_file``) one at a time.
+    """
+    for item in items:
+        if type(item) is Move:
+            kind = item.kind
+            if kind == "arc":
+                seg: Segment = Arc(item.start, item.end, item.center, ccw=item.ccw,
+                                   turns=item.turns)
+            elif item.start == item.end:
+                continue
+            else:
+                seg = Line(item.start, item.end)
+            yield MotionBlock(seg, item.feed, item.line)
+        else:
+            yield item
+
+
+class _Block:
+    """A block in the window: its geometry summary and its speeds (mutable, internal)."""
+
+    __slots__ = ("entry", "feed", "fw", "index", "length", "limits", "line", "rapid",
+                 "segment", "t0x", "t0y", "t1x", "t1y", "v_nom")
+
+
+class Planner:
+    """Seed-001 speed assignment with a bounded look-ahead window (see the module doc).
+
+    Parameters
+    ----------
+    limits : Limits
+        Contour limits (m/s, m/s², m/s³); ``max_velocity`` caps the feed moves.
+    axis_limits : sequence of 2 Limits
+        Limits of the x and y axes, projected on each segment's direction.
+    rapid_velocity : float
+        Speed of G0 moves (m/s).
+    tolerance : float
+        Allowed contour error at corners δ_allowed (m).
+    law : str
+        Acceleration law, one of ``twin.controller.profiles.LAWS``.
+    lookahead : int
+        Window size (blocks), ≥ 1. 1 means stop at every node.
+    mode : {"lookahead", "stop"}
+        ``"stop"`` plans every node at rest (the classic controller, for comparison).
+    corner_model : CornerModel, optional
+        Node speed limit from the corner angle; default ``SeedCornerModel()``.
+    work_zone : WorkZone, optional
+        Soft limits; None: unchecked.
+    """
+
+    def __init__(self, limits: Limits, axis_limits: Sequence[Limits], *,
+                 rapid_velocity: float, tolerance: float, law: str = "parabolic",
+                 lookahead: int = 64, mode: str = "lookahead",
+                 corner_model: CornerModel | None = None, work_zone: WorkZone | None = None):
+        check_law(law)
+        if mode not in MODES:
+            raise ConfigError("mode", f"must be one of {MODES}, got {mode!r}")
+        if isinstance(lookahead, bool) or not isinstance(lookahead, int) or lookahead < 1:
+            raise ConfigError("lookahead", f"must be an integer >= 1, got {lookahead!r}")
+        if len(axis_limits) != 2:
+            raise ConfigError("axis_limits", f"need 2 (x, y), got {len(axis_limits)}")
+        for name, value in (("rapid_velocity", rapid_velocity), ("tolerance", tolerance)):
+            if not (math.isfinite(value) and value > 0.0):
+                raise ConfigError(name, f"must be finite and > 0, got {value!r}")
+        self.limits = limits
+        self.axis_limits = tuple(axis_limits)
+        self.rapid_velocity = float(rapid_velocity)
+        self.tolerance = float(tolerance)
+        self.law = law
+        self.lookahead = lookahead
+        self.mode = mode
+        self.corner_model: CornerModel = corner_model or SeedCornerModel()
+        self.work_zone = work_zone
+        self._caps = SegmentLimits(limits, axis_limits)
+        self._limits_cache: dict[tuple[float, float, float], Limits] = {}
+        self._count = 0
+
+    @classmethod
+    def from_settings(cls, settings: ControllerSettings, axes: Mapping[str, AxisConfig],
+                      **options: Any) -> Planner:
+        """A planner from the machine's controller settings and axes.
+
+        Keyword options override: ``law`` (default ``settings.profile``), ``mode``
+        (``settings.planner``), ``lookahead``, ``corner_model``, ``work_zone`` (default the
+        axes' travel inside the limit switches; pass None to disable), ``tolerance``.
+        """
+        options.setdefault("law", settings.profile)
+        options.setdefault("mode", settings.planner)
+        options.setdefault("lookahead", settings.lookahead)
+        options.setdefault("tolerance", settings.contour_tolerance)
+        options.setdefault("work_zone", WorkZone.from_axes(axes))
+        return cls(Limits.from_config(settings.limits),
+                   [Limits.from_config(axes[a].limits) for a in "xy"],
+                   rapid_velocity=settings.rapid_velocity, **options)
+
+    # ------------------------------------------------------------------ public
+    def plan(self, items: Iterable[Any]) -> Iterator[Any]:
+        """Plan a stream of motion items; yield ``PlannedBlock``s and pass-through items.
+
+        Parameters
+        ----------
+        items : iterable
+            G-code items (``Program``, ``gcode.read_file(...)``) and/or ``MotionBlock``s.
+
+        Yields
+        ------
+        PlannedBlock, Dwell, Event or ProgramEnd
+            In program order.
+
+        Raises
+        ------
+        PlanningError or GCodeError
+            After the blocks planned before the fault (which end at rest) have been yielded.
+        """
+        window: deque[_Block] = deque()
+        source = iter(segments_from_program(items))
+        error: TwinError | None = None
+        self._count = 0
+        while True:
+            try:
+                item = next(source)
+                block = self._block(item) if type(item) is MotionBlock else None
+            except StopIteration:
+                break
+            except TwinError as exc:
+                error = exc
+                break
+            if block is not None:
+                self._append(window, block)
+                if len(window) >= self.lookahead:
+                    yield self._pop(window)
+                continue
+            while window:
+                yield self._pop(window)
+            yield item
+            if isinstance(item, ProgramEnd):
+                break
+        while window:
+            yield self._pop(window)
+        if error is not None:
+            raise error
+
+    def check(self, items: Iterable[Any]) -> None:
+        """Check a whole program against the work zone before any motion.
+
+        Raises
+        ------
+        PlanningError
+            Naming the G-code line of the first move that leaves the zone.
+        """
+        if self.work_zone is None:
+            return
+        for item in segments_from_program(items):
+            if type(item) is MotionBlock:
+                self.work_zone.check(item.segment, item.line)
+
+    # ------------------------------------------------------------------ internals
+    def _block(self, item: MotionBlock) -> _Block:
+        seg = item.segment
+        if self.work_zone is not None:
+            self.work_zone.check(seg, item.line)
+        b = _Block()
+        b.segment, b.feed, b.line = seg, item.feed, item.line
+        b.rapid = item.feed is None
+        b.length = seg.length
+        b.index = self._count
+        self._count += 1
+        v_cap = self.rapid_velocity if b.rapid else min(item.feed, self.limits.max_velocity)
+        if type(seg) is Line:
+            ux, uy = seg._ux, seg._uy      # float fast path (same package)
+            b.t0x = b.t1x = ux
+            b.t0y = b.t1y = uy
+            v_nom, acc, jerk = self._caps.line_caps(abs(ux), abs(uy), v_cap)
+        else:
+            b.t0x, b.t0y = (float(c) for c in seg.start_tangent)
+            b.t1x, b.t1y = (float(c) for c in seg.end_tangent)
+            v_nom, acc, jerk = self._caps.curve_caps(seg, v_cap)
+        b.v_nom = v_nom
+        key = (v_nom, acc, jerk)
+        lim = self._limits_cache.get(key)
+        if lim is None:
+            if len(self._limits_cache) > 4096:
+                self._limits_cache.clear()
+            lim = self._limits_cache[key] = Limits(v_nom, acc, jerk)
+        b.limits = lim
+        return b
+
+    def _append(self, window: deque[_Block], b: _Block) -> None:
+        law = self.law
+        prev = window[-1] if window else None
+        if prev is None or self.mode == "stop" or prev.rapid or b.rapid:
+            emax = 0.0
+        else:
+            emax = min(prev.v_nom, b.v_nom)
+            cross = prev.t1x * b.t0y - prev.t1y * b.t0x
+            dot = prev.t1x * b.t0x + prev.t1y * b.t0y
+            corner = self.corner_model.max_node_speed(math.atan2(abs(cross), dot),
+                                                      self.tolerance)
+            if corner < emax:
+                emax = corner
+            reach = max_end_speed(law, prev.fw, prev.length, prev.limits)
+            if reach < emax:
+                emax = reach
+        b.fw = emax
+        b.entry = -1.0
+        window.append(b)
+        v = 0.0
+        for r in reversed(window):          # backward pass, newest first
+            cand = max_end_speed(law, v, r.length, r.limits)
+            new = r.fw if r.fw < cand else cand
+            if new <= r.entry:
+                break
+            r.entry = v = new
+
+    def _pop(self, window: deque[_Block]) -> PlannedBlock:
+        b = window.popleft()
+        v_end = 0.0
+        if window:
+            head = window[0]
+            v_end = head.entry
+            if head.fw > v_end:             # commit: the next block starts at v_end
+                head.fw = v_end
+                self._propagate(window)
+        return PlannedBlock(b.segment, b.feed, b.entry, b.v_nom, v_end, self.law, b.limits,
+                            b.line, b.index)
+
+    def _propagate(self, window: deque[_Block]) -> None:
+        """Forward pass after a lowered envelope at ``window[0]``; stops when nothing changes."""
+        law = self.law
+        prev = None
+        for r in window:
+            if prev is not None:
+                cand = max_end_speed(law, prev.fw, prev.length, prev.limits)
+                if cand >= r.fw:
+                    return
+                r.fw = cand
+                if r.entry > cand:
+                    r.entry = cand
+            prev = r

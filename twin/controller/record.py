@@ -1,0 +1,123 @@
+"""The controller's own record of every period: preallocated, chunk-growing numpy storage.
+
+Seed 000's rig saved each experiment's arrays (set-point and actual position, velocities,
+errors, the digital correction signals) for display and analysis; ``Record`` is that store.
+One row per period is written with a single slice assignment into a preallocated float64
+chunk (no per-tick allocation); when a chunk is full the next one is allocated, so memory
+grows in steps and a long run never copies what it already recorded. ``as_arrays`` joins
+the chunks once, at the end, into named arrays.
+
+Typical use::
+
+    rec = Record([("t", 1), ("position", 2), ("terms", (2, 5)), ("status", 1)],
+                 integer=("status",))
+    rec.append((0.005, 1e-6, 2e-6, *range(10), 0))
+    arrays = rec.as_arrays()   # t (n,), position (n, 2), terms (n, 2, 5), status (n,) int64
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Iterable, Sequence
+
+import numpy as np
+
+from twin.errors import ConfigError
+
+__all__ = ["Record"]
+
+
+class Record:
+    """Rows of named float64 columns, appended once per period.
+
+    Parameters
+    ----------
+    fields : sequence of (str, int or tuple of int)
+        Field names and shapes, in row order. A field of width 1 comes out of ``as_arrays``
+        with shape (n,), one of width w with shape (n, w), one of shape (a, b) with shape
+        (n, a, b); in a row its values come flattened in C order.
+    integer : iterable of str
+        Fields that hold integers (block index, line, status codes); ``as_arrays`` returns
+        them as int64. Stored as float64, which is exact up to 2^53.
+    capacity : int
+        Rows preallocated in the first chunk (and in each further chunk).
+    """
+
+    __slots__ = ("_chunk", "_chunks", "_fields", "_i", "_integer", "_n_full", "_shapes",
+                 "_slices", "capacity", "width")
+
+    def __init__(self, fields: Sequence[tuple[str, int | tuple[int, ...]]], *,
+                 integer: Iterable[str] = (), capacity: int = 65536):
+        if capacity < 1:
+            raise ConfigError("capacity", f"must be >= 1 row, got {capacity}")
+        names = [name for name, _ in fields]
+        if len(set(names)) != len(names):
+            raise ConfigError("fields", f"duplicate field names in {names}")
+        self._shapes = {str(name): (int(shape),) if np.isscalar(shape) else
+                        tuple(int(n) for n in shape) for name, shape in fields}
+        self._fields = [(name, math.prod(shape)) for name, shape in self._shapes.items()]
+        if any(min(shape, default=0) < 1 for shape in self._shapes.values()):
+            raise ConfigError("fields", f"every size must be >= 1, got {self._shapes}")
+        self._integer = frozenset(integer)
+        unknown = self._integer.difference(names)
+        if unknown:
+            raise ConfigError("integer", f"not a field: {sorted(unknown)}")
+        self._slices: dict[str, slice | int] = {}
+        col = 0
+        for name, width in self._fields:
+            self._slices[name] = col if width == 1 else slice(col, col + width)
+            col += width
+        self.width = col
+        """int: values per row."""
+        self.capacity = int(capacity)
+        """int: rows per chunk."""
+        self._chunks: list[np.ndarray] = []
+        self._n_full = 0
+        self._new_chunk()
+
+    def _new_chunk(self) -> None:
+        self._chunk = np.empty((self.capacity, self.width))
+        self._chunks.append(self._chunk)
+        self._i = 0
+
+    @property
+    def fields(self) -> list[tuple[str, tuple[int, ...]]]:
+        """Field names and shapes, in row order."""
+        return list(self._shapes.items())
+
+    def __len__(self) -> int:
+        return self._n_full + self._i
+
+    def append(self, row: Sequence[float]) -> None:
+        """Store one row of ``width`` values (in field order, wide fields flattened)."""
+        if self._i == self.capacity:
+            self._n_full += self.capacity
+            self._new_chunk()
+        self._chunk[self._i] = row
+        self._i += 1
+
+    def clear(self) -> None:
+        """Forget every row and keep one chunk."""
+        self._chunks = [self._chunks[0]]
+        self._chunk = self._chunks[0]
+        self._i = 0
+        self._n_full = 0
+
+    def table(self) -> np.ndarray:
+        """All rows as one (n, width) float64 array (a copy)."""
+        parts = [*self._chunks[:-1], self._chunk[: self._i]]
+        if len(parts) == 1:
+            return parts[0].copy()
+        return np.concatenate(parts, axis=0)
+
+    def as_arrays(self) -> dict[str, np.ndarray]:
+        """Every field as its own array, shape (n, *shape) or (n,); integer fields int64."""
+        table = self.table()
+        out: dict[str, np.ndarray] = {}
+        for name, width in self._fields:
+            col = table[:, self._slices[name]]
+            if width > 1 and len(self._shapes[name]) > 1:
+                col = col.reshape(len(table), *self._shapes[name])
+            out[name] = (col.astype(np.int64) if name in self._integer
+                         else np.ascontiguousarray(col))
+        return out

@@ -1,0 +1,119 @@
+"""The speed and tangential limits one path segment allows (the planner's V_segment).
+
+A segment's speed cap and the tangential acceleration and jerk its profile may use follow
+from the contour limits, the per-axis limits projected on the direction of travel, and —
+on curved segments — the acceleration and jerk that the curvature itself demands:
+
+* line, direction t̂: ``v ≤ v_max_k/|t̂_k|``, ``a ≤ a_max_k/|t̂_k|``, ``j ≤ j_max_k/|t̂_k|``
+  for each axis k, and the contour limits;
+* arc or spline: the tangent turns, so the per-axis velocity limit uses the largest
+  ``|t̂_k|`` over the segment (exact for an arc, from its angle range; sampled for a
+  spline), and the total acceleration and jerk vectors are kept within
+  ``A = min(contour, axes)`` and ``J = min(contour, axes)``. With κ the largest |curvature|
+  and κ' the largest |dκ/ds|: centripetal ``v²κ ≤ A/√2`` and tangential
+  ``a_t = √(A² − (v²κ)²)`` (so ``|a| ≤ A``); the jerk
+  ``|j| ≤ |s⃛| + v³(κ² + κ') + 3·v·a_t·κ`` is shared as ``v³(κ² + κ') ≤ J/4``,
+  ``3·v·a_t·κ ≤ J/2``, and the tangential jerk gets the rest, at least ``J/4``.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Sequence
+
+import numpy as np
+
+from twin.controller.geometry import Arc, Line, Segment
+from twin.controller.profiles import Limits
+
+__all__ = ["SegmentLimits"]
+
+_SQRT_HALF = math.sqrt(0.5)
+
+
+class SegmentLimits:
+    """Speed caps and tangential limits of segments under contour and per-axis limits.
+
+    Parameters
+    ----------
+    limits : Limits
+        Contour limits (m/s, m/s², m/s³). ``max_velocity`` is not used here: the caller
+        passes the speed cap it wants (feed or rapid speed) to `caps`.
+    axis_limits : sequence of 2 Limits
+        Limits of the x and y axes.
+    """
+
+    def __init__(self, limits: Limits, axis_limits: Sequence[Limits]):
+        self.limits = limits
+        self.axis_limits = tuple(axis_limits)
+
+    def caps(self, segment: Segment, v_cap: float) -> tuple[float, float, float]:
+        """(speed cap (m/s), tangential acceleration (m/s²), tangential jerk (m/s³))."""
+        if type(segment) is Line:
+            return self.line_caps(abs(segment._ux), abs(segment._uy), v_cap)
+        return self.curve_caps(segment, v_cap)
+
+    def line_caps(self, ax: float, ay: float, v_cap: float) -> tuple[float, float, float]:
+        """Caps of a straight segment with direction components ``|t̂_x|, |t̂_y|``."""
+        c = self.limits
+        v, a, j = v_cap, c.max_acceleration, c.max_jerk
+        for comp, lim in zip((ax, ay), self.axis_limits, strict=True):
+            if comp * v > lim.max_velocity:
+                v = lim.max_velocity / comp
+            if comp * a > lim.max_acceleration:
+                a = lim.max_acceleration / comp
+            if comp * j > lim.max_jerk:
+                j = lim.max_jerk / comp
+        return v, a, j
+
+    def curve_caps(self, seg: Segment, v_cap: float) -> tuple[float, float, float]:
+        """Caps of an arc (exact) or any other curved segment (sampled)."""
+        lx, ly = self.axis_limits
+        a_tot = min(self.limits.max_acceleration, lx.max_acceleration, ly.max_acceleration)
+        j_tot = min(self.limits.max_jerk, lx.max_jerk, ly.max_jerk)
+        if type(seg) is Arc:
+            mx, my = _arc_tangent_extent(seg)
+            kappa, dkappa = 1.0 / seg.radius, 0.0
+        else:
+            mx, my, kappa, dkappa = _sampled_extent(seg)
+        v = v_cap
+        if mx * v > lx.max_velocity:
+            v = lx.max_velocity / mx
+        if my * v > ly.max_velocity:
+            v = ly.max_velocity / my
+        if kappa > 0.0:
+            v = min(v, math.sqrt(_SQRT_HALF * a_tot / kappa),
+                    (0.25 * j_tot / (kappa * kappa + dkappa)) ** (1.0 / 3.0))
+        a_n = v * v * kappa
+        a_t = math.sqrt(a_tot * a_tot - a_n * a_n)
+        if kappa > 0.0:
+            a_t = min(a_t, j_tot / (6.0 * v * kappa))
+        j_t = j_tot - v**3 * (kappa * kappa + dkappa) - 3.0 * v * a_t * kappa
+        return v, a_t, j_t
+
+
+def _max_abs_sin(a: float, b: float) -> float:
+    """max |sin φ| for φ in [a, b] (a ≤ b)."""
+    if b - a >= math.pi:
+        return 1.0
+    k = math.ceil((a - 0.5 * math.pi) / math.pi)
+    if 0.5 * math.pi + k * math.pi <= b:
+        return 1.0
+    return max(abs(math.sin(a)), abs(math.sin(b)))
+
+
+def _arc_tangent_extent(arc: Arc) -> tuple[float, float]:
+    """Largest |tangent component| over the arc, (x, y): exact from its angle range."""
+    th0 = math.atan2(arc.start[1] - arc.center[1], arc.start[0] - arc.center[0])
+    a, b = sorted((th0, th0 + arc.sweep))
+    return _max_abs_sin(a, b), _max_abs_sin(a + 0.5 * math.pi, b + 0.5 * math.pi)
+
+
+def _sampled_extent(seg: Segment, n: int = 65) -> tuple[float, float, float, float]:
+    """Tangent extent, max |κ| and max |dκ/ds| of a general segment, sampled at ``n`` points."""
+    s = np.linspace(0.0, seg.length, n)
+    t = np.abs(seg.tangent(s))
+    k = np.asarray(seg.curvature(s), dtype=float)
+    dk = np.abs(np.diff(k)) / (seg.length / (n - 1))
+    return (float(t[:, 0].max()), float(t[:, 1].max()), float(np.abs(k).max()),
+            float(dk.max()) if dk.size else 0.0)
