@@ -1,17 +1,13 @@
 """Error metrics of a run: what seed 000's rig plotted and seed 001 optimised.
 
-All inputs and results are SI (m, s, m/s); :meth:`RunMetrics.to_report` is the one place
-that converts to µm and mm/min. Arrays of positions are ``(n, 2)``, columns x and y.
+Coordinate error (``reference − actual`` per axis), contour error (shortest distance to the
+programmed path, exact for lines, arcs and splines: each segment answers its own exact
+distance; bounding boxes prune the search, 10⁶ samples on 10³ segments take well under a
+second), vector error, velocity error, the seed 001 corner error, residual vibration and
+overshoot after the motion, cycle time and productivity (path length / time, seed 001).
 
-* coordinate error: ``reference − actual`` per axis;
-* contour error: shortest distance from the actual point to the programmed path, exact for
-  lines, arcs and splines (each segment answers its own exact distance); bounding boxes
-  prune the search so that 10⁶ samples on 10³ segments take about a second;
-* vector error: ``|reference − actual|``;
-* velocity error per axis;
-* corner error of seed 001 at a node B between segments AB and BC;
-* residual vibration after the motion ends, overshoot past the target;
-* cycle time and productivity (path length / time, seed 001).
+Everything is SI (m, s, m/s), positions are arrays ``(n, 2)`` with columns x, y;
+:meth:`RunMetrics.to_report` is the one place that converts to µm and mm/min.
 
 Typical use::
 
@@ -329,7 +325,9 @@ def cycle_time(t, moving) -> float:
         0 when nothing moves. With period T, k moving samples in a row give k·T.
     """
     moving = np.asarray(moving, dtype=bool)
-    times = _times(t, moving.shape[0] if moving.ndim == 1 else -1)
+    if moving.ndim != 1:
+        raise ValueError(f"moving must have shape (n,), got {moving.shape}")
+    times = _times(t, moving.shape[0])
     idx = np.flatnonzero(moving)
     if idx.size == 0:
         return 0.0

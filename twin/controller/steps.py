@@ -16,9 +16,9 @@ signs applied to the output as in the seed)
   ``F(x + ½, y + ½) = F + (a − b)/2`` (kept doubled, in integers). That midpoint lies half
   way between the two candidate nodes, and F is linear, so the rule picks the candidate
   nearer to the line. Moreover every node keeps ``−(a + b)/2 ≤ F < (a + b)/2``: on every
-  anti-diagonal ``x + y = k`` (nodes spaced ``a + b`` apart in F) the staircase visits *the*
-  node nearest to the line. Any monotone unit-step path visits one node per anti-diagonal,
-  so no such path has a smaller maximum deviation; the bound is
+  anti-diagonal ``x + y = k`` (nodes spaced ``a + b`` apart in F) the staircase visits a
+  node nearest to the line (of a tie, the one below it). Any monotone unit-step path visits
+  one node per anti-diagonal, so no such path has a smaller maximum deviation; the bound is
   ``(a + b)/(2·√(a² + b²)) ≤ √2/2`` step.
 
 Arcs (integer start, end and centre; radius ``R = |start − centre|``, ``F = x² + y² − R²``
@@ -28,14 +28,17 @@ Within a quadrant the motion is monotone in both axes, one axis moving towards t
 (inward) and the other away from it. The classic rule steps inward when ``F ≥ 0`` and
 outward otherwise, so every node keeps ``|r − R| ≤ 1`` step. The extrapolated rule takes the
 sign of F at the midpoint of the two candidates, ``F + sx·x + sy·y + ½`` (never zero in
-integers), i.e. it picks the candidate nearer to where the circle crosses the diagonal
-through both; this keeps every node within ``|r − R| ≤ √2/2`` step (the midpoint circle
-algorithm in its 4-connected form). Quadrants are half-open in the direction of motion (a
-node on an axis belongs to the quadrant the arc is entering) and are changed when the inward
-coordinate reaches zero, so arcs may cross any number of quadrant boundaries; ``start ==
-end`` is a full circle. The end point may lie up to one step off the circle through the
-start point: in the last quadrant no axis is stepped past its end coordinate, which lands
-the staircase exactly on the end point.
+integers; the midpoint circle algorithm in its 4-connected form). Of all grid nodes on the
+diagonal through both candidates it takes the one nearest to where the circle crosses that
+diagonal (nodes there are √2 apart and ``|∇r| = 1``), so every node keeps
+``|r − R| ≤ √2/2`` step, each axis is crossed at ``±round(R)`` and a full circle takes
+exactly ``8·round(R)`` steps. Quadrants are half-open in the direction of motion (a node on
+an axis belongs to the quadrant the arc is entering) and change when the inward coordinate
+reaches zero, so arcs may cross any number of quadrant boundaries; ``start == end`` is a
+full circle. The end point may lie up to one step off the circle through the start point:
+in the last quadrant no axis is stepped past its end coordinate, which lands the staircase
+exactly on the end point; the bounds then read ``max(1, e)`` and ``max(√2/2, e)`` with
+``e = |r_end − R|``. The tests prove all of these by brute force (radius ≤ 60).
 
 On every axis-parallel unit edge the distance to a line and the radius are largest at an end
 (the distance is convex along the edge; the radius has its minimum at the foot of the
@@ -57,6 +60,7 @@ from collections.abc import Sequence
 import numpy as np
 
 __all__ = [
+    "ARC_END_TOLERANCE",
     "dda_linear",
     "of_arc",
     "of_arc_extrapolated",
