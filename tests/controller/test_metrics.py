@@ -11,7 +11,6 @@ import pytest
 from twin.controller.geometry import Arc, Line, SplinePath
 from twin.controller.metrics import (
     CornerError,
-    RunMetrics,
     contour_error,
     coordinate_error,
     corner_error,
@@ -19,10 +18,10 @@ from twin.controller.metrics import (
     overshoot,
     productivity,
     residual_vibration,
-    summarize,
     vector_error,
     velocity_error,
 )
+from twin.controller.summary import RunMetrics, summarize
 from twin.errors import ConfigError
 
 RNG = np.random.default_rng(20240611)
