@@ -1,0 +1,386 @@
+"""Path segments parameterised by arc length: straight line, circular arc, cubic spline.
+
+Every segment maps an arc length ``s`` in ``[0, length]`` (m) to a point (m), a unit tangent
+and a signed curvature (1/m, positive turning left / counter-clockwise), and answers the
+exact distance from any point to itself (the contour error). Values of ``s`` outside
+``[0, length]`` are clipped; ``point(0)`` and ``point(length)`` return ``start`` and ``end``
+exactly, so an interpolator ends on the programmed point.
+
+Scalar calls (a Python or NumPy float) take a path without array arithmetic, for the
+controller tick; array calls are vectorised: ``s`` shape (n,) gives points shape (n, 2), and
+``distance`` of points shape (n, 2) gives shape (n,).
+"""
+
+from __future__ import annotations
+
+import math
+from abc import ABC, abstractmethod
+
+import numpy as np
+
+from twin.controller._spline_curve import SplineCurve
+from twin.errors import PlanningError
+
+__all__ = ["Arc", "Line", "Segment", "SplinePath"]
+
+TAU = 2.0 * math.pi
+
+
+class Segment(ABC):
+    """A piece of a planar path, parameterised by arc length.
+
+    Attributes
+    ----------
+    start, end : ndarray, shape (2,)
+        End points (m), read-only.
+    length : float
+        Arc length (m), > 0.
+    """
+
+    start: np.ndarray
+    end: np.ndarray
+    length: float
+
+    @abstractmethod
+    def point(self, s):
+        """Point at arc length ``s``.
+
+        Parameters
+        ----------
+        s : float or ndarray, shape (n,)
+            Arc length from ``start`` (m), clipped to ``[0, length]``.
+
+        Returns
+        -------
+        ndarray, shape (2,) or (n, 2)
+            Position (m).
+        """
+
+    @abstractmethod
+    def tangent(self, s):
+        """Unit tangent in the direction of travel at ``s``; shape (2,) or (n, 2)."""
+
+    @abstractmethod
+    def curvature(self, s):
+        """Signed curvature at ``s`` (1/m), > 0 turning left; float or ndarray (n,)."""
+
+    @abstractmethod
+    def closest(self, p):
+        """Closest point of the segment to ``p``.
+
+        Parameters
+        ----------
+        p : array_like, shape (2,) or (n, 2)
+            Query point(s) (m).
+
+        Returns
+        -------
+        s : float or ndarray, shape (n,)
+            Arc length of the closest point (m); the smallest one when several tie.
+        distance : float or ndarray, shape (n,)
+            Euclidean distance to it (m), exact up to rounding.
+        """
+
+    @abstractmethod
+    def bounding_box(self) -> tuple[np.ndarray, np.ndarray]:
+        """Tight axis-aligned box ``(lower (2,), upper (2,))`` containing the segment (m)."""
+
+    def distance(self, p):
+        """Shortest distance from ``p`` (2,) or (n, 2) to the segment (m), exact."""
+        return self.closest(p)[1]
+
+    @property
+    def start_tangent(self) -> np.ndarray:
+        """Unit tangent at the start, shape (2,)."""
+        return self.tangent(0.0)
+
+    @property
+    def end_tangent(self) -> np.ndarray:
+        """Unit tangent at the end, shape (2,)."""
+        return self.tangent(self.length)
+
+    def __repr__(self) -> str:
+        return (f"{type(self).__name__}(start={self.start.tolist()}, end={self.end.tolist()}, "
+                f"length={self.length:.9g})")
+
+
+class Line(Segment):
+    """Straight segment from ``start`` to ``end`` (m); they must differ."""
+
+    def __init__(self, start, end):
+        self.start = _point(start, "start")
+        self.end = _point(end, "end")
+        dx, dy = self.end - self.start
+        self.length = math.hypot(dx, dy)
+        if self.length == 0.0:
+            raise PlanningError(f"line of zero length: start = end = {self.start.tolist()}")
+        self._ux, self._uy = dx / self.length, dy / self.length
+        self._u = _frozen([self._ux, self._uy])
+
+    def point(self, s):
+        if _is_scalar(s):
+            if s <= 0.0:
+                return self.start.copy()
+            if s >= self.length:
+                return self.end.copy()
+            return np.array((self.start[0] + s * self._ux, self.start[1] + s * self._uy))
+        s = np.clip(np.asarray(s, dtype=float), 0.0, self.length)
+        out = self.start + s[..., None] * self._u
+        out[s == self.length] = self.end
+        return out
+
+    def tangent(self, s):
+        if _is_scalar(s):
+            return self._u.copy()
+        return np.broadcast_to(self._u, (*np.shape(s), 2)).copy()
+
+    def curvature(self, s):
+        return 0.0 if _is_scalar(s) else np.zeros(np.shape(s))
+
+    def closest(self, p):
+        if _is_point(p):
+            px, py = p[0] - self.start[0], p[1] - self.start[1]
+            s = min(max(px * self._ux + py * self._uy, 0.0), self.length)
+            return s, math.hypot(px - s * self._ux, py - s * self._uy)
+        rel = _points(p) - self.start
+        s = np.clip(rel @ self._u, 0.0, self.length)
+        return s, np.hypot(*(rel - s[:, None] * self._u).T)
+
+    def bounding_box(self):
+        return np.minimum(self.start, self.end), np.maximum(self.start, self.end)
+
+
+class Arc(Segment):
+    """Circular arc about ``center`` from ``start`` to ``end`` (m).
+
+    Parameters
+    ----------
+    start, end, center : array_like, shape (2,)
+        End points and centre (m). ``start == end`` (within ``tol``) means a full circle.
+    ccw : bool
+        Direction: counter-clockwise (G3) or clockwise (G2).
+    turns : int
+        Extra full turns added to the sweep (≥ 0).
+    tol : float
+        Largest accepted ``| |end − center| − |start − center| |`` (m). The radius is
+        ``|start − center|``; ``end`` must lie on that circle within ``tol`` (the parser
+        enforces its own, looser tolerance before building the arc).
+
+    Attributes
+    ----------
+    center : ndarray, shape (2,)
+        Centre (m).
+    radius : float
+        Radius (m).
+    sweep : float
+        Signed swept angle (rad), > 0 counter-clockwise; ``|sweep| = length/radius``.
+
+    Raises
+    ------
+    PlanningError
+        Zero radius, end off the circle, bad ``ccw``/``turns``/``tol``.
+    """
+
+    def __init__(self, start, end, center, *, ccw: bool, turns: int = 0, tol: float = 1e-9):
+        if not isinstance(ccw, bool | np.bool_):
+            raise PlanningError(f"ccw must be a bool, got {ccw!r}")
+        if isinstance(turns, bool) or not isinstance(turns, int | np.integer) or turns < 0:
+            raise PlanningError(f"turns must be an integer ≥ 0, got {turns!r}")
+        if not (math.isfinite(tol) and tol >= 0.0):
+            raise PlanningError(f"tol must be finite and ≥ 0 (m), got {tol!r}")
+        self.start = _point(start, "start")
+        self.end = _point(end, "end")
+        self.center = _point(center, "center")
+        (sx, sy), (ex, ey) = self.start - self.center, self.end - self.center
+        self.radius = math.hypot(sx, sy)
+        end_radius = math.hypot(ex, ey)
+        if self.radius == 0.0:
+            raise PlanningError(f"arc of zero radius: start = center = {self.start.tolist()}")
+        if abs(end_radius - self.radius) > tol:
+            raise PlanningError(
+                f"arc end point is not on the circle: |end − center| = {end_radius!r} m, "
+                f"|start − center| = {self.radius!r} m, difference "
+                f"{abs(end_radius - self.radius):.3g} m > tol = {tol:.3g} m")
+        self.ccw = bool(ccw)
+        self._sign = 1.0 if ccw else -1.0
+        self._theta0 = math.atan2(sy, sx)
+        full = math.hypot(ex - sx, ey - sy) <= tol
+        span = TAU if full else ((math.atan2(ey, ex) - self._theta0) * self._sign) % TAU
+        span = (span or TAU) + TAU * int(turns)
+        self.turns = int(turns)
+        self.sweep = self._sign * span
+        self.length = self.radius * span
+        self._k = self._sign / self.radius
+
+    def _angle(self, s):
+        return self._theta0 + self._k * s
+
+    def point(self, s):
+        if _is_scalar(s):
+            if s <= 0.0:
+                return self.start.copy()
+            if s >= self.length:
+                return self.end.copy()
+            phi = self._angle(s)
+            return np.array((self.center[0] + self.radius * math.cos(phi),
+                             self.center[1] + self.radius * math.sin(phi)))
+        s = np.clip(np.asarray(s, dtype=float), 0.0, self.length)
+        phi = self._angle(s)
+        out = self.center + self.radius * np.stack((np.cos(phi), np.sin(phi)), axis=-1)
+        out[s == 0.0] = self.start
+        out[s == self.length] = self.end
+        return out
+
+    def tangent(self, s):
+        if _is_scalar(s):
+            phi = self._angle(min(max(s, 0.0), self.length))
+            return np.array((-self._sign * math.sin(phi), self._sign * math.cos(phi)))
+        phi = self._angle(np.clip(np.asarray(s, dtype=float), 0.0, self.length))
+        return self._sign * np.stack((-np.sin(phi), np.cos(phi)), axis=-1)
+
+    def curvature(self, s):
+        return self._k if _is_scalar(s) else np.full(np.shape(s), self._k)
+
+    def closest(self, p):
+        if not _is_point(p):
+            return self._closest(_points(p))
+        rx, ry = p[0] - self.center[0], p[1] - self.center[1]
+        rho = math.hypot(rx, ry)
+        if rho == 0.0:
+            return 0.0, self.radius
+        offset = ((math.atan2(ry, rx) - self._theta0) * self._sign) % TAU
+        if offset <= abs(self.sweep) or abs(self.sweep) >= TAU:
+            return self.radius * offset, abs(rho - self.radius)
+        to_start, to_end = math.dist(p, self.start), math.dist(p, self.end)
+        return (self.length, to_end) if to_end < to_start else (0.0, to_start)
+
+    def _closest(self, pts: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        rel = pts - self.center
+        rho = np.hypot(*rel.T)
+        offset = ((np.arctan2(rel[:, 1], rel[:, 0]) - self._theta0) * self._sign) % TAU
+        inside = (offset <= abs(self.sweep)) | (abs(self.sweep) >= TAU)
+        to_start = np.hypot(*(pts - self.start).T)
+        to_end = np.hypot(*(pts - self.end).T)
+        s = np.where(inside, self.radius * offset, np.where(to_end < to_start, self.length, 0.0))
+        d = np.where(inside, np.abs(rho - self.radius), np.minimum(to_start, to_end))
+        at_center = rho == 0.0
+        s[at_center], d[at_center] = 0.0, self.radius
+        return s, d
+
+    def bounding_box(self):
+        pts = [self.start, self.end]
+        for k in range(4):
+            offset = ((k * math.pi / 2 - self._theta0) * self._sign) % TAU
+            if offset <= abs(self.sweep):
+                pts.append(self.center + self.radius * np.array([(1, 0), (0, 1), (-1, 0),
+                                                                 (0, -1)][k], dtype=float))
+        pts = np.array(pts)
+        return pts.min(axis=0), pts.max(axis=0)
+
+
+class SplinePath(Segment):
+    """Parametric natural cubic spline through points, parameterised by arc length.
+
+    ``x(u)`` and ``y(u)`` are natural cubic splines (:mod:`twin.controller.spline`) of the
+    cumulative chord length ``u``. Arc length is integrated per piece by adaptive
+    Gauss–Legendre quadrature (8 nodes, sub-intervals refined until 1e-13 relative);
+    ``s → u`` is inverted by safeguarded Newton from a Hermite initial guess; the exact
+    distance minimises the squared distance per piece through the real roots of its
+    derivative, a quintic.
+
+    Parameters
+    ----------
+    points : array_like, shape (n, 2)
+        Points to pass through (m), n ≥ 2, consecutive points distinct.
+    method : {"tridiagonal", "blocks4"}
+        Solver of the spline coefficients (same spline either way).
+
+    Attributes
+    ----------
+    points : ndarray, shape (n, 2)
+        The points (m).
+    pieces : int
+        Number of cubic pieces, n − 1.
+    knot_s : ndarray, shape (n,)
+        Arc length at each point (m).
+    """
+
+    def __init__(self, points, *, method: str = "tridiagonal"):
+        pts = np.array(points, dtype=float)
+        if pts.ndim != 2 or pts.shape[1] != 2 or pts.shape[0] < 2:
+            raise PlanningError(f"points must have shape (n ≥ 2, 2), got {pts.shape}")
+        bad = np.flatnonzero(~np.isfinite(pts).all(axis=1))
+        if bad.size:
+            raise PlanningError(f"points[{bad[0]}] is not finite: {pts[bad[0]].tolist()}")
+        same = np.flatnonzero((np.diff(pts, axis=0) == 0.0).all(axis=1))
+        if same.size:
+            k = same[0] + 1
+            raise PlanningError(f"points[{k}] repeats points[{k - 1}] = {pts[k].tolist()}: "
+                                "consecutive points must differ")
+        self.points = _frozen(pts)
+        self._curve = SplineCurve(pts, method=method)
+        self.pieces = pts.shape[0] - 1
+        self.knot_s = self._curve.knot_s
+        self.length = float(self.knot_s[-1])
+        self.start = _frozen(pts[0])
+        self.end = _frozen(pts[-1])
+
+    def point(self, s):
+        if _is_scalar(s):
+            if s <= 0.0:
+                return self.start.copy()
+            if s >= self.length:
+                return self.end.copy()
+            return np.array(self._curve.point_at(s))
+        s = np.clip(np.asarray(s, dtype=float), 0.0, self.length)
+        out = self._curve.points_at(s)
+        out[s == 0.0] = self.start
+        out[s == self.length] = self.end
+        return out
+
+    def tangent(self, s):
+        if _is_scalar(s):
+            return np.array(self._curve.tangent_at(min(max(s, 0.0), self.length)))
+        return self._curve.tangents_at(np.clip(np.asarray(s, dtype=float), 0.0, self.length))
+
+    def curvature(self, s):
+        if _is_scalar(s):
+            return self._curve.curvature_at(min(max(s, 0.0), self.length))
+        return self._curve.curvatures_at(np.clip(np.asarray(s, dtype=float), 0.0, self.length))
+
+    def closest(self, p):
+        if _is_point(p):
+            s, d = self._curve.closest(np.array([p], dtype=float))
+            return float(s[0]), float(d[0])
+        return self._curve.closest(_points(p))
+
+    def bounding_box(self):
+        return self._curve.box_lower.min(axis=0), self._curve.box_upper.max(axis=0)
+
+
+def _is_scalar(s) -> bool:
+    return isinstance(s, float | int | np.floating | np.integer)
+
+
+def _is_point(p) -> bool:
+    return np.shape(p) == (2,)
+
+
+def _frozen(values) -> np.ndarray:
+    arr = np.array(values, dtype=float)
+    arr.setflags(write=False)
+    return arr
+
+
+def _point(value, name: str) -> np.ndarray:
+    arr = _frozen(value)
+    if arr.shape != (2,) or not np.isfinite(arr).all():
+        raise PlanningError(f"{name} must be a finite point of shape (2,), got {value!r}")
+    return arr
+
+
+def _points(p) -> np.ndarray:
+    arr = np.asarray(p, dtype=float)
+    if arr.ndim != 2 or arr.shape[1] != 2:
+        raise ValueError(f"points must have shape (2,) or (n, 2), got {arr.shape}")
+    return arr
