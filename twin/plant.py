@@ -1,0 +1,442 @@
+"""The physical twin: the MuJoCo cross table driven by the two axis drives.
+
+:class:`Plant` advances the drives (``twin.drive``) and the mechanics (``twin.model``) in
+lock-step: every drive update interval ``dt_drive = simulation.timestep ·
+simulation.drive_substeps`` the drives turn the quantised speed references and the rotor
+speeds into an interval-average motor torque, which MuJoCo then applies to the rotor hinges
+(``qfrc_applied``) for ``drive_substeps`` physics steps. :meth:`Plant.read` gives what real
+I/O hardware gives (encoder counters, tacho voltages, debounced switches);
+:meth:`Plant.truth` what only a twin knows.
+
+Typical use::
+
+    plant = Plant.from_machine("tomsk_xy")
+    plant.reset()                                   # keyframe "home", drives enabled
+    status = plant.step(np.array([1.0, 0.0]), 5e-3)  # 1 V on X for one 5 ms period
+    counts = plant.read().encoder_counts
+
+Sensors and switches
+    Encoders sit on the motor shafts: ``counts = floor(θ·cpr/2π) + offset`` wrapped to the
+    counter width (``encoder.bits``); at reset the offset is 0 (counts are then the table
+    position in counts while the screw is relaxed) or set so the counter reads a preset.
+    The switches are sampled at the end of every drive interval and debounced over
+    ``switches.debounce``: a raw change must persist that long before the output follows.
+    ``limit_min`` is closed for x ≤ limit_min, ``limit_max`` for x ≥ limit_max and ``home``
+    for |x − home| ≤ home_width/2.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from pathlib import Path
+
+import mujoco
+import numpy as np
+
+from twin.config import AXES, MachineConfig, SwitchConfig
+from twin.drive import Drives
+from twin.errors import SimulationError
+from twin.model import load_model, resolve_machine
+
+__all__ = ["Plant", "Reading", "StepStatus", "Truth"]
+
+_BAD_STATE = ("mjWARN_BADQPOS", "mjWARN_BADQVEL", "mjWARN_BADQACC")
+_WARNING_NAMES = tuple(sorted((name for name in mujoco.mjtWarning.__members__
+                               if name != "mjNWARNING"),
+                              key=lambda name: int(mujoco.mjtWarning.__members__[name])))
+
+
+@dataclass(frozen=True, slots=True)
+class StepStatus:
+    """What happened during one :meth:`Plant.step` (arrays indexed by axis x, y).
+
+    Attributes
+    ----------
+    saturated : ndarray, shape (2,), bool
+        The DAC command was outside its range and was clipped.
+    limit_hit : ndarray, shape (2,), bool
+        An end limit switch (min or max, debounced) was closed during the step.
+    end_stop : ndarray, shape (2,), bool
+        The table reached the mechanical end of its travel during the step.
+    drive_fault : ndarray, shape (2,), bool
+        The drive's latched overload trip at the end of the step.
+    warnings : tuple of str
+        MuJoCo warnings raised during the step (``mjWARN_*`` names).
+    time : float
+        Plant time at the end of the step (s).
+    """
+
+    saturated: np.ndarray
+    limit_hit: np.ndarray
+    end_stop: np.ndarray
+    drive_fault: np.ndarray
+    warnings: tuple[str, ...]
+    time: float
+
+    @property
+    def ok(self) -> bool:
+        """Nothing to report: no saturation, limit, end stop, fault or warning."""
+        return not (self.saturated.any() or self.limit_hit.any() or self.end_stop.any()
+                    or self.drive_fault.any() or self.warnings)
+
+
+@dataclass(frozen=True, slots=True)
+class Reading:
+    """What the machine's I/O hardware delivers (arrays indexed by axis x, y).
+
+    Attributes
+    ----------
+    encoder_counts : ndarray, shape (2,), int64
+        Hardware counters (counts), wrapped to 0 … 2^bits − 1.
+    tacho_volts : ndarray, shape (2,)
+        Tachogenerator voltage at the ADC (V).
+    limit_min, limit_max, home : ndarray, shape (2,), bool
+        Debounced switch states, True = closed.
+    drive_ready : bool
+        No drive reports a fault.
+    time : float
+        Plant time of the sample (s).
+    """
+
+    encoder_counts: np.ndarray
+    tacho_volts: np.ndarray
+    limit_min: np.ndarray
+    limit_max: np.ndarray
+    home: np.ndarray
+    drive_ready: bool
+    time: float
+
+
+@dataclass(frozen=True, slots=True)
+class Truth:
+    """The twin's full state (arrays shape (2,), indexed by axis x, y).
+
+    Attributes
+    ----------
+    table_position, table_velocity : ndarray
+        Carriage position (m) and velocity (m/s).
+    rotor_angle, rotor_speed : ndarray
+        Motor shaft angle (rad) and speed (rad/s).
+    screw_deflection : ndarray
+        r·θ − x (m): positive when the screw pushes the table forward.
+    armature_current, converter_voltage : ndarray
+        Motor current (A) and converter mean output voltage (V).
+    firing_angle : ndarray
+        Thyristor firing angle (rad); NaN for PWM and while the pulses are removed.
+    bridge : ndarray, int64
+        Conducting converter: +1 forward, −1 reverse, 0 blocked.
+    speed_reference : ndarray
+        Speed reference after the drive's input filter (V).
+    time : float
+        Plant time (s).
+    """
+
+    table_position: np.ndarray
+    table_velocity: np.ndarray
+    rotor_angle: np.ndarray
+    rotor_speed: np.ndarray
+    screw_deflection: np.ndarray
+    armature_current: np.ndarray
+    converter_voltage: np.ndarray
+    firing_angle: np.ndarray
+    bridge: np.ndarray
+    speed_reference: np.ndarray
+    time: float
+
+
+class _AxisMonitor:
+    """Switches and end stops of one axis, from the table position sampled at the end of
+    every drive interval.
+
+    Switch channels 0, 1, 2 = limit_min, limit_max, home. A raw change must persist for
+    ``debounce`` seconds of samples before the output follows it.
+    """
+
+    __slots__ = ("bounds", "debounce", "home", "limit_max", "limit_min", "pending", "quiet",
+                 "state", "travel", "width")
+
+    def __init__(self, sw: SwitchConfig, travel: tuple[float, float]):
+        self.limit_min, self.limit_max = sw.limit_min, sw.limit_max
+        self.home, self.width = sw.home, sw.home_width / 2.0
+        self.bounds = (sw.limit_min, sw.limit_max, sw.home - self.width, sw.home + self.width)
+        self.debounce = sw.debounce - 1e-12  # absorb the float error of sample times
+        self.travel = travel
+        self.settle(math.inf)
+
+    def raw(self, x: float) -> list[bool]:
+        return [x <= self.limit_min, x >= self.limit_max, abs(x - self.home) <= self.width]
+
+    def settle(self, x: float) -> None:
+        """Outputs equal to the raw states at ``x``, nothing pending (after a reset)."""
+        self.state = self.raw(x)
+        self.pending = [math.nan, math.nan, math.nan]
+        self.quiet = True  # nothing pending
+
+    def update(self, x: list[float], t0: float, dt: float) -> tuple[bool, bool]:
+        """Feed samples ``x`` taken at t0 + dt·(1..n). Returns (an end limit switch was
+        closed at the start or at any sample, the table reached an end of its travel)."""
+        hit = self.state[0] or self.state[1]
+        lo, hi = min(x), max(x)
+        end_stop = lo <= self.travel[0] or hi >= self.travel[1]
+        b0, b1, b2, b3 = self.bounds
+        if (self.quiet and not (lo <= b0 <= hi or lo <= b1 <= hi or lo <= b2 <= hi
+                                or lo <= b3 <= hi) and self.raw(lo) == self.state):
+            return hit, end_stop  # the common case: no switch changes, nothing pending
+        for i, xi in enumerate(x):
+            t = t0 + dt * (i + 1)
+            for ch, value in enumerate(self.raw(xi)):
+                since = self.pending[ch]
+                if value == self.state[ch]:
+                    since = math.nan
+                elif math.isnan(since):
+                    since = t
+                if not math.isnan(since) and t - since >= self.debounce:
+                    self.state[ch], since = value, math.nan
+                self.pending[ch] = since
+            hit = hit or self.state[0] or self.state[1]
+        self.quiet = all(math.isnan(p) for p in self.pending)
+        return hit, end_stop
+
+
+class Plant:
+    """The cross table with its drives (see the module docstring).
+
+    Parameters
+    ----------
+    config : MachineConfig
+        The machine.
+    noise : bool
+        Sensor noise on (``encoder.noise_counts``, ``tacho.noise`` of the machine); off by
+        default, and the plant is then deterministic.
+    seed : int, optional
+        Seed of the noise generator; default ``simulation.seed``.
+
+    Attributes
+    ----------
+    config : MachineConfig
+    model : mujoco.MjModel
+    data : mujoco.MjData
+    drives : twin.drive.Drives
+    drive_dt : float
+        Drive update interval (s): ``simulation.timestep · simulation.drive_substeps``;
+        :meth:`step` durations are multiples of it.
+    """
+
+    def __init__(self, config: MachineConfig, *, noise: bool = False, seed: int | None = None):
+        self.config = config
+        self.noise = bool(noise)
+        self._rng = np.random.default_rng(config.simulation.seed if seed is None else seed)
+        if not self.noise:  # the drives model the tacho noise: silence it at the source
+            config = config.with_overrides({"axes.*.tacho.noise": 0.0})
+        self.model = load_model(config)
+        self.data = mujoco.MjData(self.model)
+        self.drive_dt = config.simulation.timestep * config.simulation.drive_substeps
+        self.drives = Drives.from_machine(config, dt=self.drive_dt, rng=self._rng)
+        self._substeps = config.simulation.drive_substeps
+        self._key_ids = {self.model.key(i).name: i for i in range(self.model.nkey)}
+
+        m, d = self.model, self.data
+        table = _pair_slices(m, AXES)
+        rotor = _pair_slices(m, [f"{a}_rotor" for a in AXES])
+        self._table_pos, self._table_vel = d.qpos[table[0]], d.qvel[table[1]]
+        self._rotor_pos, self._rotor_vel = d.qpos[rotor[0]], d.qvel[rotor[1]]
+        self._torque = d.qfrc_applied[rotor[1]]
+        self._warning_count = d.warning.number  # a live view of the counters
+
+        axes = [config.axes[a] for a in AXES]
+        self._ratio = np.array([ax.transmission.ratio for ax in axes])
+        self._dac = [(2.0 * ax.dac.full_scale / 2**ax.dac.bits, -(2 ** (ax.dac.bits - 1)),
+                      2 ** (ax.dac.bits - 1) - 1) for ax in axes]  # (LSB (V), code range)
+        self._counts_per_rad = np.array([ax.encoder.counts_per_rev / (2.0 * math.pi)
+                                         for ax in axes])
+        # two's complement masks: -1 & (2³² − 1) = 2³² − 1; a 64-bit counter stays signed
+        self._counter_mask = np.array([(1 << ax.encoder.bits) - 1 if ax.encoder.bits < 64
+                                       else -1 for ax in axes], dtype=np.int64)
+        self._encoder_noise = np.array([ax.encoder.noise_counts for ax in axes])
+        self._travel = [ax.mechanics.travel for ax in axes]
+        self._monitors = [_AxisMonitor(ax.switches, ax.mechanics.travel) for ax in axes]
+        self._intervals: dict[float, int] = {}
+        self._samples = np.empty((0, 2))
+        self._encoder_offset = np.zeros(2, dtype=np.int64)
+        self._u = np.zeros(2)
+        self.reset()
+
+    @classmethod
+    def from_machine(cls, machine: str | Path | MachineConfig, *, noise: bool = False,
+                     seed: int | None = None) -> Plant:
+        """A plant of a preset name, a machine TOML path or a config."""
+        return cls(resolve_machine(machine), noise=noise, seed=seed)
+
+    # ------------------------------------------------------------------ control
+    @property
+    def time(self) -> float:
+        """Plant time (s)."""
+        return float(self.data.time)
+
+    def reset(self, keyframe: str = "home", *, positions: np.ndarray | None = None,
+              encoder_preset: np.ndarray | None = None, seed: int | None = None) -> None:
+        """Back to rest at time 0: mechanics at a keyframe, drives reset and enabled.
+
+        Parameters
+        ----------
+        keyframe : str
+            Model keyframe ("home": tables at the home switches, screws relaxed).
+        positions : ndarray, shape (2,), optional
+            Table positions instead (m), within the travel; rotors at positions/r.
+        encoder_preset : ndarray, shape (2,), optional
+            Counter values to preload (counts); default: offset 0.
+        seed : int, optional
+            Reseed the noise generator (default: keep its stream).
+
+        Raises
+        ------
+        ValueError
+            Unknown keyframe, or positions of the wrong shape or outside the travel.
+        """
+        m, d = self.model, self.data
+        if keyframe not in self._key_ids:
+            raise ValueError(f"keyframe must be one of {sorted(self._key_ids)}, got {keyframe!r}")
+        mujoco.mj_resetDataKeyframe(m, d, self._key_ids[keyframe])
+        if positions is not None:
+            x = np.asarray(positions, dtype=float)
+            if x.shape != (2,) or not all(lo <= xi <= hi for xi, (lo, hi)
+                                          in zip(x.tolist(), self._travel, strict=True)):
+                raise ValueError(f"positions must be (2,) within the travel {self._travel} m, "
+                                 f"got {positions!r}")
+            self._table_pos[:] = x
+            self._rotor_pos[:] = x / self._ratio
+            d.qvel[:] = 0.0
+        mujoco.mj_forward(m, d)
+        if seed is not None:
+            self._rng.bit_generator.state = np.random.default_rng(seed).bit_generator.state
+        self.drives.reset()
+        self._encoder_offset[:] = 0
+        if encoder_preset is not None:
+            self._encoder_offset[:] = np.asarray(encoder_preset, np.int64) - self._raw_counts()
+        self._warnings_seen = self._warning_count.tobytes()
+        for sw, x in zip(self._monitors, self._table_pos.tolist(), strict=True):
+            sw.settle(x)
+
+    def enable(self, flag: bool) -> None:
+        """Drive enable; ``False`` blocks both converters (and acknowledges a fault)."""
+        self.drives.enable(flag)
+
+    def step(self, dac_volts: np.ndarray, duration: float) -> StepStatus:
+        """Apply DAC voltages for ``duration`` and advance drives and mechanics.
+
+        Parameters
+        ----------
+        dac_volts : ndarray, shape (2,)
+            Requested speed references (V); quantised to the DAC's codes and clipped to its
+            range (flagged in the status).
+        duration : float
+            Time to advance (s): a positive multiple of :attr:`drive_dt`.
+
+        Returns
+        -------
+        StepStatus
+
+        Raises
+        ------
+        SimulationError
+            If ``dac_volts`` is not finite, or the state diverges (not finite).
+        ValueError
+            If the shapes or ``duration`` are wrong.
+        """
+        saturated = self._quantise(dac_volts)
+        n = self._intervals.get(duration) or self._count_intervals(duration)
+        if len(self._samples) < n:
+            self._samples = np.empty((n, 2))
+        samples = self._samples[:n]
+        m, d, k, u, x = self.model, self.data, self._substeps, self._u, self._table_pos
+        drive_step, torque, omega, mj_step = self.drives.step, self._torque, self._rotor_vel, \
+            mujoco.mj_step
+        t0 = d.time
+        for i in range(n):
+            torque[:] = drive_step(u, omega)
+            mj_step(m, d, k)
+            samples[i] = x
+        warnings = () if self._warning_count.tobytes() == self._warnings_seen \
+            else self._new_warnings()
+        xs, ys = samples.T.tolist()
+        if not math.isfinite(xs[-1] + ys[-1]) or any(w in _BAD_STATE for w in warnings):
+            raise SimulationError(f"the plant state diverged (not finite) by t = {d.time:.6f} s"
+                                  f" (MuJoCo warnings: {', '.join(warnings) or 'none'})")
+        hit_x, end_x = self._monitors[0].update(xs, t0, self.drive_dt)
+        hit_y, end_y = self._monitors[1].update(ys, t0, self.drive_dt)
+        return StepStatus(saturated=saturated, limit_hit=np.array((hit_x, hit_y)),
+                          end_stop=np.array((end_x, end_y)), drive_fault=self.drives.fault,
+                          warnings=warnings, time=d.time)
+
+    # ------------------------------------------------------------------ sensing
+    def read(self) -> Reading:
+        """Sample the I/O: encoder counters, tacho voltages, switches (see :class:`Reading`)."""
+        counts = self._raw_counts() + self._encoder_offset
+        if self.noise and self._encoder_noise.any():
+            counts += np.rint(self._rng.standard_normal(2) * self._encoder_noise).astype(np.int64)
+        states = np.array([mon.state for mon in self._monitors])  # (axis, channel)
+        return Reading(encoder_counts=np.bitwise_and(counts, self._counter_mask),
+                       tacho_volts=self.drives.tacho_volts, limit_min=states[:, 0],
+                       limit_max=states[:, 1], home=states[:, 2],
+                       drive_ready=not self.drives.fault.any(), time=self.time)
+
+    def truth(self) -> Truth:
+        """The full state of the twin (see :class:`Truth`)."""
+        dr = self.drives
+        return Truth(table_position=self._table_pos.copy(),
+                     table_velocity=self._table_vel.copy(),
+                     rotor_angle=self._rotor_pos.copy(), rotor_speed=self._rotor_vel.copy(),
+                     screw_deflection=self._ratio * self._rotor_pos - self._table_pos,
+                     armature_current=dr.current, converter_voltage=dr.voltage,
+                     firing_angle=dr.firing_angle, bridge=dr.bridge,
+                     speed_reference=dr.speed_reference, time=self.time)
+
+    # ------------------------------------------------------------------ internals
+    def _quantise(self, dac_volts: np.ndarray) -> np.ndarray:
+        """Write the DAC output into ``self._u``: round to the LSB, clip to the code range.
+        Returns which axes were clipped, shape (2,) bool."""
+        if len(dac_volts) != 2:
+            raise ValueError(f"dac_volts must have 2 entries, got {len(dac_volts)}")
+        clipped = [False, False]
+        for a in (0, 1):
+            v = float(dac_volts[a])
+            if not math.isfinite(v):
+                raise SimulationError(f"dac_volts[{a}] ({AXES[a]}) must be finite, got {v} at "
+                                      f"t = {self.time:.6f} s")
+            lsb, lowest, highest = self._dac[a]
+            code = math.floor(v / lsb + 0.5)
+            if not lowest <= code <= highest:
+                clipped[a] = True
+                code = min(max(code, lowest), highest)
+            self._u[a] = code * lsb
+        return np.array(clipped)
+
+    def _count_intervals(self, duration: float) -> int:
+        """Drive intervals in ``duration`` (cached), which must be a positive multiple."""
+        n = round(duration / self.drive_dt) if math.isfinite(duration) else 0
+        if n < 1 or abs(n * self.drive_dt - duration) > 1e-9 * self.drive_dt:
+            raise ValueError(f"duration must be a positive multiple of the drive interval "
+                             f"{self.drive_dt} s, got {duration!r}")
+        self._intervals[duration] = n
+        return n
+
+    def _raw_counts(self) -> np.ndarray:
+        return np.floor(self._rotor_pos * self._counts_per_rad).astype(np.int64)
+
+    def _new_warnings(self) -> tuple[str, ...]:
+        now = self._warning_count.tobytes()
+        if now == self._warnings_seen:
+            return ()
+        before = np.frombuffer(self._warnings_seen, dtype=self._warning_count.dtype)
+        self._warnings_seen = now
+        return tuple(_WARNING_NAMES[i] for i in np.flatnonzero(self._warning_count != before))
+
+
+def _pair_slices(m: mujoco.MjModel, joints: list[str] | tuple[str, ...]) -> tuple[slice, slice]:
+    """qpos and dof slices of two adjacent one-dof joints (zero-copy views of the data)."""
+    qadr = [int(m.joint(j).qposadr[0]) for j in joints]
+    dadr = [int(m.joint(j).dofadr[0]) for j in joints]
+    if qadr[1] != qadr[0] + 1 or dadr[1] != dadr[0] + 1:
+        raise SimulationError(f"joints {joints} must be adjacent in the model")
+    return slice(qadr[0], qadr[0] + 2), slice(dadr[0], dadr[0] + 2)
