@@ -47,8 +47,8 @@ class SimDriver:
             limit_min=r.limit_min,
             limit_max=r.limit_max,
             home=r.home,
-            drive_ready=not bool(np.any(self.plant.truth().drive_fault)),
-            time=self.plant.time,
+            drive_ready=r.drive_ready,
+            time=r.time,
         )
 
     def write(self, outputs: Outputs) -> None:

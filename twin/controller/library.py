@@ -1,0 +1,116 @@
+"""A library of trajectories (seed 000's rig had one): built-in programs as motion items.
+
+Each builder returns a list of planner items — ``MotionBlock``s (a segment and its feed),
+``Dwell``s — that the ``Controller`` accepts like a parsed G-code program, scaled to the
+machine's travel and speed so the same program exercises every machine.
+
+``default_program`` is what ``twin run`` runs without a program file: seed 000's spline path
+O-A-B-C with a different contour speed on each section (accelerate on OA, cruise faster on
+AB, slow down on BC), a 90° corner (seed 001's corner study), and a full circle.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Iterable, Sequence
+from typing import Any
+
+import numpy as np
+
+from twin.config import MachineConfig
+from twin.controller.gcode import Dwell
+from twin.controller.geometry import Arc, Line, Segment, SplinePath
+from twin.controller.planner import MotionBlock, segments_from_program
+
+__all__ = ["PROGRAMS", "build_program", "default_program", "program_path", "spline_line",
+           "square_corner"]
+
+# Shape of the default program in units of the program scale L, relative to its start O.
+_OA = ((0.0, 0.0), (0.25, 0.05), (0.5, 0.15), (0.75, 0.3))
+_AB = ((0.75, 0.3), (1.0, 0.45), (1.25, 0.6), (1.5, 0.7))
+_BC = ((1.5, 0.7), (1.7, 0.8), (1.85, 0.95), (1.9, 1.1))
+_D = (1.9, 1.6)
+_E = (1.3, 1.6)
+_CIRCLE_RADIUS = 0.3
+
+
+def _scale(cfg: MachineConfig) -> float:
+    """Program scale L (m): the default program spans 1.9·L × 1.6·L."""
+    spans = [ax.switches.limit_max - ax.switches.limit_min for ax in cfg.axes.values()]
+    return 0.45 * min(spans)
+
+
+def default_program(cfg: MachineConfig, start: Sequence[float]) -> list[Any]:
+    """Seed 000's O-A-B-C spline sections, a corner, a circle; back to O at rapid speed.
+
+    Parameters
+    ----------
+    cfg : MachineConfig
+        Sets the size (from the switch span) and the feeds (from the contour limit).
+    start : sequence of 2 float
+        The point O (m), normally where the table is (the home position).
+    """
+    o = np.asarray(start, dtype=float)
+    scale = _scale(cfg)
+    v = cfg.controller.limits.max_velocity
+
+    def pts(rel: Iterable[Sequence[float]]) -> np.ndarray:
+        return o + scale * np.asarray(rel, dtype=float)
+
+    c, d, e = pts([_BC[-1]])[0], pts([_D])[0], pts([_E])[0]
+    centre = e - np.array([0.0, _CIRCLE_RADIUS * scale])
+    return [
+        MotionBlock(SplinePath(pts(_OA)), 0.5 * v),     # O-A: accelerate, cruise
+        MotionBlock(SplinePath(pts(_AB)), 0.9 * v),     # A-B: faster contour speed
+        MotionBlock(SplinePath(pts(_BC)), 0.4 * v),     # B-C: slow down
+        MotionBlock(Line(c, d), 0.7 * v),               # corner at D: 90° left turn
+        MotionBlock(Line(d, e), 0.7 * v),
+        MotionBlock(Arc(e, e, centre, ccw=True), 0.6 * v),  # full circle
+        Dwell(duration=0.2),
+        MotionBlock(Line(e, o), None),                  # rapid back to O
+    ]
+
+
+def spline_line(cfg: MachineConfig, start: Sequence[float], *, length: float | None = None,
+                axis: int = 0, points: int = 6, feed: float | None = None) -> list[Any]:
+    """A straight move along one axis described by a spline (seed 000, Table 2's test).
+
+    ``points`` equally spaced knots on the line give a natural spline that *is* the line.
+    """
+    o = np.asarray(start, dtype=float)
+    length = _scale(cfg) * 1.5 if length is None else length
+    direction = np.zeros(2)
+    direction[axis] = 1.0
+    knots = o + np.linspace(0.0, length, points)[:, None] * direction
+    v = cfg.controller.limits.max_velocity if feed is None else feed
+    return [MotionBlock(SplinePath(knots), v)]
+
+
+def square_corner(cfg: MachineConfig, start: Sequence[float], *, angle: float = np.pi / 2,
+                  length: float | None = None, feed: float | None = None) -> list[Any]:
+    """Two lines A-B, B-C meeting at B with the direction turning by ``angle`` (rad)."""
+    a = np.asarray(start, dtype=float)
+    length = _scale(cfg) * 0.8 if length is None else length
+    b = a + np.array([length, 0.0])
+    c = b + length * np.array([np.cos(angle), np.sin(angle)])
+    v = cfg.controller.limits.max_velocity if feed is None else feed
+    return [MotionBlock(Line(a, b), v), MotionBlock(Line(b, c), v)]
+
+
+PROGRAMS = {"default": default_program, "spline_line": spline_line,
+            "corner": square_corner}
+"""Built-in programs by name: ``twin run --program-name NAME``."""
+
+
+def build_program(name: str, cfg: MachineConfig, start: Sequence[float],
+                  **options: Any) -> list[Any]:
+    """A built-in program by name (see ``PROGRAMS``)."""
+    if name not in PROGRAMS:
+        raise ValueError(f"unknown built-in program {name!r}; valid: {', '.join(PROGRAMS)}")
+    return PROGRAMS[name](cfg, start, **options)
+
+
+def program_path(items: Iterable[Any]) -> list[Segment]:
+    """The programmed path: the segments of the motion blocks, in block order (the
+    ``block`` index of the controller's record indexes this list)."""
+    return [item.segment for item in segments_from_program(items)
+            if isinstance(item, MotionBlock)]
