@@ -210,8 +210,9 @@ class Drives:
                              f"{w.shape}")
         if self._noisy:
             self._noise[:] = self._rng.standard_normal(self._noise.shape)
+        tau = np.empty(n)
         status = K.drive_step(self._params, self._state, u, w, self._noise, self._n_step,
-                              self.dt, self._enabled)
+                              self.dt, self._enabled, tau)
         if status:
             code, axis = divmod(status, 1000)
             value = {K.STATUS_NONFINITE_UREF: u, K.STATUS_NONFINITE_OMEGA: w}.get(code)
@@ -219,7 +220,7 @@ class Drives:
             raise SimulationError(f"drive {self.names[axis]}: {_INPUT_NAMES[code]} is not "
                                   f"finite{got} at t = {self.time:.6f} s")
         self._n_step += 1
-        return self._state[:, K.S_TORQUE].copy()
+        return tau
 
     # ------------------------------------------------------------------ readouts
     def _column(self, col: int) -> np.ndarray:

@@ -188,7 +188,7 @@ def _fire(pa, st, t, active, tacho):
 
 
 @numba.njit(cache=True)
-def drive_step(params, state, u_ref, omega, noise, n_step, dt, enabled):
+def drive_step(params, state, u_ref, omega, noise, n_step, dt, enabled, torque):
     """Advance every axis drive over [n_step·dt, (n_step + 1)·dt].
 
     Parameters
@@ -210,13 +210,14 @@ def drive_step(params, state, u_ref, omega, noise, n_step, dt, enabled):
         Interval length (s).
     enabled : bool
         The drive enable input.
+    torque : ndarray, shape (n,)
+        Output: average motor torque over the interval (N·m), also kept in the state.
 
     Returns
     -------
     int
         ``STATUS_OK``, or ``1000·code + axis`` with code ``STATUS_NONFINITE_*``; on a
-        non-finite input nothing is changed. The average torque of each axis is in
-        ``state[:, S_TORQUE]``.
+        non-finite input nothing is changed.
     """
     n = params.shape[0]
     for a in range(n):
@@ -264,6 +265,7 @@ def drive_step(params, state, u_ref, omega, noise, n_step, dt, enabled):
                 break
         st[S_ADC] = st[S_TACHO] + sigma * noise[a, k_noise]
         st[S_TORQUE] = pa[P_K] * charge / dt
+        torque[a] = st[S_TORQUE]
         if not (math.isfinite(st[S_TORQUE]) and math.isfinite(st[S_I])):
             return 1000 * STATUS_NONFINITE_RESULT + a
     return STATUS_OK
