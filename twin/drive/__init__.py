@@ -5,7 +5,7 @@ current and speed loops, tachogenerator. Numerics only (numpy/numba), no MuJoCo.
   (:func:`design` → :class:`DriveDesign`).
 - :mod:`twin.drive.drives`: :class:`Drives`, all axes advanced by one compiled call per
   update interval (:mod:`twin.drive.kernel`), exact armature integration between firing
-  instants, interval-average torque for the mechanics.
+  instants (:mod:`twin.drive.armature`), interval-average torque for the mechanics.
 - :mod:`twin.drive.linear`: the linear model from speed reference (V) to table position (m)
   that the controller's DCU derivation uses.
 """

@@ -66,7 +66,13 @@ from dataclasses import dataclass
 from twin.config import AxisConfig, MachineConfig
 from twin.errors import ConfigError
 
-__all__ = ["DriveDesign", "axis_inertia", "design", "moving_masses"]
+__all__ = [
+    "BRIDGE_THRESHOLD_FRACTION",
+    "DriveDesign",
+    "axis_inertia",
+    "design",
+    "moving_masses",
+]
 
 BRIDGE_THRESHOLD_FRACTION = 2.5e-3
 """Current reference (fraction of the current limit) above which the bridge logic selects a

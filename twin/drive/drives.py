@@ -13,10 +13,12 @@ models, per axis:
 - converter: a non-circulating pair of 6-pulse thyristor bridges (arccos firing: mean voltage
   U_d0·cos α, constant between firing instants, clamped by the firing-angle limits; a bridge
   conducts in one sense only, so the current stops at zero and stays there until the
-  voltage exceeds the EMF again; a reversal waits for zero current, removes the pulses and
-  releases the other bridge after ``converter.reversal_pause``), or a PWM bridge (averaged
-  voltage held over each PWM period, i.e. a delay of half a period, clamped at ±U_dc, current
-  of either sign);
+  voltage exceeds the EMF again; the logic switching unit selects a bridge when the current
+  reference exceeds ``DriveDesign.bridge_threshold`` in its sense, reverses only at zero
+  current, removes the pulses and releases the other bridge at the first firing instant
+  after ``converter.reversal_pause``; a bridge starts at the EMF balance), or a PWM bridge
+  (averaged voltage held over each PWM period, i.e. a delay of half a period, clamped at
+  ±U_dc, current of either sign);
 - armature L·di/dt = u − k·ω − R·i solved exactly, with ω(t) extrapolated linearly inside
   the interval from the last two speeds the plant passed; the returned torque is k times the
   interval-average current.
