@@ -61,12 +61,7 @@ def axis_transfer_function(axis: AxisConfig, *, moving_mass: float | None = None
                            ) -> tuple[np.ndarray, np.ndarray]:
     """Linear model from the speed reference (V) to the table position (m), rigid mechanics.
 
-    Parameters
-    ----------
-    axis : AxisConfig
-        The axis.
-    moving_mass : float, optional
-        Mass moved by the axis (kg), as in :func:`twin.drive.design.design`.
+    Parameters are those of :func:`speed_transfer_function`.
 
     Returns
     -------
