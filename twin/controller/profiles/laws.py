@@ -342,8 +342,9 @@ def peak_speed(law: str, distance: float, v_start: float, v_end: float, cap: flo
     ``v_start`` and down to ``v_end`` fit in ``distance``.
 
     The path of the two changes grows monotonically with v, so the root is bracketed
-    between ``max(v_start, v_end)`` and ``cap`` and found by the Illinois (modified regula
-    falsi) method; the answer errs on the low side, so the cruise length it leaves is ≥ 0.
+    between ``max(v_start, v_end)`` and the lower of ``cap`` and the speed that the change
+    from ``max(v_start, v_end)`` alone reaches in ``distance``; the Illinois (modified regula
+    falsi) method finds it; the answer errs on the low side, so the cruise length it leaves is ≥ 0.
 
     Parameters
     ----------
@@ -362,7 +363,8 @@ def peak_speed(law: str, distance: float, v_start: float, v_end: float, cap: flo
         return (min_distance(law, v_start, v, limits) + min_distance(law, v, v_end, limits)
                 - distance)
 
-    lo, hi = max(v_start, v_end), cap
+    lo = max(v_start, v_end)
+    hi = min(cap, max_end_speed(law, lo, distance, limits))   # one change alone fits
     g_lo, g_hi = excess(lo), excess(hi)
     if g_hi <= 0.0:
         return hi

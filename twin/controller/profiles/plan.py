@@ -109,7 +109,7 @@ def _single_change(law: str, distance: float, v_start: float, v_end: float,
     segments: list[Segment]
     if law == JERK_LIMITED:
         segments = integrate_phases(direct_phases(v_start, v_end, duration, limits.max_jerk),
-                                    v_start)
+                                    v_start, distance=distance)
     else:
         segments = [Blend(0.0, duration, 0.0, v_start, v_end - v_start, SHAPES[law])]
     return Profile(law, distance, v_start, v_end, peak, tuple(segments))

@@ -178,10 +178,10 @@ class Profile:
         s, v, a, j : float
             Position (m), speed (m/s), acceleration (m/s²) and jerk (m/s³).
         """
-        if t >= self.duration:
-            return self.distance, self.v_end, 0.0, 0.0
         if t < 0.0:
             t = 0.0
+        if t >= self.duration:
+            return self.distance, self.v_end, 0.0, 0.0
         seg = self.segments[bisect_right(self._starts, t) - 1]
         return seg.at(t - seg.start)
 

@@ -200,19 +200,26 @@ def integrate_phases(phases: list[tuple[float, float]], v_start: float, *,
     v_start : float
         Speed at the start (m/s).
     distance : float, optional
-        Path length the phases should cover (m). With ``cruise``, that phase is lengthened
-        or shortened by the rounding difference so that the end lands on ``distance``.
+        Path length the phases must cover (m). The phase ``cruise`` (zero jerk, positive
+        speed) is lengthened or shortened to land on it; without one, time is stretched by
+        ``k = distance/end`` (durations × k, jerks / k²), which keeps every speed and moves
+        the limits by the same rounding-sized factor.
     cruise : int, optional
-        Index into ``phases`` of the cruise (zero jerk, positive speed).
+        Index into ``phases`` of the cruise.
     """
     segments, owners = _chain(phases, v_start)
-    if distance is None or cruise is None or cruise not in owners:
+    if distance is None or not segments:
         return segments
-    seg = segments[owners.index(cruise)]
-    if seg.j != 0.0 or seg.v0 <= 0.0:
+    end = segments[-1].end()[0]
+    if end == distance or end <= 0.0:
         return segments
-    fixed = list(phases)
-    fixed[cruise] = (max(seg.duration + (distance - segments[-1].end()[0]) / seg.v0, 0.0), 0.0)
+    seg = segments[owners.index(cruise)] if cruise in owners else None
+    if seg is not None and seg.j == 0.0 and seg.v0 > 0.0:
+        fixed = list(phases)
+        fixed[cruise] = (max(seg.duration + (distance - end) / seg.v0, 0.0), 0.0)
+    else:
+        k = distance / end
+        fixed = [(length * k, jerk / (k * k)) for length, jerk in phases]
     return _chain(fixed, v_start)[0]
 
 
