@@ -1,11 +1,23 @@
-"""The ``twin`` command: run programs on the twin, run experiments, tune, view recordings."""
+"""The ``twin`` command: run programs on the twin, experiments, manual mode, recordings.
+
+Every command prints human output on stderr (tables, progress) and, with ``--json``,
+exactly one JSON object on stdout. Bad input exits with code 2 and a message that names
+the place (G-code line and column, config field).
+"""
 
 from __future__ import annotations
 
 import json
+import os
+import shutil
+import subprocess
+import sys
+from pathlib import Path
+from typing import Any
 
 import typer
 from rich.console import Console
+from rich.progress import BarColumn, Progress, TextColumn, TimeElapsedColumn
 from rich.table import Table
 
 from twin.config import available_machines, load_machine
@@ -15,7 +27,12 @@ __all__ = ["app"]
 
 app = typer.Typer(help="xy-twin: a digital twin of a two-axis CNC cross table.",
                   no_args_is_help=True, add_completion=False)
-console = Console(stderr=True)
+err = Console(stderr=True)
+
+MachineOpt = typer.Option("tomsk_xy", "--machine", "-m",
+                          help="Machine preset name or TOML file.")
+OutOpt = typer.Option(Path("runs"), "--out", help="Directory for run records.")
+JsonOpt = typer.Option(False, "--json", help="Print exactly one JSON object on stdout.")
 
 
 @app.callback()
@@ -23,15 +40,154 @@ def main() -> None:
     """xy-twin: a digital twin of a two-axis CNC cross table."""
 
 
-def _fail(exc: Exception) -> None:
-    console.print(f"[bold red]error:[/] {exc}")
+def _fail(exc: BaseException) -> None:
+    err.print(f"[bold red]error:[/] {exc}", highlight=False)
     raise typer.Exit(2)
 
 
-@app.command()
-def machines(
-    as_json: bool = typer.Option(False, "--json", help="Print one JSON object."),
+def _emit(obj: dict[str, Any], as_json: bool) -> None:
+    if as_json:
+        sys.stdout.write(json.dumps(obj, default=str) + "\n")
+
+
+def _progress() -> Progress:
+    return Progress(TextColumn("[bold]sim"), BarColumn(), TextColumn("{task.description}"),
+                    TimeElapsedColumn(), console=err, transient=True)
+
+
+# --------------------------------------------------------------------------- run
+SUMMARY_ROWS = (
+    ("status", "status", ""), ("cycle time", "cycle_time_s", "s"),
+    ("path length", "path_length_mm", "mm"),
+    ("max contour error", "max_contour_error_um", "µm"),
+    ("RMS contour error", "rms_contour_error_um", "µm"),
+    ("max coordinate error X", ("max_coordinate_error_um", "x"), "µm"),
+    ("max coordinate error Y", ("max_coordinate_error_um", "y"), "µm"),
+    ("max velocity error X", ("max_velocity_error_um_s", "x"), "µm/s"),
+    ("max velocity error Y", ("max_velocity_error_um_s", "y"), "µm/s"),
+    ("residual vibration", "residual_vibration_um", "µm"),
+    ("real-time factor", "real_time_factor", "×"),
+    ("recording", "recording", ""),
+)
+
+
+def _summary_table(summary: dict[str, Any], title: str) -> Table:
+    table = Table(title=title)
+    table.add_column("quantity")
+    table.add_column("value", justify="right")
+    table.add_column("unit")
+    for label, key, unit in SUMMARY_ROWS:
+        value = summary.get(key[0], {}).get(key[1]) if isinstance(key, tuple) else \
+            summary.get(key)
+        if value is None:
+            continue
+        table.add_row(label, f"{value:.4g}" if isinstance(value, float) else str(value), unit)
+    return table
+
+
+def _run(program: Path | None, machine: str, profile: str | None, planner: str | None,
+         dcu_order: int | None, period: float | None, sets: list[str], rerun: str,
+         out: Path, as_json: bool, dry_run: bool = False, builtin: str = "default") -> None:
+    from twin.overrides import parse_sets
+    from twin.run import RunSpec, run
+
+    try:
+        spec = RunSpec(machine=machine, program=str(program) if program else None,
+                       builtin=builtin, profile=profile, planner=planner,
+                       dcu_order=dcu_order, period=period, overrides=parse_sets(sets),
+                       dry_run=dry_run)
+        with _progress() as bar:
+            task = bar.add_task("0.0 s", total=None)
+
+            def progress(t: float, _limit: float) -> None:
+                bar.update(task, description=f"{t:.1f} s")
+
+            result = run(spec, out_dir=out, rerun=rerun, progress=progress)
+    except TwinError as exc:
+        _fail(exc)
+    summary = result.summary
+    if as_json:
+        _emit({k: v for k, v in summary.items() if k not in ("config", "spec")}, True)
+    else:
+        console = Console()
+        console.print(_summary_table(summary, f"run {summary['run_id']}"))
+        console.print(f"record: {out / (summary['run_id'] + '.json')}", highlight=False)
+    if summary.get("aborted") or summary["status"] not in ("FINISHED",):
+        raise typer.Exit(1)
+
+
+@app.command("run")
+def run_cmd(
+    program: Path | None = typer.Argument(None, help="G-code file; none: the built-in "
+                                           "default program."),
+    machine: str = MachineOpt,
+    profile: str | None = typer.Option(
+        None, help="Acceleration law: trapezoid, parabolic, cosine, cubic, jerk-limited."),
+    planner: str | None = typer.Option(None, help="lookahead or stop."),
+    dcu_order: int | None = typer.Option(None, "--dcu-order", min=0, max=3,
+                                         help="Order of the digital correcting device."),
+    period: float | None = typer.Option(None, help="Controller period (s)."),
+    sets: list[str] = typer.Option([], "--set", help="key=value: any regulator, DCU, "
+                                    "limit or machine parameter (repeatable)."),
+    rerun: str = typer.Option("file", help="spawn, serve, none, file, or PATH.rrd."),
+    out: Path = OutOpt,
+    as_json: bool = JsonOpt,
+    dry_run: bool = typer.Option(False, "--dry-run",
+                                 help="Run the controller without driving the motors."),
+    builtin: str = typer.Option("default", "--builtin",
+                                help="Built-in program when no PROGRAM is given."),
 ) -> None:
+    """Run a program through the full controller on the twin; write .rrd and .json."""
+    if profile is not None:
+        profile = profile.replace("_", "-")
+    _run(program, machine, profile, planner, dcu_order, period, sets, rerun, out, as_json,
+         dry_run, builtin)
+
+
+@app.command()
+def demo(machine: str = MachineOpt, out: Path = OutOpt, as_json: bool = JsonOpt) -> None:
+    """Run the built-in default program (spline sections, a corner, a circle) with DCU
+    order 0 and 3, and print both summaries."""
+    from twin.run import RunSpec, run
+
+    rows = {}
+    for order in (0, 3):
+        try:
+            with _progress() as bar:
+                task = bar.add_task(f"DCU order {order}", total=None)
+                result = run(RunSpec(machine=machine, dcu_order=order), out_dir=out,
+                             progress=lambda t, _m, task=task, bar=bar, o=order:
+                             bar.update(task, description=f"DCU {o}: {t:.1f} s"))
+        except TwinError as exc:
+            _fail(exc)
+        rows[order] = result.summary
+        if not as_json:
+            Console().print(_summary_table(result.summary, f"default program, {machine}, "
+                                                           f"DCU order {order}"))
+    _emit({"runs": {str(k): {kk: vv for kk, vv in v.items() if kk not in ("config", "spec")}
+                    for k, v in rows.items()}}, as_json)
+
+
+@app.command()
+def view(
+    recording: Path = typer.Argument(..., exists=True, dir_okay=False,
+                                     help="A .rrd file written by twin run."),
+    web: bool = typer.Option(False, "--web", help="Serve the bundled web viewer on "
+                             "localhost instead of opening the native viewer."),
+    port: int = typer.Option(9090, help="Web viewer port (with --web)."),
+) -> None:
+    """Open a recording in the rerun viewer."""
+    exe = shutil.which("rerun") or str(Path(sys.executable).with_name("rerun"))
+    cmd = [exe, str(recording)]
+    if web:
+        cmd += ["--web-viewer", "--bind", "127.0.0.1", "--web-viewer-port", str(port)]
+        err.print(f"web viewer on http://127.0.0.1:{port} (Ctrl-C to stop)")
+    env = {**os.environ, "RERUN_ANALYTICS": "0"}
+    raise typer.Exit(subprocess.call(cmd, env=env))
+
+
+@app.command()
+def machines(as_json: bool = JsonOpt) -> None:
     """List the machine presets and their key figures."""
     rows = []
     for name in available_machines():
@@ -46,11 +202,11 @@ def machines(
             "converter": ax.converter.kind,
             "transmission": ax.transmission.kind,
             "counts_per_um": ax.counts_per_metre * 1e-6,
-            "max_velocity_mm_per_min": cfg.controller.limits.max_velocity * 60e3,
+            "max_feed_mm_per_min": cfg.controller.limits.max_velocity * 60e3,
             "period_ms": cfg.controller.period * 1e3,
         })
     if as_json:
-        print(json.dumps({"machines": rows}))
+        _emit({"machines": rows}, True)
         return
     table = Table(title="machines")
     keys = [k for k in rows[0] if k != "description"]
@@ -60,6 +216,15 @@ def machines(
         table.add_row(*(f"{r[k]:g}" if isinstance(r[k], float) else str(r[k]) for k in keys))
     Console().print(table)
 
+
+def _register_more() -> None:
+    """Commands that live in their own modules (imported lazily by their functions)."""
+    from twin import cli_manual
+
+    cli_manual.register(app)
+
+
+_register_more()
 
 if __name__ == "__main__":
     app()

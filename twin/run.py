@@ -15,7 +15,7 @@ import math
 import os
 import time
 import uuid
-from collections.abc import Callable, Mapping
+from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -38,7 +38,8 @@ from twin.plant import Plant
 from twin.telemetry.channels import TRUTH_FIELDS, TelemetryWriter
 from twin.telemetry.sink import NullSink, Sink
 
-__all__ = ["RunResult", "RunSpec", "axis_models", "load_program", "prepare", "run",
+__all__ = ["RunResult", "RunSpec", "axis_models", "load_program", "parse_command", "prepare",
+           "run",
            "write_json_atomic"]
 
 
@@ -68,6 +69,11 @@ class RunSpec:
         Run the controller without driving the motors.
     max_time : float
         Stop after this much controller time (s).
+    start : (float, float) or None
+        Table position at the start (m); None: the home keyframe.
+    commands : tuple of str
+        Manual mode instead of a program (``builtin="none"``): ``"home x"``, ``"jog x 0.01"``
+        (relative, m), ``"goto 0.05 0.02"`` (absolute, m), run one after the other.
     """
 
     machine: str = "tomsk_xy"
@@ -81,6 +87,8 @@ class RunSpec:
     mode: str = "extended"
     dry_run: bool = False
     max_time: float = 3600.0
+    start: tuple[float, float] | None = None
+    commands: tuple[str, ...] = ()
 
     def machine_config(self) -> MachineConfig:
         """The machine with this run's overrides applied (validated)."""
@@ -134,6 +142,8 @@ def load_program(spec: RunSpec, cfg: MachineConfig, start: np.ndarray) -> list[A
     """Parse the G-code file (``GCodeError`` with line and column before any motion) or
     build the built-in program from ``start``."""
     if spec.program is None:
+        if spec.builtin == "none":
+            return []
         return build_program(spec.builtin, cfg, start)
     path = Path(spec.program)
     if not path.is_file():
@@ -158,10 +168,10 @@ def prepare(spec: RunSpec) -> Prepared:
     program against the work zone before any motion)."""
     cfg = spec.machine_config()
     plant = Plant.from_machine(cfg)
-    plant.reset()
+    plant.reset(positions=None if spec.start is None else np.asarray(spec.start, float))
     start = plant.truth().table_position
     items = load_program(spec, cfg, start)
-    controller = Controller.from_machine(cfg, items, axis_models=axis_models(cfg),
+    controller = Controller.from_machine(cfg, items or None, axis_models=axis_models(cfg),
                                          mode=spec.mode, start=start)
     driver = SimDriver(plant, cfg.controller.period, dry_run=spec.dry_run)
     return Prepared(cfg, items, program_path(items), plant, controller, driver)
@@ -189,7 +199,8 @@ def _json_default(obj: Any) -> Any:
 def run(spec: RunSpec, *, out_dir: str | Path = "runs", rerun: str = "file",
         run_id: str | None = None, sink: Sink | None = None,
         progress: Callable[[float, float], None] | None = None,
-        prepared: Prepared | None = None) -> RunResult:
+        prepared: Prepared | None = None,
+        commands: Sequence[Callable[[Controller], None]] = ()) -> RunResult:
     """Run ``spec`` on the twin in lock-step and write ``<run_id>.rrd`` and ``.json``.
 
     Parameters
@@ -208,6 +219,9 @@ def run(spec: RunSpec, *, out_dir: str | Path = "runs", rerun: str = "file",
         Called about every simulated second.
     prepared : Prepared, optional
         An already wired run (``prepare(spec)``), e.g. with a custom controller.
+    commands : sequence of callables(controller)
+        Manual-mode commands (``controller.home``, ``controller.jog`` ...) started one after
+        the other, each when the previous motion has FINISHED; a trip ends the run.
     """
     run_id = run_id or time.strftime("%Y%m%d-%H%M%S-") + uuid.uuid4().hex[:6]
     out = Path(out_dir)
@@ -225,8 +239,13 @@ def run(spec: RunSpec, *, out_dir: str | Path = "runs", rerun: str = "file",
     aborted = None
     ticks = 0
     t_wall = time.perf_counter()
+    pending = [*(parse_command(c) for c in spec.commands), *commands]
     try:
-        while not ctrl.done and ticks < limit:
+        while ticks < limit:
+            if ctrl.done:
+                if not pending or ctrl.status not in _READY:
+                    break
+                pending.pop(0)(ctrl)
             drv.write(ctrl.tick(drv.read()))
             truth.append(_truth_row(plant))
             ticks += 1
@@ -253,6 +272,34 @@ def _truth_row(plant: Plant) -> tuple[float, ...]:
     return (*tr.table_position.tolist(), *tr.table_velocity.tolist(),
             *tr.screw_deflection.tolist(), *tr.armature_current.tolist(),
             *tr.converter_voltage.tolist())
+
+
+_READY = (ControllerStatus.IDLE, ControllerStatus.FINISHED)
+
+
+def parse_command(text: str) -> Callable[[Controller], None]:
+    """A manual-mode command: ``home AXIS``, ``jog AXIS DISTANCE`` (m, relative),
+    ``goto X Y`` (m, absolute). Raises ``ConfigError`` naming the command if malformed."""
+    words = text.split()
+    try:
+        if words[0] == "home" and len(words) == 2 and words[1] in AXES:
+            return lambda c: c.home(words[1])
+        if words[0] == "jog" and len(words) == 3 and words[1] in AXES:
+            k, dist = AXES.index(words[1]), float(words[2])
+
+            def jog(c: Controller) -> None:
+                target = list(c.position_reference)
+                target[k] += dist
+                c.jog(target)
+
+            return jog
+        if words[0] == "goto" and len(words) == 3:
+            target = [float(words[1]), float(words[2])]
+            return lambda c: c.jog(target)
+    except (IndexError, ValueError):
+        pass
+    raise ConfigError("commands", f"bad command {text!r}; expected 'home x|y', "
+                      "'jog x|y DISTANCE_M' or 'goto X_M Y_M'")
 
 
 def _make_sink(rerun: str, out: Path, run_id: str) -> tuple[Sink, str | None]:

@@ -311,6 +311,8 @@ class ControllerSettings(_Validated):
     profile: str = "parabolic"
     planner: str = "lookahead"
     lookahead: int = _num(64, "blocks", ge=1)
+    soft_limits: bool = True
+    """Refuse motion outside the work zone (the travel between the end switches)."""
     regulator: RegulatorSettings = field(default_factory=RegulatorSettings)
 
 

@@ -1,0 +1,168 @@
+"""``twin experiment``, ``twin home`` and ``twin jog``: typical experiments and manual mode."""
+
+from __future__ import annotations
+
+import json
+import math
+import sys
+from pathlib import Path
+
+import typer
+from rich.console import Console
+from rich.table import Table
+
+from twin.errors import ConfigError, TwinError
+
+__all__ = ["register"]
+
+err = Console(stderr=True)
+
+
+def _fail(exc: BaseException) -> None:
+    err.print(f"[bold red]error:[/] {exc}", highlight=False)
+    raise typer.Exit(2)
+
+
+def experiment(
+    kind: str = typer.Argument(..., help="step or ramp"),
+    axis: str = typer.Option("x", "--axis", help="x or y"),
+    amplitude: float = typer.Option(..., "--amplitude", help="Closed loop: step (mm) or "
+                                    "ramp rate (mm/s). Open loop: volts or volts/s."),
+    duration: float = typer.Option(1.0, help="Record length after the input (s)."),
+    open_loop: bool = typer.Option(False, "--open-loop",
+                                   help="Apply to the drive's speed reference instead."),
+    machine: str = typer.Option("tomsk_xy", "--machine", "-m"),
+    sets: list[str] = typer.Option([], "--set", help="key=value overrides."),
+    rerun: Path | None = typer.Option(None, "--rerun", help="Write the response to this "
+                                      ".rrd file."),
+    as_json: bool = typer.Option(False, "--json"),
+) -> None:
+    """A typical experiment (seed 000): step or ramp response of one axis."""
+    from twin.config import load_machine
+    from twin.experiments import run_experiment
+    from twin.overrides import parse_sets
+
+    sink = None
+    try:
+        cfg = load_machine(machine).with_overrides(parse_sets(sets))
+        if rerun is not None:
+            from twin.telemetry.rerun_sink import RerunSink
+
+            sink = RerunSink(rerun, recording_id=f"{kind}-{axis}")
+        scale = 1.0 if open_loop else 1e-3
+        result, _ = run_experiment(cfg, kind=kind, axis=axis, amplitude=amplitude * scale,
+                                   duration=duration, open_loop=open_loop, sink=sink)
+    except TwinError as exc:
+        _fail(exc)
+    finally:
+        if sink is not None:
+            sink.close()
+    report = result.to_report()
+    if as_json:
+        sys.stdout.write(json.dumps(report) + "\n")
+        return
+    table = Table(title=f"{kind} response, axis {axis}, {'open' if open_loop else 'closed'}"
+                        " loop")
+    table.add_column("figure")
+    table.add_column("value", justify="right")
+    quantity = "speed (µm/s)" if open_loop else "position (µm)"
+    for label, value in (("final " + quantity, report["final_value"]),
+                         ("rise time (ms)", report["rise_time_ms"]),
+                         ("overshoot (%)", report["overshoot_percent"]),
+                         ("settling time, 2 % (ms)", report["settling_time_ms"]),
+                         ("steady-state error (µm or µm/s)", report["steady_state_error"]),
+                         ("elastic mode (Hz)", report["elastic_mode_hz"])):
+        table.add_row(label, "—" if math.isnan(value) else f"{value:.4g}")
+    Console().print(table)
+
+
+def _manual(commands: list[str], machine: str, out: Path, as_json: bool,
+            start: tuple[float, float] | None, dry_run: bool,
+            ignore_soft_limits: bool) -> None:
+    from twin.cli import _summary_table
+    from twin.run import RunSpec, run
+
+    sets = {"controller.soft_limits": False} if ignore_soft_limits else {}
+    try:
+        spec = RunSpec(machine=machine, builtin="none", commands=tuple(commands),
+                       start=start, dry_run=dry_run, overrides=sets)
+        result = run(spec, out_dir=out)
+    except TwinError as exc:
+        _fail(exc)
+    s = result.summary
+    pos = result.record["position"][-1] if len(result.record["t"]) else [math.nan] * 2
+    s["final_position_mm"] = {"x": pos[0] * 1e3, "y": pos[1] * 1e3}
+    if as_json:
+        sys.stdout.write(json.dumps({k: v for k, v in s.items()
+                                     if k not in ("config", "spec")}, default=str) + "\n")
+    else:
+        Console().print(_summary_table(s, f"{' ; '.join(commands)}"))
+        Console().print(f"final position: X {pos[0] * 1e3:.4f} mm, Y {pos[1] * 1e3:.4f} mm")
+    if s["status"] not in ("FINISHED", "IDLE"):
+        err.print(f"[bold red]stopped:[/] {s['status']}")
+        raise typer.Exit(1)
+
+
+def _start(text: str | None) -> tuple[float, float] | None:
+    if text is None:
+        return None
+    try:
+        x, y = (float(v) * 1e-3 for v in text.split(","))
+    except ValueError:
+        raise ConfigError("--from", f"expected X,Y in mm, got {text!r}") from None
+    return (x, y)
+
+
+def home(
+    axes: str = typer.Option("xy", "--axes", help="Axes to home, in order: x, y or xy."),
+    machine: str = typer.Option("tomsk_xy", "--machine", "-m"),
+    start: str | None = typer.Option(None, "--from", help="Where the table stands at the "
+                                     "start, X,Y in mm (default: mid travel)."),
+    out: Path = typer.Option(Path("runs"), "--out"),
+    as_json: bool = typer.Option(False, "--json"),
+) -> None:
+    """Reference search: move each axis to its home switch and set the coordinates."""
+    from twin.config import load_machine
+
+    try:
+        pos = _start(start)
+        if pos is None:
+            cfg = load_machine(machine)
+            pos = tuple(0.5 * (a.switches.limit_min + a.switches.limit_max)
+                        for a in cfg.axes.values())
+        if not axes or any(a not in "xy" for a in axes):
+            raise ConfigError("--axes", f"must be x, y or xy, got {axes!r}")
+    except TwinError as exc:
+        _fail(exc)
+    _manual([f"home {a}" for a in axes], machine, out, as_json, pos, False, False)
+
+
+def jog(
+    axis: str = typer.Option(..., "--axis", help="x or y"),
+    distance: float = typer.Option(..., "--distance", help="Relative move (mm)."),
+    machine: str = typer.Option("tomsk_xy", "--machine", "-m"),
+    start: str | None = typer.Option(None, "--from", help="Start position X,Y in mm "
+                                     "(default: the home position)."),
+    dry_run: bool = typer.Option(False, "--dry-run", help="Run the controller without "
+                                 "driving the motors."),
+    ignore_soft_limits: bool = typer.Option(False, "--ignore-soft-limits", help="Let the "
+                                            "move run into the end switches (testing)."),
+    out: Path = typer.Option(Path("runs"), "--out"),
+    as_json: bool = typer.Option(False, "--json"),
+) -> None:
+    """Jog one axis by a distance, within the soft limits of the work zone."""
+    if axis not in ("x", "y"):
+        _fail(ConfigError("--axis", f"must be x or y, got {axis!r}"))
+    try:
+        pos = _start(start)
+    except TwinError as exc:
+        _fail(exc)
+    _manual([f"jog {axis} {distance * 1e-3!r}"], machine, out, as_json, pos, dry_run,
+            ignore_soft_limits)
+
+
+def register(app: typer.Typer) -> None:
+    """Add these commands to the ``twin`` app."""
+    app.command()(experiment)
+    app.command()(home)
+    app.command()(jog)
