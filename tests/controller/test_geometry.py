@@ -74,6 +74,13 @@ def check_scalar_matches_vector(seg: Segment) -> None:
         np.testing.assert_allclose(seg.point(si), points[i], rtol=0, atol=1e-15)
         np.testing.assert_allclose(seg.tangent(si), tangents[i], rtol=0, atol=1e-14)
         assert seg.curvature(si) == pytest.approx(curvatures[i], rel=1e-12, abs=kappa_scale)
+        frame = seg.frame(si)
+        assert all(type(v) is float for v in frame)
+        np.testing.assert_allclose(frame[:2], points[i], rtol=0, atol=1e-15)
+        np.testing.assert_allclose(frame[2:4], tangents[i], rtol=0, atol=1e-14)
+        assert frame[4] == pytest.approx(curvatures[i], rel=1e-12, abs=kappa_scale)
+    assert seg.frame(0.0)[:2] == tuple(seg.start.tolist())
+    assert seg.frame(seg.length)[:2] == tuple(seg.end.tolist())
     assert points.shape == (s.size, 2) and curvatures.shape == (s.size,)
     np.testing.assert_array_equal(seg.point(0.0), seg.start)
     np.testing.assert_array_equal(seg.point(seg.length), seg.end)
@@ -95,6 +102,9 @@ def check_arc_length_parameterisation(seg: Segment, s: np.ndarray, h: float) -> 
     normal = seg.tangent(s) @ np.array([[0.0, 1.0], [-1.0, 0.0]])
     np.testing.assert_allclose((dt * normal).sum(axis=1), kappa, rtol=1e-5,
                                atol=1e-6 * np.abs(kappa).max() + 1e-9)
+    rate = np.array([seg.frame(si)[5] for si in s.tolist()])
+    dk = (seg.curvature(s + h) - seg.curvature(s - h)) / (2 * h)
+    np.testing.assert_allclose(rate, dk, rtol=1e-4, atol=1e-6 * np.abs(dk).max() + 1e-9)
 
 
 # -- Line -----------------------------------------------------------------------------------
@@ -317,6 +327,15 @@ def test_spline_arc_length_inverse_against_scipy(name):
     d1, d2 = curve(uq, 1), curve(uq, 2)
     kappa = (d1[:, 0] * d2[:, 1] - d1[:, 1] * d2[:, 0]) / np.hypot(*d1.T) ** 3
     np.testing.assert_allclose(seg.curvature(s), kappa, rtol=1e-9, atol=1e-9 / seg.length)
+    # dκ/ds from scipy's third derivative
+    d3 = curve(uq, 3)
+    speed2 = (d1**2).sum(axis=1)
+    cross = d1[:, 0] * d2[:, 1] - d1[:, 1] * d2[:, 0]
+    dkdt = ((d1[:, 0] * d3[:, 1] - d1[:, 1] * d3[:, 0]) / speed2**1.5
+            - 3 * cross * (d1 * d2).sum(axis=1) / speed2**2.5)
+    rate = np.array([seg.frame(si)[5] for si in s.tolist()])
+    np.testing.assert_allclose(rate, dkdt / np.sqrt(speed2), rtol=1e-8,
+                               atol=1e-9 * np.abs(dkdt).max())
     for si, pi in zip(s[:10].tolist(), curve(uq[:10]), strict=True):  # scalar path
         np.testing.assert_allclose(seg.point(si), pi, rtol=0, atol=1e-12 * seg.length)
 

@@ -212,20 +212,17 @@ class SplineCurve:
         return self._sub_s0[j] + self._integral(k, a, np.maximum(t, a))
 
     # -- evaluation ----------------------------------------------------------------------
-    def point_at(self, s: float) -> tuple[float, float]:
-        """Point (m) at arc length s (scalar, clipped by the caller)."""
-        return _derivatives_py(*self._locate(s))[0:2]
-
-    def tangent_at(self, s: float) -> tuple[float, float]:
-        """Unit tangent at arc length s (scalar)."""
-        _, _, vx, vy, _, _ = _derivatives_py(*self._locate(s))
-        v = math.hypot(vx, vy)
-        return vx / v, vy / v
-
-    def curvature_at(self, s: float) -> float:
-        """Signed curvature (1/m) at arc length s (scalar)."""
-        _, _, vx, vy, ax, ay = _derivatives_py(*self._locate(s))
-        return (vx * ay - vy * ax) / math.hypot(vx, vy) ** 3
+    def frame_at(self, s: float) -> tuple[float, float, float, float, float, float]:
+        """x, y (m), unit tangent, curvature (1/m) and dκ/ds (1/m²) at arc length s (scalar,
+        clipped by the caller)."""
+        row, t = self._locate(s)
+        x, y, vx, vy, ax, ay = _derivatives_py(row, t)
+        speed = math.hypot(vx, vy)
+        cross, dot = vx * ay - vy * ax, vx * ax + vy * ay
+        cube = speed**3
+        # κ = (r′ × r″)/|r′|³ and dκ/ds = (dκ/dt)/|r′|, with r‴ = 6·d
+        rate = (vx * row[7] - vy * row[6]) * 6.0 / cube - 3.0 * cross * dot / (cube * speed**2)
+        return x, y, vx / speed, vy / speed, cross / cube, rate / speed
 
     def _derivatives(self, s: np.ndarray):
         k, t = self._locate_many(s)

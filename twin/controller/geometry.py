@@ -29,6 +29,10 @@ TAU = 2.0 * math.pi
 class Segment(ABC):
     """A piece of a planar path, parameterised by arc length.
 
+    Subclasses implement :meth:`frame` (one scalar s, floats), the vectorised hooks
+    ``_points``, ``_tangents``, ``_curvatures`` and ``_closest`` (s already clipped, queries
+    already shaped (n, 2)), and :meth:`bounding_box`; this class dispatches between them.
+
     Attributes
     ----------
     start, end : ndarray, shape (2,)
@@ -42,6 +46,37 @@ class Segment(ABC):
     length: float
 
     @abstractmethod
+    def frame(self, s: float) -> tuple[float, float, float, float, float, float]:
+        """All the interpolator needs at one scalar ``s`` (clipped), as floats, in one call.
+
+        Returns
+        -------
+        x, y : float
+            Point (m); ``start``/``end`` exactly at the ends.
+        tx, ty : float
+            Unit tangent.
+        curvature : float
+            Signed curvature (1/m).
+        curvature_rate : float
+            dκ/ds (1/m²), for the normal jerk ``v³·dκ/ds``; 0 on lines and arcs.
+        """
+
+    @abstractmethod
+    def bounding_box(self) -> tuple[np.ndarray, np.ndarray]:
+        """Tight axis-aligned box ``(lower (2,), upper (2,))`` containing the segment (m)."""
+
+    @abstractmethod
+    def _points(self, s: np.ndarray) -> np.ndarray: ...
+
+    @abstractmethod
+    def _tangents(self, s: np.ndarray) -> np.ndarray: ...
+
+    @abstractmethod
+    def _curvatures(self, s: np.ndarray) -> np.ndarray: ...
+
+    @abstractmethod
+    def _closest(self, pts: np.ndarray) -> tuple[np.ndarray, np.ndarray]: ...
+
     def point(self, s):
         """Point at arc length ``s``.
 
@@ -55,16 +90,26 @@ class Segment(ABC):
         ndarray, shape (2,) or (n, 2)
             Position (m).
         """
+        if _is_scalar(s):
+            return np.array(self.frame(s)[0:2])
+        s = self._clipped(s)
+        out = self._points(s)
+        out[s == 0.0] = self.start
+        out[s == self.length] = self.end
+        return out
 
-    @abstractmethod
     def tangent(self, s):
         """Unit tangent in the direction of travel at ``s``; shape (2,) or (n, 2)."""
+        if _is_scalar(s):
+            return np.array(self.frame(s)[2:4])
+        return self._tangents(self._clipped(s))
 
-    @abstractmethod
     def curvature(self, s):
         """Signed curvature at ``s`` (1/m), > 0 turning left; float or ndarray (n,)."""
+        if _is_scalar(s):
+            return self.frame(s)[4]
+        return self._curvatures(self._clipped(s))
 
-    @abstractmethod
     def closest(self, p):
         """Closest point of the segment to ``p``.
 
@@ -76,14 +121,20 @@ class Segment(ABC):
         Returns
         -------
         s : float or ndarray, shape (n,)
-            Arc length of the closest point (m); the smallest one when several tie.
+            Arc length of the closest point (m) (one of them when several tie).
         distance : float or ndarray, shape (n,)
             Euclidean distance to it (m), exact up to rounding.
         """
+        if np.shape(p) == (2,):
+            return self._closest_one(float(p[0]), float(p[1]))
+        arr = np.asarray(p, dtype=float)
+        if arr.ndim != 2 or arr.shape[1] != 2:
+            raise ValueError(f"points must have shape (2,) or (n, 2), got {arr.shape}")
+        return self._closest(arr)
 
-    @abstractmethod
-    def bounding_box(self) -> tuple[np.ndarray, np.ndarray]:
-        """Tight axis-aligned box ``(lower (2,), upper (2,))`` containing the segment (m)."""
+    def _closest_one(self, x: float, y: float) -> tuple[float, float]:
+        s, d = self._closest(np.array([[x, y]]))
+        return float(s[0]), float(d[0])
 
     def distance(self, p):
         """Shortest distance from ``p`` (2,) or (n, 2) to the segment (m), exact."""
@@ -99,6 +150,9 @@ class Segment(ABC):
         """Unit tangent at the end, shape (2,)."""
         return self.tangent(self.length)
 
+    def _clipped(self, s) -> np.ndarray:
+        return np.clip(np.asarray(s, dtype=float), 0.0, self.length)
+
     def __repr__(self) -> str:
         return (f"{type(self).__name__}(start={self.start.tolist()}, end={self.end.tolist()}, "
                 f"length={self.length:.9g})")
@@ -110,39 +164,38 @@ class Line(Segment):
     def __init__(self, start, end):
         self.start = _point(start, "start")
         self.end = _point(end, "end")
-        dx, dy = self.end - self.start
+        dx, dy = (self.end - self.start).tolist()
         self.length = math.hypot(dx, dy)
         if self.length == 0.0:
             raise PlanningError(f"line of zero length: start = end = {self.start.tolist()}")
         self._ux, self._uy = dx / self.length, dy / self.length
         self._u = _frozen([self._ux, self._uy])
+        self._ends = (tuple(self.start.tolist()), tuple(self.end.tolist()))
 
-    def point(self, s):
-        if _is_scalar(s):
-            if s <= 0.0:
-                return self.start.copy()
-            if s >= self.length:
-                return self.end.copy()
-            return np.array((self.start[0] + s * self._ux, self.start[1] + s * self._uy))
-        s = np.clip(np.asarray(s, dtype=float), 0.0, self.length)
-        out = self.start + s[..., None] * self._u
-        out[s == self.length] = self.end
-        return out
+    def frame(self, s):
+        if s >= self.length:
+            x, y = self._ends[1]
+        else:
+            s = max(s, 0.0)
+            x, y = self._ends[0][0] + s * self._ux, self._ends[0][1] + s * self._uy
+        return x, y, self._ux, self._uy, 0.0, 0.0
 
-    def tangent(self, s):
-        if _is_scalar(s):
-            return self._u.copy()
-        return np.broadcast_to(self._u, (*np.shape(s), 2)).copy()
+    def _points(self, s):
+        return self.start + s[..., None] * self._u
 
-    def curvature(self, s):
-        return 0.0 if _is_scalar(s) else np.zeros(np.shape(s))
+    def _tangents(self, s):
+        return np.broadcast_to(self._u, (*s.shape, 2)).copy()
 
-    def closest(self, p):
-        if _is_point(p):
-            px, py = p[0] - self.start[0], p[1] - self.start[1]
-            s = min(max(px * self._ux + py * self._uy, 0.0), self.length)
-            return s, math.hypot(px - s * self._ux, py - s * self._uy)
-        rel = _points(p) - self.start
+    def _curvatures(self, s):
+        return np.zeros(s.shape)
+
+    def _closest_one(self, x, y):
+        px, py = x - self._ends[0][0], y - self._ends[0][1]
+        s = min(max(px * self._ux + py * self._uy, 0.0), self.length)
+        return s, math.hypot(px - s * self._ux, py - s * self._uy)
+
+    def _closest(self, pts):
+        rel = pts - self.start
         s = np.clip(rel @ self._u, 0.0, self.length)
         return s, np.hypot(*(rel - s[:, None] * self._u).T)
 
@@ -174,6 +227,8 @@ class Arc(Segment):
         Radius (m).
     sweep : float
         Signed swept angle (rad), > 0 counter-clockwise; ``|sweep| = length/radius``.
+    ccw : bool
+        Direction.
 
     Raises
     ------
@@ -191,7 +246,7 @@ class Arc(Segment):
         self.start = _point(start, "start")
         self.end = _point(end, "end")
         self.center = _point(center, "center")
-        (sx, sy), (ex, ey) = self.start - self.center, self.end - self.center
+        (sx, sy), (ex, ey) = (self.start - self.center).tolist(), (self.end - self.center).tolist()
         self.radius = math.hypot(sx, sy)
         end_radius = math.hypot(ex, ey)
         if self.radius == 0.0:
@@ -211,50 +266,44 @@ class Arc(Segment):
         self.sweep = self._sign * span
         self.length = self.radius * span
         self._k = self._sign / self.radius
+        self._xy = (*self.center.tolist(), *self.start.tolist(), *self.end.tolist())
 
-    def _angle(self, s):
-        return self._theta0 + self._k * s
+    def frame(self, s):
+        s = min(max(s, 0.0), self.length)
+        phi = self._theta0 + self._k * s
+        c, sn = math.cos(phi), math.sin(phi)
+        cx, cy, x0, y0, x1, y1 = self._xy
+        if s == self.length:
+            x, y = x1, y1
+        elif s == 0.0:
+            x, y = x0, y0
+        else:
+            x, y = cx + self.radius * c, cy + self.radius * sn
+        return x, y, -self._sign * sn, self._sign * c, self._k, 0.0
 
-    def point(self, s):
-        if _is_scalar(s):
-            if s <= 0.0:
-                return self.start.copy()
-            if s >= self.length:
-                return self.end.copy()
-            phi = self._angle(s)
-            return np.array((self.center[0] + self.radius * math.cos(phi),
-                             self.center[1] + self.radius * math.sin(phi)))
-        s = np.clip(np.asarray(s, dtype=float), 0.0, self.length)
-        phi = self._angle(s)
-        out = self.center + self.radius * np.stack((np.cos(phi), np.sin(phi)), axis=-1)
-        out[s == 0.0] = self.start
-        out[s == self.length] = self.end
-        return out
+    def _points(self, s):
+        phi = self._theta0 + self._k * s
+        return self.center + self.radius * np.stack((np.cos(phi), np.sin(phi)), axis=-1)
 
-    def tangent(self, s):
-        if _is_scalar(s):
-            phi = self._angle(min(max(s, 0.0), self.length))
-            return np.array((-self._sign * math.sin(phi), self._sign * math.cos(phi)))
-        phi = self._angle(np.clip(np.asarray(s, dtype=float), 0.0, self.length))
+    def _tangents(self, s):
+        phi = self._theta0 + self._k * s
         return self._sign * np.stack((-np.sin(phi), np.cos(phi)), axis=-1)
 
-    def curvature(self, s):
-        return self._k if _is_scalar(s) else np.full(np.shape(s), self._k)
+    def _curvatures(self, s):
+        return np.full(s.shape, self._k)
 
-    def closest(self, p):
-        if not _is_point(p):
-            return self._closest(_points(p))
-        rx, ry = p[0] - self.center[0], p[1] - self.center[1]
-        rho = math.hypot(rx, ry)
+    def _closest_one(self, x, y):
+        cx, cy, x0, y0, x1, y1 = self._xy
+        rho = math.hypot(x - cx, y - cy)
         if rho == 0.0:
             return 0.0, self.radius
-        offset = ((math.atan2(ry, rx) - self._theta0) * self._sign) % TAU
+        offset = ((math.atan2(y - cy, x - cx) - self._theta0) * self._sign) % TAU
         if offset <= abs(self.sweep) or abs(self.sweep) >= TAU:
             return self.radius * offset, abs(rho - self.radius)
-        to_start, to_end = math.dist(p, self.start), math.dist(p, self.end)
+        to_start, to_end = math.hypot(x - x0, y - y0), math.hypot(x - x1, y - y1)
         return (self.length, to_end) if to_end < to_start else (0.0, to_start)
 
-    def _closest(self, pts: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    def _closest(self, pts):
         rel = pts - self.center
         rho = np.hypot(*rel.T)
         offset = ((np.arctan2(rel[:, 1], rel[:, 0]) - self._theta0) * self._sign) % TAU
@@ -269,11 +318,10 @@ class Arc(Segment):
 
     def bounding_box(self):
         pts = [self.start, self.end]
-        for k in range(4):
+        for k, axis_point in enumerate(((1.0, 0.0), (0.0, 1.0), (-1.0, 0.0), (0.0, -1.0))):
             offset = ((k * math.pi / 2 - self._theta0) * self._sign) % TAU
             if offset <= abs(self.sweep):
-                pts.append(self.center + self.radius * np.array([(1, 0), (0, 1), (-1, 0),
-                                                                 (0, -1)][k], dtype=float))
+                pts.append(self.center + self.radius * np.array(axis_point))
         pts = np.array(pts)
         return pts.min(axis=0), pts.max(axis=0)
 
@@ -284,9 +332,9 @@ class SplinePath(Segment):
     ``x(u)`` and ``y(u)`` are natural cubic splines (:mod:`twin.controller.spline`) of the
     cumulative chord length ``u``. Arc length is integrated per piece by adaptive
     Gauss–Legendre quadrature (8 nodes, sub-intervals refined until 1e-13 relative);
-    ``s → u`` is inverted by safeguarded Newton from a Hermite initial guess; the exact
+    ``s → u`` is inverted by safeguarded Newton from a fitted initial guess; the exact
     distance minimises the squared distance per piece through the real roots of its
-    derivative, a quintic.
+    derivative, a quintic. See ``twin.controller._spline_curve``.
 
     Parameters
     ----------
@@ -325,34 +373,24 @@ class SplinePath(Segment):
         self.start = _frozen(pts[0])
         self.end = _frozen(pts[-1])
 
-    def point(self, s):
-        if _is_scalar(s):
-            if s <= 0.0:
-                return self.start.copy()
-            if s >= self.length:
-                return self.end.copy()
-            return np.array(self._curve.point_at(s))
-        s = np.clip(np.asarray(s, dtype=float), 0.0, self.length)
-        out = self._curve.points_at(s)
-        out[s == 0.0] = self.start
-        out[s == self.length] = self.end
-        return out
+    def frame(self, s):
+        s = min(max(s, 0.0), self.length)
+        x, y, tx, ty, k, rate = self._curve.frame_at(s)
+        if s == 0.0 or s == self.length:
+            x, y = (self.start if s == 0.0 else self.end).tolist()
+        return x, y, tx, ty, k, rate
 
-    def tangent(self, s):
-        if _is_scalar(s):
-            return np.array(self._curve.tangent_at(min(max(s, 0.0), self.length)))
-        return self._curve.tangents_at(np.clip(np.asarray(s, dtype=float), 0.0, self.length))
+    def _points(self, s):
+        return self._curve.points_at(s)
 
-    def curvature(self, s):
-        if _is_scalar(s):
-            return self._curve.curvature_at(min(max(s, 0.0), self.length))
-        return self._curve.curvatures_at(np.clip(np.asarray(s, dtype=float), 0.0, self.length))
+    def _tangents(self, s):
+        return self._curve.tangents_at(s)
 
-    def closest(self, p):
-        if _is_point(p):
-            s, d = self._curve.closest(np.array([p], dtype=float))
-            return float(s[0]), float(d[0])
-        return self._curve.closest(_points(p))
+    def _curvatures(self, s):
+        return self._curve.curvatures_at(s)
+
+    def _closest(self, pts):
+        return self._curve.closest(pts)
 
     def bounding_box(self):
         return self._curve.box_lower.min(axis=0), self._curve.box_upper.max(axis=0)
@@ -360,10 +398,6 @@ class SplinePath(Segment):
 
 def _is_scalar(s) -> bool:
     return isinstance(s, float | int | np.floating | np.integer)
-
-
-def _is_point(p) -> bool:
-    return np.shape(p) == (2,)
 
 
 def _frozen(values) -> np.ndarray:
@@ -376,11 +410,4 @@ def _point(value, name: str) -> np.ndarray:
     arr = _frozen(value)
     if arr.shape != (2,) or not np.isfinite(arr).all():
         raise PlanningError(f"{name} must be a finite point of shape (2,), got {value!r}")
-    return arr
-
-
-def _points(p) -> np.ndarray:
-    arr = np.asarray(p, dtype=float)
-    if arr.ndim != 2 or arr.shape[1] != 2:
-        raise ValueError(f"points must have shape (2,) or (n, 2), got {arr.shape}")
     return arr
