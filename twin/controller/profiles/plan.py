@@ -85,7 +85,7 @@ def plan_move(law: str, distance: float, *, v_start: float, v_end: float, v_max:
     if law == JERK_LIMITED:
         segments = jerk_limited_segments(distance, v_start, v_end, cap, limits)
         return Profile(law, distance, v_start, v_end,
-                       max(seg.peak_speed() for seg in segments), tuple(segments))
+                       max(seg.speed_range()[1] for seg in segments), tuple(segments))
     peak = peak_speed(law, distance, v_start, v_end, cap, limits)
     return Profile(law, distance, v_start, v_end, peak,
                    tuple(_shape_segments(law, distance, v_start, peak, v_end, limits)))

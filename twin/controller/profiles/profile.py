@@ -13,6 +13,7 @@ from twin.controller.profiles.laws import Shape
 __all__ = ["Blend", "Polynomial", "Profile", "Segment"]
 
 
+@dataclass(frozen=True, slots=True)
 class Segment:
     """One piece of a move, on local time τ ∈ [0, duration].
 
@@ -28,13 +29,10 @@ class Segment:
         Path speed at its start (m/s).
     """
 
-    __slots__ = ("duration", "s0", "start", "v0")
-
-    def __init__(self, start: float, duration: float, s0: float, v0: float):
-        self.start = start
-        self.duration = duration
-        self.s0 = s0
-        self.v0 = v0
+    start: float
+    duration: float
+    s0: float
+    v0: float
 
     def at(self, tau: float) -> tuple[float, float, float, float]:
         """(s, v, a, j) at local time ``tau`` (s): m, m/s, m/s², m/s³."""
@@ -50,6 +48,7 @@ class Segment:
         return s, v, a
 
 
+@dataclass(frozen=True, slots=True)
 class Polynomial(Segment):
     """Constant jerk: a cruise (a0 = j = 0), a trapezoid ramp (j = 0), an S-curve phase.
 
@@ -61,13 +60,8 @@ class Polynomial(Segment):
         Jerk (m/s³).
     """
 
-    __slots__ = ("a0", "j")
-
-    def __init__(self, start: float, duration: float, s0: float, v0: float, a0: float,
-                 j: float):
-        super().__init__(start, duration, s0, v0)
-        self.a0 = a0
-        self.j = j
+    a0: float
+    j: float
 
     def _eval(self, tau):
         a0, j = self.a0, self.j
@@ -83,17 +77,19 @@ class Polynomial(Segment):
         s, v, a = self._eval(tau)
         return s, v, a, np.full_like(tau, self.j)
 
-    def peak_speed(self) -> float:
-        """Highest speed on the piece (m/s), where a crosses zero or at an end."""
+    def speed_range(self) -> tuple[float, float]:
+        """Lowest and highest speed on the piece (m/s): at its ends or where a crosses 0."""
         _, v1, _ = self.end()
-        best = max(self.v0, v1)
+        lo, hi = min(self.v0, v1), max(self.v0, v1)
         if self.j != 0.0:
             tau = -self.a0 / self.j
             if 0.0 < tau < self.duration:
-                best = max(best, self.at(tau)[1])
-        return best
+                v = self.at(tau)[1]
+                lo, hi = min(lo, v), max(hi, v)
+        return lo, hi
 
 
+@dataclass(frozen=True, slots=True)
 class Blend(Segment):
     """One speed change of a shape law: v = v0 + dv·φ(τ/duration).
 
@@ -105,13 +101,8 @@ class Blend(Segment):
         The normalised change φ.
     """
 
-    __slots__ = ("dv", "shape")
-
-    def __init__(self, start: float, duration: float, s0: float, v0: float, dv: float,
-                 shape: Shape):
-        super().__init__(start, duration, s0, v0)
-        self.dv = dv
-        self.shape = shape
+    dv: float
+    shape: Shape
 
     def _eval(self, tau, xp):
         T, dv, shape = self.duration, self.dv, self.shape
@@ -128,7 +119,9 @@ class Blend(Segment):
         return self._eval(tau, np)
 
     def end(self) -> tuple[float, float, float]:
-        return self.s0 + self.duration * (self.v0 + 0.5 * self.dv), self.v0 + self.dv, 0.0
+        T, dv = self.duration, self.dv
+        return (self.s0 + T * (self.v0 + 0.5 * dv), self.v0 + dv,
+                dv / T * self.shape.acceleration(1.0))
 
 
 @dataclass(frozen=True, slots=True)
@@ -136,8 +129,8 @@ class Profile:
     """A planned 1-D move along the path: from ``v_start`` to ``v_end`` over ``distance``.
 
     Evaluate it with `at` (one time, the controller tick's fast path) or `sample` (many).
-    Times are clipped to ``[0, duration]``; from ``duration`` on the move is at rest in its
-    end state: ``s = distance``, ``v = v_end``, ``a = j = 0``.
+    Times are clipped to ``[0, duration]``; from ``duration`` on the move holds its end
+    state: ``s = distance``, ``v = v_end``, ``a = j = 0``.
 
     Attributes
     ----------

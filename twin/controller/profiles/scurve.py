@@ -8,8 +8,9 @@ speed that fits. Its seven phases (duration, jerk) are re-integrated here in flo
 `Polynomial` segments, so that evaluating the move costs a few multiplications, and the
 cruise absorbs the last rounding of the end position.
 
-Ruckig's internal tolerances are absolute (about 1e-8 on position), while the moves of a
-machine tool span 1e-9 to 1 m and 1e-4 to 1 m/s. So ruckig gets the problem in units that
+Ruckig accepts a candidate profile by absolute tolerances (1e-8 on the end position and
+speed, 1e-10 on the end acceleration: ``ruckig/profile.hpp``), while the moves of a machine
+tool span 1e-9 to 1 m and 1e-4 to 1 m/s. So ruckig gets the problem in units that
 make it O(1): speed unit = an upper bound of the peak speed, time unit = the S-curve change
 from rest to it, and a long cruise at the cap shortened to one length unit (the cruise phase
 is stretched back afterwards). Two edges never reach ruckig: a move that only just fits (a
@@ -42,6 +43,7 @@ __all__ = [
     "integrate_phases",
     "jerk_limited_segments",
     "ruckig_phases",
+    "ruckig_segments",
 ]
 
 CRUISE_PHASE = 3
@@ -124,7 +126,8 @@ def ruckig_phases(distance: float, v_start: float, v_end: float, cap: float,
     -------
     list of (duration, jerk) or None
         Ruckig's seven phases in SI (s, m/s³); the cruise phase may be short of the full
-        ``distance`` (`integrate_phases` stretches it). None if ruckig reports an error.
+        ``distance`` (`integrate_phases` stretches it). None if ruckig reports an error or
+        its own end position misses the target by more than 1e-9 relative.
     """
     speed_unit = min(cap, max_end_speed(JERK_LIMITED, max(v_start, v_end), distance, limits))
     time_unit = change_time(JERK_LIMITED, speed_unit, limits)
@@ -150,26 +153,33 @@ def ruckig_phases(distance: float, v_start: float, v_end: float, cap: float,
         result = Ruckig(1).calculate(inp, trajectory)
     except RuckigError:
         return None
-    if result not in _OK:
-        return None
     profile = trajectory.profiles[0][0]
+    if result not in _OK or abs(profile.p[-1] - target / length_unit) > _CHECK * profile.p[-1]:
+        return None
     jerk_unit = length_unit / time_unit**3
     return [(t * time_unit, j * jerk_unit) for t, j in zip(profile.t, profile.j, strict=True)]
 
 
 def jerk_limited_segments(distance: float, v_start: float, v_end: float, cap: float,
                           limits: Limits) -> list[Polynomial]:
-    """The jerk-limited move as segments: ruckig's, checked, else the closed form's.
+    """The jerk-limited move as segments: ruckig's if it passes the check, else the closed
+    form's. Parameters are those of `ruckig_phases`."""
+    segments = ruckig_segments(distance, v_start, v_end, cap, limits)
+    if segments is None:
+        segments = integrate_phases(closed_form_phases(distance, v_start, v_end, cap, limits),
+                                    v_start, distance=distance, cruise=CRUISE_PHASE)
+    return segments
 
-    Parameters are those of `ruckig_phases`.
-    """
+
+def ruckig_segments(distance: float, v_start: float, v_end: float, cap: float,
+                    limits: Limits) -> list[Polynomial] | None:
+    """Ruckig's move as segments, or None if ruckig fails or its answer misses the end state
+    or the limits by more than rounding. Parameters are those of `ruckig_phases`."""
     phases = ruckig_phases(distance, v_start, v_end, cap, limits)
-    if phases is not None:
-        segments = integrate_phases(phases, v_start, distance=distance, cruise=CRUISE_PHASE)
-        if _plausible(segments, distance, v_end, cap, limits):
-            return segments
-    return integrate_phases(closed_form_phases(distance, v_start, v_end, cap, limits),
-                            v_start, distance=distance, cruise=CRUISE_PHASE)
+    if phases is None:
+        return None
+    segments = integrate_phases(phases, v_start, distance=distance, cruise=CRUISE_PHASE)
+    return segments if _plausible(segments, distance, v_end, cap, limits) else None
 
 
 def _plausible(segments: list[Polynomial], distance: float, v_end: float, cap: float,
@@ -182,10 +192,12 @@ def _plausible(segments: list[Polynomial], distance: float, v_end: float, cap: f
             and abs(a) <= _CHECK * limits.max_acceleration):
         return False
     top_a, top_j = limits.max_acceleration * (1 + _CHECK), limits.max_jerk * (1 + _CHECK)
-    return all(
-        math.isfinite(seg.duration) and abs(seg.j) <= top_j and abs(seg.a0) <= top_a
-        and -_CHECK * cap <= seg.v0 and seg.peak_speed() <= cap * (1 + _CHECK)
-        for seg in segments)
+    for seg in segments:
+        low, high = seg.speed_range()
+        if not (math.isfinite(seg.duration) and abs(seg.j) <= top_j and abs(seg.a0) <= top_a
+                and low >= -_CHECK * cap and high <= cap * (1 + _CHECK)):
+            return False
+    return True
 
 
 def integrate_phases(phases: list[tuple[float, float]], v_start: float, *,
