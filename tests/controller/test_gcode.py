@@ -216,6 +216,14 @@ def test_full_circle_survives_a_unit_switch_that_differs_in_the_last_bit():
     assert arc.sweep == pytest.approx(2 * math.pi)
 
 
+def test_end_points_within_a_nanometre_are_the_start():
+    arc = parse("G0 X10\nG2 X10.0000009 I-10 F100").moves[1]
+    assert arc.end == arc.start and arc.sweep == -2 * math.pi
+    assert parse("G1 X0.0000009 F100").moves == ()
+    short = parse("G0 X10\nG3 X10 Y0.000002 I-10 F100").moves[1]  # 2 nm: a tiny arc
+    assert short.sweep == pytest.approx(2e-9 / 10e-3, rel=1e-6)
+
+
 def test_ij_centre_is_corrected_onto_the_bisector():
     # end 0.003 mm outside a 10 mm quarter circle: allowed 0.01 mm, so accepted and corrected
     arc = parse("G0 X10\nG3 X0 Y10.003 I-10 J0 F100").moves[1]

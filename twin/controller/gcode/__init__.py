@@ -21,8 +21,11 @@ Decisions
   an error, not a silent rapid), no feed (a G1 before any F is an error).
 * Order of execution inside a block as RS-274/NGC: F, S, T, M6, M3/M4/M5, M7/M8/M9, G4,
   then motion, then M2/M30. G20/G21 and G90/G91 apply to the words of their own block.
-* Zero-length G0/G1 moves produce no ``Move``; a G2/G3 whose end point is its start point
-  is a full circle.
+* An end point within 1 nm of the start (``interpreter.COINCIDENT``) is the start: such a
+  G0/G1 produces no ``Move``, such a G2/G3 is a full circle. Every arc ``Move`` is an exact
+  circle through its start and end (I/J centres are corrected, see ``arcs``).
+* Coordinates stay within ±1 km (``interpreter.WORKSPACE``); the machine's own travel
+  limits are the planner's business.
 * ``%`` on the first block line opens a tape; the next ``%`` ends the program. M2/M30 end
   it too. Text after the end is not read (RS-274/NGC), so it is neither run nor checked.
 * Syntax: see ``twin.controller.gcode.lexer``; arc tolerance: ``twin.controller.gcode.arcs``.

@@ -32,9 +32,11 @@ from twin.units import INCH, MM, RPM
 
 __all__ = ["COINCIDENT", "WORKSPACE", "Interpreter"]
 
-COINCIDENT = 1e-12
-"""End points closer than this to the start are the start (m): ``G20 G2 X1 I…`` after
-``G21 X25.4`` is a full circle although 1·25.4e-3 and 25.4·1e-3 differ in the last bit."""
+COINCIDENT = 1e-9
+"""End points within 1 nm of the start are the start (m), far below the 0.2 µm encoder
+resolution: ``G20 G2 X1 I…`` after ``G21 X25.4`` is a full circle although 1·25.4e-3 and
+25.4·1e-3 differ in the last bit, and no arc is left whose sweep rounding could not tell
+from a full turn. G0/G1 moves shorter than this produce no ``Move``."""
 
 WORKSPACE = 1e3
 """Largest coordinate a program may reach (m); keeps every computation far from overflow."""
