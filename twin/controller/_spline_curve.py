@@ -14,7 +14,7 @@ Per piece k, with the local parameter ``t = u − u_k`` in ``[0, h_k]``:
   at an end or at a real root of ``D'``, a quintic solved by companion-matrix eigenvalues and
   polished by Newton.
 
-Scalar queries use the ``math`` module and per-piece tuples (no array arithmetic) and reuse
+Scalar queries use the ``math`` module on one row of coefficients (no array arithmetic) and reuse
 the last ``s → (k, t)`` answer, because point, tangent and curvature are asked at one s.
 """
 

@@ -188,22 +188,15 @@ def solve_blocks4(sub, diag, sup, rhs) -> np.ndarray:
     so it is exact (no approximation); the Schur complements of a strictly diagonally
     dominant matrix stay strictly diagonally dominant, so no pivoting is needed.
 
-    Cost: per block of five unknowns about 80 flops for the matrix (pivots, q, w, reduced
-    row, recovery) plus 25 per right-hand side, i.e. ~21 flops per unknown; the levels shrink
-    by 5, so the total is 1.25× that (~26 flops per unknown, vs ~8 for the sweep), but in
-    ``log5(N)`` data-parallel stages of ~60 array operations instead of N dependent steps.
+    Cost: per block of five unknowns about 40 flops for the matrix (4 reciprocals, pivots,
+    q, w, reduced row) and 36 per right-hand side (p, reduced right side, recovery), i.e. ~15
+    flops per unknown for one right-hand side; the levels shrink by 5, so the total is 1.25×
+    that, ~19 flops per unknown against ~8 for the sweep, but done in ``log5(N)``
+    data-parallel stages of ~70 array operations instead of N dependent steps. In numpy the
+    compiled sweep stays faster (``bench/spline.py``); the method pays off where the stages
+    run in parallel hardware, or where no compiled sweep is at hand.
 
-    Parameters
-    ----------
-    sub, sup : ndarray, shape (N-1,)
-        Sub- and super-diagonal.
-    diag : ndarray, shape (N,)
-        Main diagonal.
-    rhs : ndarray, shape (N,) or (N, m)
-
-    Returns
-    -------
-    ndarray, same shape as ``rhs``
+    Parameters and result as for :func:`solve_tridiagonal`.
     """
     rhs = np.asarray(rhs, dtype=float)
     n = rhs.shape[0]
