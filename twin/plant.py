@@ -42,9 +42,7 @@ from twin.model import load_model, resolve_machine
 __all__ = ["Plant", "Reading", "StepStatus", "Truth"]
 
 _BAD_STATE = ("mjWARN_BADQPOS", "mjWARN_BADQVEL", "mjWARN_BADQACC")
-_WARNING_NAMES = tuple(sorted((name for name in mujoco.mjtWarning.__members__
-                               if name != "mjNWARNING"),
-                              key=lambda name: int(mujoco.mjtWarning.__members__[name])))
+_WARNING_NAMES = tuple(mujoco.mjtWarning(i).name for i in range(mujoco.mjtWarning.mjNWARNING))
 
 
 @dataclass(frozen=True, slots=True)
@@ -120,14 +118,11 @@ class Truth:
         Motor shaft angle (rad) and speed (rad/s).
     screw_deflection : ndarray
         r·θ − x (m): positive when the screw pushes the table forward.
-    armature_current, converter_voltage : ndarray
-        Motor current (A) and converter mean output voltage (V).
-    firing_angle : ndarray
-        Thyristor firing angle (rad); NaN for PWM and while the pulses are removed.
-    bridge : ndarray, int64
-        Conducting converter: +1 forward, −1 reverse, 0 blocked.
-    speed_reference : ndarray
-        Speed reference after the drive's input filter (V).
+    armature_current, converter_voltage, speed_reference : ndarray
+        Motor current (A), converter mean output voltage (V), filtered speed reference (V).
+    firing_angle, bridge : ndarray
+        Thyristor firing angle (rad; NaN for PWM or blocked pulses); conducting converter
+        (int64: +1 forward, −1 reverse, 0 blocked).
     time : float
         Plant time (s).
     """
@@ -425,11 +420,9 @@ class Plant:
         return np.floor(self._rotor_pos * self._counts_per_rad).astype(np.int64)
 
     def _new_warnings(self) -> tuple[str, ...]:
-        now = self._warning_count.tobytes()
-        if now == self._warnings_seen:
-            return ()
+        """Names of the MuJoCo warnings whose counters moved since the last call."""
         before = np.frombuffer(self._warnings_seen, dtype=self._warning_count.dtype)
-        self._warnings_seen = now
+        self._warnings_seen = self._warning_count.tobytes()
         return tuple(_WARNING_NAMES[i] for i in np.flatnonzero(self._warning_count != before))
 
 

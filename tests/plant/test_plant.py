@@ -90,9 +90,10 @@ def test_non_finite_dac_raises_and_changes_nothing(bad):
     np.testing.assert_array_equal(after.rotor_angle, before.rotor_angle)
 
 
-def test_diverging_physics_raises_instead_of_a_silent_nan_state():
+def test_diverging_physics_raises_instead_of_a_silent_nan_state(tmp_path, monkeypatch):
     # A 10 ms step is far beyond the stability limit of the 1 kHz screw mode: the state
     # blows up, and MuJoCo's auto-reset is off so the plant must notice and say so.
+    monkeypatch.chdir(tmp_path)  # MuJoCo logs the warning to ./MUJOCO_LOG.TXT
     cfg = Plant.from_machine("tomsk_xy").config.with_overrides(
         {"simulation.timestep": 1e-2, "simulation.drive_substeps": 1})
     plant = Plant(cfg)
