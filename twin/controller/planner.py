@@ -12,7 +12,9 @@ that all three kinds of limit allow::
   ``max_velocity``, and on curved segments the centripetal acceleration and the jerk;
 * length: every block must be able to brake before the end of the look-ahead window, which
   is assumed to end at rest (backward pass), and every node must be reachable from the one
-  before it (forward pass), both with the chosen acceleration law (`max_end_speed`).
+  before it (forward pass), both with the chosen acceleration law: `max_end_speed`, made
+  monotone in the start speed by `twin.controller.reach` (without that, raising one node
+  could shrink what its neighbour may do, and the incremental passes would be unsound).
 
 Streaming and incremental
 -------------------------
@@ -21,8 +23,8 @@ Streaming and incremental
 length is planned in constant memory. Like grbl's ``planner.c`` it re-plans incrementally.
 For each node it keeps ``fw``, the forward envelope (the speed reachable from the window's
 fixed start, capped by the node limit), which never changes once computed, and the planned
-entry speed ``entry = min(fw, max_end_speed(law, next entry, length))``. Appending a block
-only *raises* entries (the window's end moves away), so the backward pass walks from the
+entry speed ``entry = min(fw, g(next entry, length))`` (g the monotone reach). Appending a
+block only *raises* entries (the window's end moves away), so the backward pass walks from the
 newest block and stops at the first entry that does not change: typically after one or two
 blocks. When a block leaves the window the next block's entry is committed; if that lowers
 a forward envelope the change is propagated forward until it stops mattering.
@@ -58,8 +60,10 @@ from twin.config import AxisConfig, ControllerSettings
 from twin.controller.corner import CornerModel, SeedCornerModel
 from twin.controller.gcode.items import Move, ProgramEnd
 from twin.controller.geometry import Arc, Line, Segment
-from twin.controller.profiles import Limits, Profile, max_end_speed, plan_move
+from twin.controller.profiles import Limits, Profile, plan_move
 from twin.controller.profiles.laws import check_law
+from twin.controller.reach import monotone_end_speed as reach_speed
+from twin.controller.reach import reach_floor
 from twin.controller.segment_limits import SegmentLimits
 from twin.errors import ConfigError, PlanningError, TwinError
 
@@ -207,7 +211,7 @@ def segments_from_program(items: Iterable[Any]) -> Iterator[Any]:
 class _Block:
     """A block in the window: its geometry summary and its speeds (mutable, internal)."""
 
-    __slots__ = ("entry", "feed", "fw", "index", "length", "limits", "line", "rapid",
+    __slots__ = ("entry", "feed", "floor", "fw", "index", "length", "limits", "line", "rapid",
                  "segment", "t0x", "t0y", "t1x", "t1y", "v_nom")
 
 
@@ -371,6 +375,7 @@ class Planner:
                 self._limits_cache.clear()
             lim = self._limits_cache[key] = Limits(v_nom, acc, jerk)
         b.limits = lim
+        b.floor = reach_floor(self.law, b.length, lim)
         return b
 
     def _append(self, window: deque[_Block], b: _Block) -> None:
@@ -386,7 +391,7 @@ class Planner:
                                                       self.tolerance)
             if corner < emax:
                 emax = corner
-            reach = max_end_speed(law, prev.fw, prev.length, prev.limits)
+            reach = reach_speed(law, prev.fw, prev.length, prev.limits, prev.floor)
             if reach < emax:
                 emax = reach
         b.fw = emax
@@ -394,7 +399,9 @@ class Planner:
         window.append(b)
         v = 0.0
         for r in reversed(window):          # backward pass, newest first
-            cand = max_end_speed(law, v, r.length, r.limits)
+            if r.entry == r.fw:             # at its forward cap (or committed): final
+                break
+            cand = reach_speed(law, v, r.length, r.limits, r.floor)
             new = r.fw if r.fw < cand else cand
             if new <= r.entry:
                 break
@@ -418,7 +425,7 @@ class Planner:
         prev = None
         for r in window:
             if prev is not None:
-                cand = max_end_speed(law, prev.fw, prev.length, prev.limits)
+                cand = reach_speed(law, prev.fw, prev.length, prev.limits, prev.floor)
                 if cand >= r.fw:
                     return
                 r.fw = cand

@@ -7,11 +7,11 @@ on curved segments — the acceleration and jerk that the curvature itself deman
 * line, direction t̂: ``v ≤ v_max_k/|t̂_k|``, ``a ≤ a_max_k/|t̂_k|``, ``j ≤ j_max_k/|t̂_k|``
   for each axis k, and the contour limits;
 * arc or spline: the tangent turns, so the per-axis velocity limit uses the largest
-  ``|t̂_k|`` over the segment (exact for an arc, from its angle range; sampled for a
-  spline), and the total acceleration and jerk vectors are kept within
-  ``A = min(contour, axes)`` and ``J = min(contour, axes)``. With κ the largest |curvature|
-  and κ' the largest |dκ/ds|: centripetal ``v²κ ≤ A/√2`` and tangential
-  ``a_t = √(A² − (v²κ)²)`` (so ``|a| ≤ A``); the jerk
+  ``|t̂_k|`` over the segment (exact for an arc, from its angle range; for a spline
+  sampled, with a margin for what lies between samples), and the total acceleration and
+  jerk vectors are kept within ``A = min(contour, axes)`` and ``J = min(contour, axes)``.
+  With κ the largest |curvature| and κ' the largest |dκ/ds|: centripetal ``v²κ ≤ A/√2``
+  and tangential ``a_t = √(A² − (v²κ)²)`` (so ``|a| ≤ A``); the jerk
   ``|j| ≤ |s⃛| + v³(κ² + κ') + 3·v·a_t·κ`` is shared as ``v³(κ² + κ') ≤ J/4``,
   ``3·v·a_t·κ ≤ J/2``, and the tangential jerk gets the rest, at least ``J/4``.
 """
@@ -110,10 +110,18 @@ def _arc_tangent_extent(arc: Arc) -> tuple[float, float]:
 
 
 def _sampled_extent(seg: Segment, n: int = 65) -> tuple[float, float, float, float]:
-    """Tangent extent, max |κ| and max |dκ/ds| of a general segment, sampled at ``n`` points."""
+    """Tangent extent, max |κ| and max |dκ/ds| of a general segment from ``n`` samples.
+
+    Between samples h apart the tangent turns by at most κ·h, so a tangent component can
+    exceed its sampled maximum by at most κ·h/2 (and κ by |κ'|·h/2): both margins are added,
+    so the caps stay on the safe side.
+    """
     s = np.linspace(0.0, seg.length, n)
+    h = seg.length / (n - 1)
     t = np.abs(seg.tangent(s))
-    k = np.asarray(seg.curvature(s), dtype=float)
-    dk = np.abs(np.diff(k)) / (seg.length / (n - 1))
-    return (float(t[:, 0].max()), float(t[:, 1].max()), float(np.abs(k).max()),
-            float(dk.max()) if dk.size else 0.0)
+    k = np.abs(np.asarray(seg.curvature(s), dtype=float))
+    dk = float((np.abs(np.diff(k)) / h).max()) if n > 1 else 0.0
+    kappa = float(k.max()) + 0.5 * dk * h
+    margin = 0.5 * kappa * h
+    return (min(1.0, float(t[:, 0].max()) + margin), min(1.0, float(t[:, 1].max()) + margin),
+            kappa, dk)

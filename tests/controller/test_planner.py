@@ -1,0 +1,401 @@
+"""Look-ahead planner, segment limits and corner model: limits, feasibility, streaming."""
+
+import itertools
+import math
+import tracemalloc
+
+import numpy as np
+import pytest
+import scipy.signal
+
+from twin.config import load_machine
+from twin.controller.corner import (
+    RIGID_LAG_CORNER_ERROR,
+    NoCornerLimit,
+    SeedCornerModel,
+    angle_factor,
+    damping_factor,
+)
+from twin.controller.gcode import parse
+from twin.controller.gcode.items import Dwell, Event, Move, ProgramEnd
+from twin.controller.geometry import Arc, Line, SplinePath
+from twin.controller.metrics import corner_error
+from twin.controller.planner import MotionBlock, PlannedBlock, Planner, WorkZone
+from twin.controller.profiles import LAWS, Limits, max_end_speed
+from twin.controller.reach import monotone_end_speed, reach_floor
+from twin.controller.segment_limits import SegmentLimits
+from twin.errors import ConfigError, PlanningError
+
+CFG = load_machine("tomsk_xy")
+CONTOUR = Limits(0.05, 1.0, 50.0)
+AXIS_LIMITS = (Limits(0.02, 0.5, 20.0), Limits(0.03, 0.8, 30.0))
+
+
+def tomsk_planner(**options) -> Planner:
+    """The reference rig's planner; soft limits off unless a test asks for them."""
+    options.setdefault("work_zone", None)
+    return Planner.from_settings(CFG.controller, CFG.axes, **options)
+
+
+def free_planner(**options) -> Planner:
+    """Per-axis limits tighter than the contour ones, so that the projections bind."""
+    options.setdefault("rapid_velocity", 0.04)
+    options.setdefault("tolerance", 20e-6)
+    return Planner(CONTOUR, AXIS_LIMITS, **options)
+
+
+def polyline(n, *, seed, step=(1e-3, 4e-3), turn=1.0, feed=0.01, origin=(0.1, 0.1)):
+    """Moves of a random polyline: lengths uniform in ``step`` (m), turns up to ``turn``."""
+    rng = np.random.default_rng(seed)
+    heading, p = 0.0, np.array(origin)
+    moves = []
+    for i in range(n):
+        heading += rng.uniform(-turn, turn)
+        q = p + rng.uniform(*step) * np.array([math.cos(heading), math.sin(heading)])
+        moves.append(Move("line", tuple(p), tuple(q), feed, line=i + 1))
+        p = q
+    return moves
+
+
+def mixed_program(seed):
+    """Lines, tangent and non-tangent arcs, a rapid, a dwell and an event."""
+    rng = np.random.default_rng(seed)
+    text = ["G21 G90 G0 X100 Y100", "G1 X120 Y100 F900", "G3 X130 Y110 I0 J10",
+            "G1 X130 Y125", "G2 X125 Y130 I-5 J0", "G1 X110 Y131 F300", "G4 P0.2",
+            "M3 S1000", "G1 X100 Y140 F1200", "G0 X90 Y90", "G1 X95 Y90 F500"]
+    x, y = 95.0, 90.0
+    for _ in range(40):
+        x, y = x + rng.uniform(0.5, 3.0), y + rng.uniform(-2.0, 2.0)
+        text.append(f"G1 X{x:.4f} Y{y:.4f} F{rng.uniform(200, 1000):.0f}")
+    text.append(f"G3 X{x + 4:.4f} Y{y:.4f} I2 J0")
+    text.append("M2")
+    return parse("\n".join(text), start=(0.1, 0.1))
+
+
+def blocks_of(items):
+    return [b for b in items if isinstance(b, PlannedBlock)]
+
+
+def node_angle(a, b):
+    t0, t1 = a.segment.end_tangent, b.segment.start_tangent
+    return math.acos(min(1.0, max(-1.0, float(np.dot(t0, t1)))))
+
+
+def reference_entries(blocks, planner):
+    """Full-program two-pass optimum (no window): min(forward, backward) envelopes."""
+    n, law = len(blocks), planner.law
+    emax = [0.0] * n
+    for i in range(1, n):
+        a, b = blocks[i - 1], blocks[i]
+        if not (a.rapid or b.rapid):
+            emax[i] = min(a.v_nominal, b.v_nominal, planner.corner_model.max_node_speed(
+                node_angle(a, b), planner.tolerance))
+    fw = [0.0] * n
+    for i in range(1, n):
+        fw[i] = min(emax[i], max_end_speed(law, fw[i - 1], blocks[i - 1].segment.length,
+                                           blocks[i - 1].limits))
+    entry = [0.0] * (n + 1)
+    for i in range(n - 1, -1, -1):
+        entry[i] = min(fw[i], max_end_speed(law, entry[i + 1], blocks[i].segment.length,
+                                            blocks[i].limits))
+    return entry
+
+
+# ------------------------------------------------------------------------ speed limits
+@pytest.mark.parametrize("law", LAWS)
+def test_planned_profiles_are_feasible_and_continuous(law):
+    planner = tomsk_planner(law=law)
+    blocks = blocks_of(planner.plan(mixed_program(1)))
+    assert blocks[0].v_start == 0.0 and blocks[-1].v_end == 0.0
+    for prev, nxt in itertools.pairwise(blocks):
+        assert prev.v_end == nxt.v_start
+    for b in blocks:
+        prof = b.profile()                               # raises if not feasible
+        t = np.linspace(0.0, prof.duration, 400)
+        s, v, a, j = prof.sample(t)
+        assert s[-1] == pytest.approx(b.segment.length, rel=1e-12)
+        assert v[0] == pytest.approx(b.v_start, abs=1e-15)
+        assert v[-1] == pytest.approx(b.v_end, abs=1e-15)
+        assert v.max() <= b.v_nominal * (1 + 1e-9)
+        assert np.abs(a).max() <= b.limits.max_acceleration * (1 + 1e-9)
+        if law != "trapezoid":
+            assert np.abs(j).max() <= b.limits.max_jerk * (1 + 1e-9)
+
+
+def test_node_speeds_respect_technology_accuracy_and_length():
+    planner = tomsk_planner()
+    items = list(planner.plan(mixed_program(2)))
+    blocks = blocks_of(items)
+    for a, b in itertools.pairwise(blocks):
+        v = a.v_end
+        assert v <= min(a.v_nominal, b.v_nominal)                   # technological
+        if v > 0.0:
+            corner = planner.corner_model.max_node_speed(node_angle(a, b), planner.tolerance)
+            assert v <= corner * (1 + 1e-9)                          # accuracy
+        if a.rapid or b.rapid:
+            assert v == 0.0                                          # G0 brakes at its end
+    for b in blocks:
+        assert b.v_start <= max_end_speed(planner.law, b.v_end, b.segment.length, b.limits)
+        assert b.v_end <= max_end_speed(planner.law, b.v_start, b.segment.length, b.limits)
+        cap = planner.rapid_velocity if b.rapid else min(b.feed, planner.limits.max_velocity)
+        assert b.v_nominal <= cap
+
+
+def test_segment_caps_respect_projected_axis_limits_and_curvature():
+    planner = free_planner(mode="stop")
+    rng = np.random.default_rng(3)
+    segments = [Line((0, 0), tuple(rng.uniform(-1, 1, 2))) for _ in range(30)]
+    for _ in range(30):
+        c, r = rng.uniform(-1, 1, 2), rng.uniform(1e-4, 0.05)
+        a0, a1 = rng.uniform(-4, 4, 2)
+        segments.append(Arc(c + r * np.array([math.cos(a0), math.sin(a0)]),
+                            c + r * np.array([math.cos(a1), math.sin(a1)]), c,
+                            ccw=bool(rng.integers(2)), turns=int(rng.integers(2))))
+    segments.append(SplinePath([(0, 0), (0.01, 0.004), (0.02, -0.003), (0.03, 0.0)]))
+    blocks = blocks_of(planner.plan(MotionBlock(s, 0.05) for s in segments))
+    a_tot = min(CONTOUR.max_acceleration, *(x.max_acceleration for x in AXIS_LIMITS))
+    for b in blocks:
+        seg, v = b.segment, b.v_nominal
+        tang = np.abs(seg.tangent(np.linspace(0.0, seg.length, 2001)))
+        for k, lim in enumerate(AXIS_LIMITS):
+            assert v * tang[:, k].max() <= lim.max_velocity * (1 + 1e-12)
+        kappa = np.abs(seg.curvature(np.linspace(0.0, seg.length, 2001))).max()
+        if isinstance(seg, Line):
+            for k, lim in enumerate(AXIS_LIMITS):
+                assert b.limits.max_acceleration * tang[0, k] <= lim.max_acceleration * (1 + 1e-12)
+                assert b.limits.max_jerk * tang[0, k] <= lim.max_jerk * (1 + 1e-12)
+            # the tightest of the projections (or the feed) is attained exactly
+            bound = min([0.05] + [lim.max_velocity / t for lim, t in zip(
+                AXIS_LIMITS, tang[0], strict=True) if t > 0])
+            assert v == pytest.approx(bound, rel=1e-12)
+        else:
+            a_n = v * v * kappa
+            assert a_n <= a_tot / math.sqrt(2) * (1 + 1e-6)
+            assert math.hypot(a_n, b.limits.max_acceleration) <= a_tot * (1 + 1e-9)
+
+
+@pytest.mark.parametrize("seed", range(20))
+def test_arc_tangent_extent_matches_dense_sampling(seed):
+    rng = np.random.default_rng(seed)
+    c, r = rng.uniform(-1, 1, 2), rng.uniform(0.01, 1)
+    a0, a1 = rng.uniform(-7, 7, 2)
+    arc = Arc(c + r * np.array([math.cos(a0), math.sin(a0)]),
+              c + r * np.array([math.cos(a1), math.sin(a1)]), c, ccw=bool(seed % 2))
+    caps = SegmentLimits(Limits(10.0, 1.0, 1.0), (Limits(1.0, 1e9, 1e9), Limits(2.0, 1e9, 1e9)))
+    v, _, _ = caps.curve_caps(arc, 10.0)
+    tang = np.abs(arc.tangent(np.linspace(0.0, arc.length, 200001))).max(axis=0)
+    expected = min(1.0 / tang[0], 2.0 / tang[1], math.sqrt(r / math.sqrt(2)),
+                   (0.25 * r * r) ** (1 / 3))
+    assert v == pytest.approx(expected, rel=1e-6)
+
+
+# ------------------------------------------------------------------------ look-ahead
+def test_tangent_junctions_get_no_corner_limit():
+    prog = parse("G21 G90 G1 X120 Y100 F600\nG3 X140 Y120 I0 J20\nG1 X140 Y150", start=(0.1, 0.1))
+    blocks = blocks_of(tomsk_planner().plan(prog))
+    assert blocks[0].v_end == pytest.approx(0.01, rel=1e-12)
+    assert blocks[1].v_end == pytest.approx(0.01, rel=1e-12)
+
+
+def test_window_results_match_the_full_program_optimum():
+    moves = polyline(300, seed=4)
+    ref = None
+    for window in (6, 16, 1000):
+        planner = tomsk_planner(lookahead=window)
+        blocks = blocks_of(planner.plan(moves))
+        speeds = np.array([(b.v_start, b.v_nominal, b.v_end) for b in blocks])
+        if ref is None:
+            ref = speeds
+            expected = reference_entries(blocks, planner)
+            # the reference computes the corner angle its own way: equal to rounding
+            np.testing.assert_allclose(speeds[:, 0], expected[:-1], rtol=1e-13, atol=0)
+            np.testing.assert_allclose(speeds[:, 2], expected[1:], rtol=1e-13, atol=0)
+        else:
+            np.testing.assert_array_equal(speeds, ref)
+    assert ref[:, 0].mean() > 0.3 * ref[:, 1].mean()        # the nodes are not stops
+
+
+@pytest.mark.parametrize("law", LAWS)
+@pytest.mark.parametrize("window", [2, 3, 7])
+def test_short_window_is_conservative_but_feasible(law, window):
+    """Tiny segments: the window does not cover the braking distance."""
+    moves = polyline(150, seed=window, step=(0.02e-3, 0.3e-3), turn=0.1)
+    full = blocks_of(tomsk_planner(law=law, lookahead=1000).plan(moves))
+    short = blocks_of(tomsk_planner(law=law, lookahead=window).plan(moves))
+    a = np.array([b.v_end for b in short])
+    b = np.array([b.v_end for b in full])
+    assert np.all(a <= b)
+    if window == 2:
+        assert a.sum() < 0.95 * b.sum()
+    for blk in short + full:
+        blk.profile()                                    # plan_move raises if infeasible
+
+
+@pytest.mark.parametrize("law", ["trapezoid", "parabolic"])
+def test_lookahead_beats_stop_mode_in_cycle_time(law):
+    moves = polyline(150, seed=6, turn=0.3)
+
+    def cycle(mode):
+        return sum(b.profile().duration for b in blocks_of(tomsk_planner(law=law, mode=mode)
+                                                            .plan(moves)))
+
+    look, stop = cycle("lookahead"), cycle("stop")
+    assert look < 0.9 * stop
+
+
+def test_stop_mode_and_lookahead_one_stop_at_every_node():
+    moves = polyline(50, seed=7)
+    for planner in (tomsk_planner(mode="stop"), tomsk_planner(lookahead=1)):
+        for b in blocks_of(planner.plan(moves)):
+            assert b.v_start == 0.0 and b.v_end == 0.0
+
+
+def test_pass_through_items_keep_order_and_force_stops():
+    prog = mixed_program(8)
+    items = list(tomsk_planner().plan(prog))
+    assert [type(i).__name__ for i in items if not isinstance(i, PlannedBlock)] == [
+        "Dwell", "Event", "Event", "ProgramEnd"]
+    lines = [i.line for i in items]
+    assert lines == sorted(lines)
+    for i, item in enumerate(items):
+        if isinstance(item, Dwell | Event):
+            before = [b for b in items[:i] if isinstance(b, PlannedBlock)][-1]
+            after = next(b for b in items[i + 1:] if isinstance(b, PlannedBlock))
+            assert before.v_end == 0.0 and after.v_start == 0.0
+    assert isinstance(items[-1], ProgramEnd)
+
+
+def test_nothing_after_program_end_is_read():
+    consumed = []
+
+    def source():
+        for item in (Move("line", (0.1, 0.1), (0.11, 0.1), 0.01, line=1), ProgramEnd("M2", 2),
+                     Move("line", (0.11, 0.1), (0.12, 0.1), 0.01, line=3)):
+            consumed.append(item.line)
+            yield item
+
+    items = list(tomsk_planner().plan(source()))
+    assert [i.line for i in items] == [1, 2] and consumed == [1, 2]
+
+
+# ------------------------------------------------------------------------ soft limits
+def test_leaving_the_work_zone_is_refused_naming_the_line():
+    moves = polyline(30, seed=9, origin=(0.15, 0.1))
+    bad = Move("line", moves[-1].end, (0.5, 0.1), 0.01, line=31)
+    planner = tomsk_planner(work_zone=WorkZone.from_axes(CFG.axes))
+    with pytest.raises(PlanningError, match="line 31"):
+        planner.check([*moves, bad])
+    got = []
+    with pytest.raises(PlanningError, match="line 31"):
+        for b in planner.plan([*moves, bad]):
+            got.append(b)
+    assert len(got) == 30 and got[-1].v_end == 0.0   # the valid blocks ran out to rest
+    arc = Arc((0.1, 0.19), (0.1, 0.19), (0.1, 0.195), ccw=True)     # reaches y = 0.2
+    with pytest.raises(PlanningError, match="line 7"):
+        planner.check([MotionBlock(arc, 0.01, 7)])
+
+
+def test_work_zone_is_inside_the_limit_switches():
+    zone = WorkZone.from_axes(CFG.axes)
+    assert zone.lower == (0.002, 0.002) and zone.upper == (0.298, 0.198)
+
+
+@pytest.mark.parametrize(("options", "field"), [
+    ({"mode": "fast"}, "mode"), ({"lookahead": 0}, "lookahead"), ({"law": "sine"}, "law"),
+    ({"tolerance": 0.0}, "tolerance"),
+])
+def test_invalid_options_name_the_field(options, field):
+    with pytest.raises(ConfigError) as err:
+        free_planner(**options)
+    assert err.value.field == field
+
+
+# ------------------------------------------------------------------------ streaming
+def _generated(n):
+    rng = np.random.default_rng(10)
+    p = np.array([0.1, 0.1])
+    for i in range(n):
+        q = np.clip(p + rng.uniform(-5e-4, 5e-4, 2), 0.01, 0.19)
+        yield Move("line", (float(p[0]), float(p[1])), (float(q[0]), float(q[1])), 0.01,
+                   line=i + 1)
+        p = q
+
+
+def _peak_while_planning(n):
+    tracemalloc.start()
+    count = 0
+    for _ in tomsk_planner().plan(_generated(n)):
+        count += 1
+    _, peak = tracemalloc.get_traced_memory()
+    tracemalloc.stop()
+    return count, peak
+
+
+def test_streaming_plans_in_bounded_memory():
+    small_n, small_peak = _peak_while_planning(1_000)
+    large_n, large_peak = _peak_while_planning(10_000)
+    assert large_n == 10_000 and small_n == 1_000
+    assert large_peak < 1.3 * small_peak + 50_000
+    assert large_peak < 2_000_000
+
+
+# ------------------------------------------------------------------------ monotone reach
+@pytest.mark.parametrize("law", LAWS)
+def test_monotone_reach_is_the_lower_envelope_of_max_end_speed(law):
+    """g(v) = min over u ≥ v of f(u), against a dense brute-force envelope."""
+    rng = np.random.default_rng(11)
+    for _ in range(12):
+        limits = Limits(1e3, 10 ** rng.uniform(-1, 1), 10 ** rng.uniform(0, 2))
+        d = 10 ** rng.uniform(-6, -1)
+        floor = reach_floor(law, d, limits)
+        u = np.linspace(0.0, 1.2 * max_end_speed(law, 0.0, d, limits), 3001)
+        f = np.array([max_end_speed(law, x, d, limits) for x in u])
+        envelope = np.minimum.accumulate(f[::-1])[::-1]
+        g = np.array([monotone_end_speed(law, x, d, limits, floor) for x in u])
+        assert np.all(g <= f)
+        assert np.all(np.diff(g) >= -1e-12 * g[1:])                 # monotone
+        np.testing.assert_allclose(g, envelope, rtol=2e-6)          # grid resolution
+
+
+# ------------------------------------------------------------------------ corner model
+@pytest.mark.parametrize(("angle", "expected"), [
+    (0.0, 0.0), (math.pi / 6, 0.5), (-math.pi / 6, 0.5), (math.pi / 2, 1.0), (2.5, 1.0),
+    (math.pi, 1.0)])
+def test_angle_factor_is_the_seed_f1(angle, expected):
+    assert angle_factor(angle) == pytest.approx(expected, abs=1e-15)
+
+
+@pytest.mark.parametrize(("xi", "expected"), [(0.25, 0.25), (0.4, 0.4), (0.1, 0.4), (0.9, 0.9)])
+def test_damping_factor_is_the_seed_expression(xi, expected):
+    assert damping_factor(xi) == pytest.approx(expected, abs=1e-15)
+
+
+def test_default_calibration_reproduces_a_first_order_lag_corner():
+    """Simulate a first-order servo lag through a 90° corner at constant speed (scipy lsim,
+    exact for the piecewise-linear reference) and measure seed 001's δ_max."""
+    T, V, t0 = 0.01, 0.01, -0.2                  # the start transient dies out by t = 0
+    t = np.linspace(t0, 0.1, 60001)
+    ref_x = np.where(t < 0, V * (t - t0), -V * t0)     # relative to A = (V·t0, 0)
+    ref_y = np.where(t < 0, 0.0, V * t)
+    lag = scipy.signal.lti([1.0], [T, 1.0])
+    _, x, _ = scipy.signal.lsim(lag, ref_x, t - t0)
+    _, y, _ = scipy.signal.lsim(lag, ref_y, t - t0)
+    err = corner_error((V * t0, 0.0), (0.0, 0.0), (0.0, 0.1 * V),
+                       np.column_stack([x + V * t0, y]))
+    model = SeedCornerModel(servo_time_constant=T, damping_ratio=0.4)
+    assert err.delta_max / (V * T) == pytest.approx(RIGID_LAG_CORNER_ERROR, rel=2e-3)
+    assert model.relative_error(math.pi / 2) == pytest.approx(err.delta_max / V, rel=2e-3)
+    tol = 20e-6
+    assert model.max_node_speed(math.pi / 2, tol) * model.relative_error(math.pi / 2) == \
+        pytest.approx(tol)
+    assert model.max_node_speed(0.0, tol) == math.inf
+    assert NoCornerLimit().max_node_speed(math.pi, tol) == math.inf
+
+
+def test_corner_model_from_machine_uses_the_lowest_mode():
+    model = SeedCornerModel.from_machine(load_machine("laser_belt"))
+    assert model.natural_frequency == pytest.approx(100.0, rel=1e-9)
+    assert model.damping_ratio == 0.4
+    assert model.servo_time_constant == 0.01
+    stiff = SeedCornerModel.from_machine(CFG)
+    assert stiff.natural_frequency > 500.0

@@ -1,0 +1,122 @@
+"""Monotone reachable speed over one block: what the look-ahead passes may rely on.
+
+``max_end_speed(law, v, d, limits)`` is the highest speed one speed change of the law
+reaches after ``d`` of path from ``v``. For every law but the trapezoid it is *not*
+monotone in ``v``: a change that must start and end at zero acceleration covers
+``(v + v1)/2 · T(v1 − v)`` of path, so starting faster can leave less room to gain speed
+(in the jerk-limited regime ``f`` falls while ``f(v) − v > 2v``; the S-curve also falls for
+``v < A²/(2J)`` in its acceleration-limited regime). The grbl-style passes need a monotone
+relation — raising the speed at one node must never shrink what its neighbour may do — so
+the planner uses the lower monotone envelope
+
+    g(v) = min over u ≥ v of f(u)  ≤  f(v),
+
+which is as large as safety allows. ``f(u) − 3u`` is strictly decreasing, so its root u_r
+is unique; the local minima of ``f`` lie at u_r and (S-curve) at ``A²/(2J)``, hence
+``g(v) = min(f(v), f(u_r) if v < u_r, f(A²/(2J)) if v < A²/(2J))``. A node pair
+``(low, high)`` with ``high ≤ g(low)`` is a feasible speed change of the law
+(``plan_move`` accepts it).
+"""
+
+from __future__ import annotations
+
+import math
+
+from twin.controller.profiles import SHAPES, Limits, max_end_speed
+from twin.controller.profiles.laws import JERK_LIMITED
+
+__all__ = ["ReachFloor", "monotone_end_speed", "reach_floor"]
+
+ReachFloor = tuple[float, float, float, float]
+"""(u1, f(u1), u2, f(u2)): the candidate minima of ``f`` for one block (m/s)."""
+
+_NONE: ReachFloor = (0.0, 0.0, 0.0, 0.0)
+
+
+def _guesses(law: str, d: float, a: float, j: float) -> tuple[float, float]:
+    """Closed-form roots of f(u) = 3u (Δv = 2u) in the jerk- and acceleration-limited
+    regimes of the law's closed forms (`twin.controller.profiles.laws`)."""
+    if law == JERK_LIMITED:            # d = (u + Δv/2)·2√(Δv/J);  d = 2u·(2u/A + A/J)
+        return ((j * d * d / 32.0) ** (1.0 / 3.0),
+                0.125 * a * (math.sqrt(4.0 * a * a / (j * j) + 16.0 * d / a) - 2.0 * a / j))
+    shape = SHAPES[law]                # d = (u + Δv/2)·√(k_j·Δv/J);  d = k_a·(9u² − u²)/(2A)
+    return ((j * d * d / (8.0 * shape.peak_curvature)) ** (1.0 / 3.0),
+            math.sqrt(a * d / (4.0 * shape.peak_rate)))
+
+
+def _root_3u(law: str, distance: float, limits: Limits) -> float:
+    """The root u of ``max_end_speed(u) = 3u`` (m/s): the closed form of whichever regime
+    holds there (checked), else the Illinois method to 1e-12 relative."""
+    for u in _guesses(law, distance, limits.max_acceleration, limits.max_jerk):
+        if abs(max_end_speed(law, u, distance, limits) - 3.0 * u) <= 1e-12 * u:
+            return u
+    lo, hi = 0.0, max_end_speed(law, 0.0, distance, limits)
+    h_lo, h_hi = hi, max_end_speed(law, hi, distance, limits) - 3.0 * hi
+    if h_hi >= 0.0:                      # capped at max_velocity: the root is the cap / 3
+        return hi
+    side = 0
+    for _ in range(100):
+        u = (lo * h_hi - hi * h_lo) / (h_hi - h_lo)
+        h = max_end_speed(law, u, distance, limits) - 3.0 * u
+        if h == 0.0:
+            return u
+        if h > 0.0:
+            lo, h_lo = u, h
+            if side == 1:
+                h_hi *= 0.5
+            side = 1
+        else:
+            hi, h_hi = u, h
+            if side == -1:
+                h_lo *= 0.5
+            side = -1
+        if hi - lo <= 1e-12 * hi:
+            break
+    return 0.5 * (lo + hi)
+
+
+def reach_floor(law: str, distance: float, limits: Limits) -> ReachFloor:
+    """Candidate minima of ``max_end_speed(law, ·, distance, limits)`` (see module doc)."""
+    if law == "trapezoid":
+        return _NONE
+    cap = limits.max_velocity
+    if 3.0 * min(_guesses(law, distance, limits.max_acceleration, limits.max_jerk)) >= cap \
+            and max_end_speed(law, 0.0, distance, limits) >= cap and (
+            law != JERK_LIMITED or max_end_speed(
+                law, limits.max_acceleration ** 2 / (2.0 * limits.max_jerk), distance,
+                limits) >= cap):
+        # f(0), every f(u_r) = 3·u_r ≥ 3·min(closed-form roots) and the S-curve's f(A²/2J)
+        # all reach the cap: f is the constant cap, nothing to correct (long blocks)
+        return _NONE
+    u1 = _root_3u(law, distance, limits)
+    f1 = max_end_speed(law, u1, distance, limits)
+    if law != JERK_LIMITED:            # the shape laws rise in their acceleration regime
+        return (u1, f1, 0.0, 0.0)
+    u2 = limits.max_acceleration ** 2 / (2.0 * limits.max_jerk)
+    return (u1, f1, u2, max_end_speed(law, u2, distance, limits))
+
+
+def monotone_end_speed(law: str, v: float, distance: float, limits: Limits,
+                       floor: ReachFloor) -> float:
+    """g(v) = min over u ≥ v of ``max_end_speed(law, u, distance, limits)`` (m/s).
+
+    Parameters
+    ----------
+    law : str
+        Acceleration law.
+    v : float
+        Speed at one end of the block (m/s).
+    distance : float
+        Block length (m).
+    limits : Limits
+        The block's tangential limits.
+    floor : ReachFloor
+        ``reach_floor(law, distance, limits)``, computed once per block.
+    """
+    f = max_end_speed(law, v, distance, limits)
+    u1, f1, u2, f2 = floor
+    if v < u1 and f1 < f:
+        f = f1
+    if v < u2 and f2 < f:
+        f = f2
+    return f
