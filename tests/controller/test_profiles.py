@@ -17,6 +17,7 @@ from twin.config import load_machine
 from twin.controller.profiles import (
     LAWS,
     Limits,
+    Polynomial,
     Profile,
     max_end_speed,
     min_distance,
@@ -434,3 +435,10 @@ def test_property_any_move(law, a, j, vm, fs, fe, fm, d, stretch):
     assume(p.duration < 50.0)
     event("planned")
     check_move(p, law, d, vs, ve, cap, lim, dt=max(p.duration / 3000, 1e-9))
+
+
+@pytest.mark.parametrize(("a0", "j"), [(1.0, -2.0), (-1.0, 2.0), (0.5, 1.0), (0.0, 0.0)])
+def test_polynomial_speed_range_matches_sampling(a0, j):
+    seg = Polynomial(0.0, 1.0, 0.0, 1.0, a0, j)
+    _, v, _, _ = seg.sample(np.linspace(0.0, 1.0, 100_001))
+    assert seg.speed_range() == pytest.approx((v.min(), v.max()), rel=1e-9)

@@ -10,7 +10,17 @@ import numpy as np
 
 from twin.controller.profiles.laws import Shape
 
-__all__ = ["Blend", "Polynomial", "Profile", "Segment"]
+__all__ = ["Blend", "Polynomial", "Profile", "Segment", "constant_jerk"]
+
+
+def constant_jerk(tau, s0, v0, a0, j):
+    """State after ``tau`` (s) of constant jerk ``j`` (m/s³) from (s0, v0, a0).
+
+    Works on floats and ndarrays alike. Returns (s, v, a): m, m/s, m/s².
+    """
+    return (s0 + tau * (v0 + tau * (0.5 * a0 + tau * (j / 6.0))),
+            v0 + tau * (a0 + 0.5 * j * tau),
+            a0 + j * tau)
 
 
 @dataclass(frozen=True, slots=True)
@@ -63,29 +73,22 @@ class Polynomial(Segment):
     a0: float
     j: float
 
-    def _eval(self, tau):
-        a0, j = self.a0, self.j
-        s = self.s0 + tau * (self.v0 + tau * (0.5 * a0 + tau * (j / 6.0)))
-        v = self.v0 + tau * (a0 + 0.5 * j * tau)
-        return s, v, a0 + j * tau
-
     def at(self, tau: float) -> tuple[float, float, float, float]:
-        s, v, a = self._eval(tau)
+        s, v, a = constant_jerk(tau, self.s0, self.v0, self.a0, self.j)
         return s, v, a, self.j
 
     def sample(self, tau: np.ndarray) -> tuple[np.ndarray, ...]:
-        s, v, a = self._eval(tau)
+        s, v, a = constant_jerk(tau, self.s0, self.v0, self.a0, self.j)
         return s, v, a, np.full_like(tau, self.j)
 
     def speed_range(self) -> tuple[float, float]:
         """Lowest and highest speed on the piece (m/s): at its ends or where a crosses 0."""
-        _, v1, _ = self.end()
-        lo, hi = min(self.v0, v1), max(self.v0, v1)
-        if self.j != 0.0:
-            tau = -self.a0 / self.j
-            if 0.0 < tau < self.duration:
-                v = self.at(tau)[1]
-                lo, hi = min(lo, v), max(hi, v)
+        v0, a0, j, T = self.v0, self.a0, self.j, self.duration
+        v1 = v0 + T * (a0 + 0.5 * j * T)
+        lo, hi = (v0, v1) if v0 <= v1 else (v1, v0)
+        if j != 0.0 and 0.0 < -a0 / j < T:
+            turn = v0 - 0.5 * a0 * a0 / j
+            lo, hi = min(lo, turn), max(hi, turn)
         return lo, hi
 
 

@@ -34,7 +34,7 @@ from twin.controller.profiles.laws import (
     peak_speed,
 )
 from twin.controller.profiles.limits import Limits
-from twin.controller.profiles.profile import Polynomial
+from twin.controller.profiles.profile import Polynomial, constant_jerk
 
 __all__ = [
     "CRUISE_PHASE",
@@ -219,34 +219,36 @@ def integrate_phases(phases: list[tuple[float, float]], v_start: float, *,
     cruise : int, optional
         Index into ``phases`` of the cruise.
     """
-    segments, owners = _chain(phases, v_start)
-    if distance is None or not segments:
-        return segments
-    end = segments[-1].end()[0]
-    if end == distance or end <= 0.0:
-        return segments
-    seg = segments[owners.index(cruise)] if cruise in owners else None
-    if seg is not None and seg.j == 0.0 and seg.v0 > 0.0:
-        fixed = list(phases)
-        fixed[cruise] = (max(seg.duration + (distance - end) / seg.v0, 0.0), 0.0)
-    else:
-        k = distance / end
-        fixed = [(length * k, jerk / (k * k)) for length, jerk in phases]
-    return _chain(fixed, v_start)[0]
-
-
-def _chain(phases: list[tuple[float, float]], v_start: float
-           ) -> tuple[list[Polynomial], list[int]]:
+    if distance is not None:
+        phases = _land(phases, v_start, distance, cruise)
     segments: list[Polynomial] = []
-    owners: list[int] = []
     t = s = a = 0.0
     v = v_start
+    for length, jerk in phases:
+        if length > 0.0:
+            segments.append(Polynomial(t, length, s, v, a, jerk))
+            s, v, a = constant_jerk(length, s, v, a, jerk)
+            t += length
+    return segments
+
+
+def _land(phases: list[tuple[float, float]], v_start: float, distance: float,
+          cruise: int | None) -> list[tuple[float, float]]:
+    """The phases, adjusted so that they end exactly at ``distance`` (see `integrate_phases`)."""
+    s = a = 0.0
+    v = v_start
+    cruise_speed = 0.0
     for index, (length, jerk) in enumerate(phases):
-        if length <= 0.0:
-            continue
-        seg = Polynomial(t, length, s, v, a, jerk)
-        segments.append(seg)
-        owners.append(index)
-        s, v, a = seg.end()
-        t += length
-    return segments, owners
+        if index == cruise:
+            cruise_speed = v
+        if length > 0.0:
+            s, v, a = constant_jerk(length, s, v, a, jerk)
+    if s == distance or s <= 0.0:
+        return phases
+    fixed = list(phases)
+    if cruise is not None and fixed[cruise][0] > 0.0 and fixed[cruise][1] == 0.0 \
+            and cruise_speed > 0.0:
+        fixed[cruise] = (max(fixed[cruise][0] + (distance - s) / cruise_speed, 0.0), 0.0)
+        return fixed
+    k = distance / s
+    return [(length * k, jerk / (k * k)) for length, jerk in fixed]
