@@ -1,0 +1,96 @@
+"""Benchmark: the full stack (controller + drives + MuJoCo + telemetry to a file) against
+bare MuJoCo stepping of the same model, on the default program.
+
+* ``full_s_per_sim_s``: wall seconds per simulated second of ``twin run`` (default program,
+  telemetry to an ``.rrd`` file in a temporary directory; record and summary included).
+* ``bare_mujoco_s_per_sim_s``: the same model, timestep and number of ``mj_step(m, d,
+  drive_substeps)`` calls, with the motor torques the run produced replayed per controller
+  period, measured in the same process right after.
+* ``ratio_vs_bare_mujoco`` = full / bare (issue 4: ≤ 1.5); ``real_time_factor`` (≥ 50);
+  ``telemetry_share``: wall time spent building and sending telemetry over the run's wall
+  time (≤ 0.10).
+
+Each figure is the best of ``--repeat`` runs (full and bare alternate), which keeps the
+comparison fair on a shared machine. Prints one JSON object.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import platform
+import tempfile
+import time
+
+os.environ.setdefault("RERUN_ANALYTICS", "0")
+os.environ.setdefault("NUMBA_CACHE_DIR", os.path.join(os.getcwd(), ".cache", "numba"))
+
+import mujoco
+import numpy as np
+
+from twin.run import RunSpec, prepare, run
+
+
+def _full(machine: str, out: str) -> tuple[float, float, float, np.ndarray]:
+    """(wall, sim time, telemetry wall, per-tick rotor torque) of one default run."""
+    p = prepare(RunSpec(machine=machine))
+    result = run(RunSpec(machine=machine), out_dir=out, prepared=p)
+    s = result.summary
+    # Motor torque k·i at the end of every period: what the bare replay applies.
+    tau = result.record["armature_current"] * np.array(
+        [p.cfg.axes[a].motor.emf_constant for a in ("x", "y")])
+    return s["wall_time_s"], s["sim_time_s"], s["telemetry_wall_s"], tau
+
+
+def _bare(machine: str, torques: np.ndarray) -> float:
+    """Wall time of bare mj_step over the same intervals, replaying the per-period torque."""
+    p = prepare(RunSpec(machine=machine))
+    m = p.plant.model
+    d = mujoco.MjData(m)
+    mujoco.mj_resetDataKeyframe(m, d, m.key("home").id)
+    k = p.cfg.simulation.drive_substeps
+    per_period = round(p.cfg.controller.period / p.plant.drive_dt)
+    first = int(m.joint("x_rotor").dofadr[0])
+    qfrc = d.qfrc_applied[first:first + 2]
+    mj_step = mujoco.mj_step
+    t0 = time.perf_counter()
+    for tau in torques:
+        qfrc[:] = tau
+        for _ in range(per_period):
+            mj_step(m, d, k)
+    return time.perf_counter() - t0
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--machine", default="tomsk_xy")
+    parser.add_argument("--repeat", type=int, default=3)
+    args = parser.parse_args()
+    full, bare, tele = [], [], []
+    with tempfile.TemporaryDirectory() as out:
+        for _ in range(args.repeat):
+            wall, sim, tel, tau = _full(args.machine, out)
+            full.append(wall / sim)
+            tele.append(tel / wall)
+            bare.append(_bare(args.machine, tau) / sim)
+    f, b = min(full), min(bare)
+    print(json.dumps({
+        "machine": args.machine,
+        "program": "default",
+        "sim_time_s": sim,
+        "full_s_per_sim_s": f,
+        "bare_mujoco_s_per_sim_s": b,
+        "ratio_vs_bare_mujoco": f / b,
+        "real_time_factor": 1.0 / f,
+        "telemetry_share": min(tele),
+        "repeat": args.repeat,
+        "cpus": os.cpu_count(),
+        "load_average_1min": os.getloadavg()[0],
+        "python": platform.python_version(),
+        "mujoco": mujoco.__version__,
+    }))
+
+
+if __name__ == "__main__":
+    main()
