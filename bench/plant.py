@@ -9,9 +9,12 @@ a second MjData of the same model from the same state: the same ``mj_step(m, d, 
 calls on the same trajectory, without drives, DAC, switches or status. ``ratio`` is plant
 over bare (the brief requires ≤ 1.5); ``real_time_factor`` is simulated over wall time
 (required ≥ 50). Plant and bare runs alternate ``--repeat`` times and each figure is the
-best of its runs, which keeps the comparison fair on a shared, noisy machine.
+best of its runs, which keeps the comparison fair on a shared, noisy machine. The ``_cpu``
+figures use the process CPU time instead of the wall clock: on a loaded machine (see
+``load_average_1min`` against ``cpus``) they are the better estimate of one core's speed.
 
-Prints one JSON object. Usage: ``python bench/plant.py [--machine tomsk_xy] [--seconds 2]``.
+Prints one JSON object. Usage: ``python bench/plant.py [--machine tomsk_xy] [--seconds 2]
+[--timestep 2.5e-4 --drive-substeps 4]`` (the overrides serve the timestep study).
 """
 
 from __future__ import annotations
@@ -28,6 +31,7 @@ os.environ.setdefault("NUMBA_CACHE_DIR", os.path.join(os.getcwd(), ".cache", "nu
 import mujoco
 import numpy as np
 
+from twin.config import load_machine
 from twin.plant import Plant
 
 
@@ -37,14 +41,14 @@ def _references(period: float, n: int) -> np.ndarray:
     return 2.0 * np.stack([np.sin(phase), np.cos(phase)], axis=1)
 
 
-def _run_plant(plant: Plant, refs: np.ndarray, period: float) -> float:
-    """Wall time of the plant stepping one controller period per reference."""
+def _run_plant(plant: Plant, refs: np.ndarray, period: float) -> tuple[float, float]:
+    """(wall, CPU) time of the plant stepping one controller period per reference."""
     plant.reset(positions=_mid_travel(plant))
     step = plant.step
-    t0 = time.perf_counter()
+    t0, c0 = time.perf_counter(), time.process_time()
     for u in refs:
         step(u, period)
-    return time.perf_counter() - t0
+    return time.perf_counter() - t0, time.process_time() - c0
 
 
 def _record_torques(plant: Plant, refs: np.ndarray, period: float) -> np.ndarray:
@@ -68,19 +72,19 @@ def _rotor_dofs(m: mujoco.MjModel) -> slice:
     return slice(first, first + 2)
 
 
-def _run_bare(plant: Plant, torques: np.ndarray) -> float:
-    """Wall time of bare mj_step replaying ``torques`` from the plant's initial state."""
+def _run_bare(plant: Plant, torques: np.ndarray) -> tuple[float, float]:
+    """(wall, CPU) time of bare mj_step replaying ``torques`` from the plant's start."""
     m = plant.model
     d = mujoco.MjData(m)
     plant.reset(positions=_mid_travel(plant))
     mujoco.mj_setState(m, d, _full_state(plant), mujoco.mjtState.mjSTATE_FULLPHYSICS)
     qfrc, mj_step = d.qfrc_applied[_rotor_dofs(m)], mujoco.mj_step
     k = plant.config.simulation.drive_substeps
-    t0 = time.perf_counter()
+    t0, c0 = time.perf_counter(), time.process_time()
     for tau in torques:
         qfrc[:] = tau
         mj_step(m, d, k)
-    return time.perf_counter() - t0
+    return time.perf_counter() - t0, time.process_time() - c0
 
 
 def _full_state(plant: Plant) -> np.ndarray:
@@ -99,31 +103,46 @@ def main() -> None:
     parser.add_argument("--machine", default="tomsk_xy")
     parser.add_argument("--seconds", type=float, default=2.0, help="simulated time per run")
     parser.add_argument("--repeat", type=int, default=15)
+    parser.add_argument("--timestep", type=float, help="override simulation.timestep (s)")
+    parser.add_argument("--drive-substeps", type=int, help="override simulation.drive_substeps")
     args = parser.parse_args()
 
-    plant = Plant.from_machine(args.machine)
+    cfg = load_machine(args.machine)
+    overrides = {"simulation.timestep": args.timestep,
+                 "simulation.drive_substeps": args.drive_substeps}
+    cfg = cfg.with_overrides({k: v for k, v in overrides.items() if v is not None})
+    plant = Plant(cfg)
     # one controller period per step; where the period is no multiple of the drive interval
     # (a machine-file inconsistency the plant rejects), the nearest multiple
     period = plant.drive_dt * max(1, round(plant.config.controller.period / plant.drive_dt))
     n = round(args.seconds / period)
     refs = _references(period, n)
     torques = _record_torques(plant, refs, period)
-    plant_wall, bare_wall = math.inf, math.inf
+    load_before = os.getloadavg()[0]
+    plant_best, bare_best = [math.inf, math.inf], [math.inf, math.inf]
     for _ in range(args.repeat):
-        plant_wall = min(plant_wall, _run_plant(plant, refs, period))
-        bare_wall = min(bare_wall, _run_bare(plant, torques))
+        plant_best = list(map(min, plant_best, _run_plant(plant, refs, period)))
+        bare_best = list(map(min, bare_best, _run_bare(plant, torques)))
     sim = n * period
+    (plant_wall, plant_cpu), (bare_wall, bare_cpu) = plant_best, bare_best
     result = {
         "machine": args.machine,
         "plant_s_per_sim_s": plant_wall / sim,
         "bare_mujoco_s_per_sim_s": bare_wall / sim,
         "ratio": plant_wall / bare_wall,
         "real_time_factor": sim / plant_wall,
+        "plant_cpu_s_per_sim_s": plant_cpu / sim,
+        "bare_mujoco_cpu_s_per_sim_s": bare_cpu / sim,
+        "ratio_cpu": plant_cpu / bare_cpu,
+        "real_time_factor_cpu": sim / plant_cpu,
         "timestep": plant.model.opt.timestep,
         "drive_dt": plant.drive_dt,
         "step_duration": period,
         "controller_period": plant.config.controller.period,
         "simulated_s": sim,
+        "repeat": args.repeat,
+        "load_average_1min": [load_before, os.getloadavg()[0]],
+        "cpus": os.cpu_count(),
         "integrator": mujoco.mjtIntegrator(plant.model.opt.integrator).name,
         "mujoco": mujoco.__version__,
         "python": platform.python_version(),

@@ -45,6 +45,17 @@ _BAD_STATE = ("mjWARN_BADQPOS", "mjWARN_BADQVEL", "mjWARN_BADQACC")
 _WARNING_NAMES = tuple(mujoco.mjtWarning(i).name for i in range(mujoco.mjtWarning.mjNWARNING))
 
 
+def _frozen(pair: tuple[bool, bool]) -> np.ndarray:
+    flags = np.array(pair)
+    flags.setflags(write=False)
+    return flags
+
+
+_FLAGS = tuple(_frozen((a, b)) for a in (False, True) for b in (False, True))
+"""The four per-axis flag pairs, read-only and shared: ``_FLAGS[2·x + y]``. The status of
+every step picks from them instead of allocating arrays on the per-period path."""
+
+
 @dataclass(frozen=True, slots=True)
 class StepStatus:
     """What happened during one :meth:`Plant.step` (arrays indexed by axis x, y).
@@ -52,7 +63,8 @@ class StepStatus:
     Attributes
     ----------
     saturated : ndarray, shape (2,), bool
-        The DAC command was outside its range and was clipped.
+        The DAC command was outside its range and was clipped. (The flag arrays are
+        read-only and shared between statuses.)
     limit_hit : ndarray, shape (2,), bool
         An end limit switch (min or max, debounced) was closed during the step.
     end_stop : ndarray, shape (2,), bool
@@ -360,8 +372,8 @@ class Plant:
                                   f" (MuJoCo warnings: {', '.join(warnings) or 'none'})")
         hit_x, end_x = self._monitors[0].update(xs, t0, self.drive_dt)
         hit_y, end_y = self._monitors[1].update(ys, t0, self.drive_dt)
-        return StepStatus(saturated=saturated, limit_hit=np.array((hit_x, hit_y)),
-                          end_stop=np.array((end_x, end_y)), drive_fault=self.drives.fault,
+        return StepStatus(saturated=saturated, limit_hit=_FLAGS[2 * hit_x + hit_y],
+                          end_stop=_FLAGS[2 * end_x + end_y], drive_fault=self.drives.fault,
                           warnings=warnings, time=d.time)
 
     # ------------------------------------------------------------------ sensing
@@ -390,7 +402,7 @@ class Plant:
     # ------------------------------------------------------------------ internals
     def _quantise(self, dac_volts: np.ndarray) -> np.ndarray:
         """Write the DAC output into ``self._u``: round to the LSB, clip to the code range.
-        Returns which axes were clipped, shape (2,) bool."""
+        Returns which axes were clipped, shape (2,) bool (read-only)."""
         if len(dac_volts) != 2:
             raise ValueError(f"dac_volts must have 2 entries, got {len(dac_volts)}")
         clipped = [False, False]
@@ -405,7 +417,7 @@ class Plant:
                 clipped[a] = True
                 code = min(max(code, lowest), highest)
             self._u[a] = code * lsb
-        return np.array(clipped)
+        return _FLAGS[2 * clipped[0] + clipped[1]]
 
     def _count_intervals(self, duration: float) -> int:
         """Drive intervals in ``duration`` (cached), which must be a positive multiple."""
