@@ -42,7 +42,7 @@ from enum import IntEnum
 from typing import Any
 
 from twin.config import AXES, AxisConfig, ControllerSettings, MachineConfig
-from twin.controller.corner import CornerModel
+from twin.controller.corner import CornerModel, SeedCornerModel
 from twin.controller.encoder import EncoderUnwrapper
 from twin.controller.geometry import Line
 from twin.controller.interpolator import Interpolator, InterpolatorStatus
@@ -59,7 +59,13 @@ from twin.controller.regulator import (
 )
 from twin.errors import ConfigError, PlanningError, TwinError
 
-__all__ = ["RECORD_FIELDS", "Controller", "ControllerStatus", "estimated_axis_model"]
+__all__ = [
+    "RECORD_FIELDS",
+    "Controller",
+    "ControllerStatus",
+    "estimated_axis_model",
+    "servo_lag",
+]
 
 
 class ControllerStatus(IntEnum):
@@ -121,6 +127,27 @@ def estimated_axis_model(axis: AxisConfig) -> LinearAxisModel:
     return LinearAxisModel.servo(1.0 / axis.volts_per_speed, a * a * t_sigma)
 
 
+def servo_lag(gains: RegulatorGains, models: Sequence[LinearAxisModel], period: float
+              ) -> float:
+    """Time constant of the slowest closed position loop, for the corner model (s).
+
+    A type-1 loop with velocity gain ``K_v = kp·K_H`` follows a ramp of speed V with the
+    error ``V·(1 − ff1·K_H)/K_v``; with full velocity feed-forward the lag left is the
+    drive's own (the sum of the model's time constants) plus the one-period computation
+    delay. The larger of the two, per axis.
+    """
+    lags = []
+    for k, model in enumerate(models):
+        kh = model.velocity_gain
+        kp = gains.kp[k] if isinstance(gains.kp, tuple) else gains.kp
+        ff1 = gains.ff1[k] if isinstance(gains.ff1, tuple) else gains.ff1
+        den = model.den
+        own = (float(den[-3] / den[-2]) if den.size >= 3 else 0.0) + period
+        loop = abs(1.0 - ff1 * kh) / (kp * kh) if kp > 0.0 else math.inf
+        lags.append(max(loop, own))
+    return max(lags)
+
+
 def _gains(settings: ControllerSettings, axes: Sequence[AxisConfig],
            models: Sequence[LinearAxisModel], dcu_order: int) -> RegulatorGains:
     """Gains from the settings; values left ``None`` there come from ``default_gains``."""
@@ -160,7 +187,8 @@ class Controller:
     mode : {"extended", "traditional"}
         Interpolator interface (seed 004).
     corner_model : CornerModel, optional
-        For the planner; default its seed-001 model.
+        For the planner; default the seed-001 model of these axes with the servo time
+        constant of the regulator (`servo_lag`).
     lookahead : int, optional
         Window (blocks); default ``settings.lookahead``.
     start : sequence of 2 float, optional
@@ -195,20 +223,22 @@ class Controller:
         self.period = settings.period
         self.mode = mode
         self.settle_time = float(settle_time)
-        options: dict[str, Any] = {"law": profile or settings.profile,
-                                   "mode": planner or settings.planner,
-                                   "lookahead": lookahead or settings.lookahead}
-        if corner_model is not None:
-            options["corner_model"] = corner_model
-        self.planner = Planner.from_settings(settings, axes, **options)
-        """Planner: the look-ahead planner (its ``work_zone`` holds the soft limits)."""
-        self._free_planner = Planner.from_settings(settings, axes, **options, work_zone=None)
         models = list(axis_models) if axis_models is not None else [
             estimated_axis_model(ax) for ax in self.axes]
         if gains is None:
             order = settings.regulator.dcu_order if dcu_order is None else dcu_order
             gains = _gains(settings, self.axes, models, order)
         self.gains = gains
+        if corner_model is None:
+            corner_model = SeedCornerModel.from_axes(
+                axes, servo_time_constant=servo_lag(gains, models, self.period))
+        options: dict[str, Any] = {"law": profile or settings.profile,
+                                   "mode": planner or settings.planner,
+                                   "lookahead": lookahead or settings.lookahead,
+                                   "corner_model": corner_model}
+        self.planner = Planner.from_settings(settings, axes, **options)
+        """Planner: the look-ahead planner (its ``work_zone`` holds the soft limits)."""
+        self._free_planner = Planner.from_settings(settings, axes, **options, work_zone=None)
         self.regulator = PositionRegulator(gains, self.period, n_axes=2)
         self.encoder = EncoderUnwrapper([ax.counts_per_metre for ax in self.axes],
                                         bits=[ax.encoder.bits for ax in self.axes])

@@ -36,10 +36,11 @@ Any object with ``max_node_speed(angle, tolerance) -> float`` can replace the mo
 from __future__ import annotations
 
 import math
+from collections.abc import Mapping
 from dataclasses import dataclass
 from typing import Protocol, runtime_checkable
 
-from twin.config import MachineConfig
+from twin.config import AxisConfig, MachineConfig
 from twin.errors import ConfigError
 
 __all__ = [
@@ -142,36 +143,36 @@ class SeedCornerModel:
     @classmethod
     def from_machine(cls, cfg: MachineConfig, *, servo_time_constant: float | None = None,
                      calibration: float = _DEFAULT_CALIBRATION) -> SeedCornerModel:
-        """The model for a machine configuration.
+        """The model for a machine configuration (see `from_axes`).
+
+        ``servo_time_constant`` defaults to the position-loop time constant 1/K_v with
+        K_v = kp / (V·s/m of the drive) when ``controller.regulator.kp`` is set, else seed
+        001's 0.01 s.
+        """
+        if servo_time_constant is None:
+            kp = cfg.controller.regulator.kp
+            servo_time_constant = (max(ax.volts_per_speed for ax in cfg.axes.values()) / kp
+                                   if kp else 0.01)
+        return cls.from_axes(cfg.axes, servo_time_constant=servo_time_constant,
+                             calibration=calibration)
+
+    @classmethod
+    def from_axes(cls, axes: Mapping[str, AxisConfig], *, servo_time_constant: float,
+                  calibration: float = _DEFAULT_CALIBRATION) -> SeedCornerModel:
+        """The model for two axes and a known servo time constant T (s).
 
         ω of each axis is √(k/m) of its table mass on the series stiffness of the
         transmission (the motor held by its speed loop); the lower axis of the cross table
         (x) carries the upper carriage (y), so its mass is the sum of both. ξ is the
         transmission damping ratio of the axis with the lower ω.
-
-        Parameters
-        ----------
-        cfg : MachineConfig
-            The machine.
-        servo_time_constant : float, optional
-            T (s). Default: the position-loop time constant 1/K_v with K_v = kp / (V·s/m of
-            the drive) when ``controller.regulator.kp`` is set, else seed 001's 0.01 s.
-        calibration : float
-            c (1).
         """
-        masses = {"x": cfg.axes["x"].mechanics.carriage_mass + cfg.axes["y"].mechanics
-                  .carriage_mass, "y": cfg.axes["y"].mechanics.carriage_mass}
-        omegas = {ax: math.sqrt(cfg.axes[ax].transmission.axial_stiffness / masses[ax])
+        masses = {"x": axes["x"].mechanics.carriage_mass + axes["y"].mechanics.carriage_mass,
+                  "y": axes["y"].mechanics.carriage_mass}
+        omegas = {ax: math.sqrt(axes[ax].transmission.axial_stiffness / masses[ax])
                   for ax in masses}
         low = min(omegas, key=omegas.__getitem__)
-        if servo_time_constant is None:
-            kp = cfg.controller.regulator.kp
-            if kp:
-                servo_time_constant = max(cfg.axes[ax].volts_per_speed for ax in masses) / kp
-            else:
-                servo_time_constant = 0.01
         return cls(servo_time_constant=servo_time_constant, natural_frequency=omegas[low],
-                   damping_ratio=cfg.axes[low].transmission.damping_ratio,
+                   damping_ratio=axes[low].transmission.damping_ratio,
                    calibration=calibration)
 
 
