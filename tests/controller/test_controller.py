@@ -22,9 +22,9 @@ from twin.controller.controller import (
 )
 from twin.controller.gcode import parse
 from twin.controller.io import Inputs, MachineIO, Outputs
+from twin.controller.linear import LinearAxisModel
 from twin.controller.metrics import contour_error
 from twin.controller.planner import MotionBlock, segments_from_program
-from twin.controller.linear import LinearAxisModel
 from twin.controller.regulator import RegulatorGains, default_gains
 from twin.errors import PlanningError
 
