@@ -65,16 +65,19 @@ def test_ctrl_c_leaves_a_readable_recording_and_summary(tmp_path):
     proc = subprocess.Popen([*TWIN, "run", "--machine", "laser_belt", "--out",
                              str(tmp_path)], env=ENV, stdout=subprocess.PIPE,
                             stderr=subprocess.PIPE, text=True)
-    # Wait until the run is under way (its .rrd.partial exists), then interrupt it.
+    # Wait until the run is under way (its .rrd.partial has grown past the first telemetry
+    # batch, sent after one simulated second), then interrupt it.
     deadline = time.monotonic() + 120
-    while not list(tmp_path.glob("*.rrd.partial")) and time.monotonic() < deadline:
-        time.sleep(0.05)
-    time.sleep(1.0)
+    while time.monotonic() < deadline:
+        partial = list(tmp_path.glob("*.rrd.partial"))
+        if partial and partial[0].stat().st_size > 100_000:
+            break
+        time.sleep(0.02)
     proc.send_signal(signal.SIGINT)
-    proc.communicate(timeout=120)
-    assert proc.returncode == 1
+    _, stderr = proc.communicate(timeout=120)
+    assert proc.returncode == 1, stderr
     summaries = list(tmp_path.glob("*.json"))
-    assert len(summaries) == 1
+    assert len(summaries) == 1, stderr
     s = json.loads(summaries[0].read_text())
     assert "interrupted" in s["aborted"]
     assert 0 < s["sim_time_s"] < 60

@@ -9,13 +9,16 @@ atomically: a reader never sees a half-written file under the final name).
 
 from __future__ import annotations
 
+import contextlib
 import dataclasses
 import json
 import math
 import os
+import signal
+import threading
 import time
 import uuid
-from collections.abc import Callable, Mapping, Sequence
+from collections.abc import Callable, Iterator, Mapping, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -260,11 +263,29 @@ def run(spec: RunSpec, *, out_dir: str | Path = "runs", rerun: str = "file",
         raise
     finally:
         wall = time.perf_counter() - t_wall
-        drv.close()
-        writer.flush(ctrl.record, status_names=names)
-        sink.close()
-        result = _finish(spec, p, run_id, out, recording, ticks, wall, aborted, writer, truth)
+        with _deferred_interrupt():  # a second Ctrl-C must not lose the record
+            drv.close()
+            writer.flush(ctrl.record, status_names=names)
+            sink.close()
+            result = _finish(spec, p, run_id, out, recording, ticks, wall, aborted, writer,
+                             truth)
     return result
+
+
+@contextlib.contextmanager
+def _deferred_interrupt() -> Iterator[None]:
+    """Hold SIGINT while the run record is written; re-raise it afterwards."""
+    if threading.current_thread() is not threading.main_thread():
+        yield
+        return
+    caught: list[int] = []
+    previous = signal.signal(signal.SIGINT, lambda sig, frame: caught.append(sig))
+    try:
+        yield
+    finally:
+        signal.signal(signal.SIGINT, previous)
+    if caught:
+        raise KeyboardInterrupt
 
 
 def _truth_row(plant: Plant) -> tuple[float, ...]:
