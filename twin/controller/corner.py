@@ -125,6 +125,9 @@ class SeedCornerModel:
                               f"{self.damping_ratio}")
         if not (math.isfinite(self.calibration) and self.calibration > 0):
             raise ConfigError("calibration", f"must be finite and > 0, got {self.calibration}")
+        # δ* / f1(α) is constant for the model: the planner asks once per node
+        object.__setattr__(self, "_scale",
+                           damping_factor(self.damping_ratio) * self.dynamics_factor)
 
     @property
     def dynamics_factor(self) -> float:
@@ -133,11 +136,12 @@ class SeedCornerModel:
 
     def relative_error(self, angle: float) -> float:
         """δ* = δ_max / V_node at deflection ``angle`` (rad) (s)."""
-        return angle_factor(angle) * damping_factor(self.damping_ratio) * self.dynamics_factor
+        return angle_factor(angle) * self._scale
 
     def max_node_speed(self, angle: float, tolerance: float) -> float:
         """V_node_accuracy = δ_allowed / δ* (m/s); ``inf`` for a straight-through node."""
-        rel = self.relative_error(angle)
+        a = abs(angle)
+        rel = (math.sin(a) if a < 0.5 * math.pi else 1.0) * self._scale
         return tolerance / rel if rel > 0.0 else math.inf
 
     @classmethod

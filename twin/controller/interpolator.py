@@ -10,9 +10,9 @@ alongside the position, never differences of integer positions::
     a = s̈·t̂ + ṡ²κ·n̂
     j = s⃛·t̂ + 3ṡs̈κ·n̂ + ṡ³(κ'·n̂ − κ²·t̂)
 
-(t̂ the unit tangent, n̂ = t̂ turned +90°, κ the signed curvature, κ' = dκ/ds). Exact for
-lines and arcs (evaluated on floats without arrays); splines use their curvature and a
-central difference for κ'.
+(t̂ the unit tangent, n̂ = t̂ turned +90°, κ the signed curvature, κ' = dκ/ds). Lines and
+arcs are evaluated inline on floats; other segments through ``Segment.frame(s)``, which
+gives the point, tangent, κ and κ' of a spline in one call.
 
 A tick that crosses a block end carries the leftover time into the next block (or dwell), so
 the path time is continuous. When the program ends the reference lands *exactly* on the
@@ -371,22 +371,13 @@ class Interpolator:
             tx, ty = -cur.sign * sn, cur.sign * c
             dk = 0.0
         else:
-            seg = cur.segment
-            pt = seg.point(s)
-            t = seg.tangent(s)
-            tx, ty = float(t[0]), float(t[1])
-            k = float(seg.curvature(s))
-            h = 1e-6 * seg.length
-            lo, hi = max(s - h, 0.0), min(s + h, seg.length)
-            dk = (float(seg.curvature(hi)) - float(seg.curvature(lo))) / (hi - lo)
+            x, y, tx, ty, k, dk = cur.segment.frame(s)
         nx, ny = -ty, tx
         an = v * v * k                                   # centripetal acceleration
         jt = j - v * v * v * k * k                       # tangential jerk
         jn = 3.0 * v * a * k + v * v * v * dk            # normal jerk
         if kind == _ARC:
             x, y = cur.cx + cur.r * c, cur.cy + cur.r * sn
-        else:
-            x, y = float(pt[0]), float(pt[1])
         return (x, y, v * tx, v * ty, a * tx + an * nx, a * ty + an * ny,
                 jt * tx + jn * nx, jt * ty + jn * ny)
 

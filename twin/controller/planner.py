@@ -73,6 +73,7 @@ __all__ = [
     "PlannedBlock",
     "Planner",
     "WorkZone",
+    "segment_of",
     "segments_from_program",
 ]
 
@@ -171,9 +172,9 @@ class WorkZone:
 
     def check(self, segment: Segment, line: int = 0) -> None:
         """Raise ``PlanningError`` naming ``line`` if ``segment`` leaves the zone."""
-        if isinstance(segment, Line):
-            lo, hi = segment.start, segment.end
-            inside = self.contains(lo) and self.contains(hi)
+        if type(segment) is Line:
+            inside = self.contains(segment.start.tolist()) and \
+                self.contains(segment.end.tolist())
         else:
             lo, hi = segment.bounding_box()
             inside = self.contains(lo) and self.contains(hi)
@@ -186,6 +187,15 @@ class WorkZone:
                 f"y {box_lo[1]:.6g} … {box_hi[1]:.6g} m)")
 
 
+def segment_of(move: Move) -> Segment | None:
+    """The ``Line`` or ``Arc`` of a G-code ``Move``; None for a zero-length line."""
+    if move.kind == "arc":
+        return Arc(move.start, move.end, move.center, ccw=move.ccw, turns=move.turns)
+    if move.start == move.end:
+        return None
+    return Line(move.start, move.end)
+
+
 def segments_from_program(items: Iterable[Any]) -> Iterator[Any]:
     """Turn G-code ``Move`` items into ``MotionBlock``s of ``Line``/``Arc`` segments.
 
@@ -195,15 +205,9 @@ def segments_from_program(items: Iterable[Any]) -> Iterator[Any]:
     """
     for item in items:
         if type(item) is Move:
-            kind = item.kind
-            if kind == "arc":
-                seg: Segment = Arc(item.start, item.end, item.center, ccw=item.ccw,
-                                   turns=item.turns)
-            elif item.start == item.end:
-                continue
-            else:
-                seg = Line(item.start, item.end)
-            yield MotionBlock(seg, item.feed, item.line)
+            seg = segment_of(item)
+            if seg is not None:
+                yield MotionBlock(seg, item.feed, item.line)
         else:
             yield item
 
@@ -305,13 +309,22 @@ class Planner:
             After the blocks planned before the fault (which end at rest) have been yielded.
         """
         window: deque[_Block] = deque()
-        source = iter(segments_from_program(items))
+        source = iter(items)
         error: TwinError | None = None
         self._count = 0
         while True:
             try:
                 item = next(source)
-                block = self._block(item) if type(item) is MotionBlock else None
+                kind = type(item)
+                if kind is Move:                 # segments_from_program, inlined
+                    seg = segment_of(item)
+                    if seg is None:
+                        continue
+                    block = self._block(seg, item.feed, item.line)
+                elif kind is MotionBlock:
+                    block = self._block(item.segment, item.feed, item.line)
+                else:
+                    block = None
             except StopIteration:
                 break
             except TwinError as exc:
@@ -347,17 +360,16 @@ class Planner:
                 self.work_zone.check(item.segment, item.line)
 
     # ------------------------------------------------------------------ internals
-    def _block(self, item: MotionBlock) -> _Block:
-        seg = item.segment
+    def _block(self, seg: Segment, feed: float | None, line: int) -> _Block:
         if self.work_zone is not None:
-            self.work_zone.check(seg, item.line)
+            self.work_zone.check(seg, line)
         b = _Block()
-        b.segment, b.feed, b.line = seg, item.feed, item.line
-        b.rapid = item.feed is None
+        b.segment, b.feed, b.line = seg, feed, line
+        b.rapid = feed is None
         b.length = seg.length
         b.index = self._count
         self._count += 1
-        v_cap = self.rapid_velocity if b.rapid else min(item.feed, self.limits.max_velocity)
+        v_cap = self.rapid_velocity if feed is None else min(feed, self.limits.max_velocity)
         if type(seg) is Line:
             ux, uy = seg._ux, seg._uy      # float fast path (same package)
             b.t0x = b.t1x = ux
