@@ -264,6 +264,8 @@ def run(spec: RunSpec, *, out_dir: str | Path = "runs", rerun: str = "file",
     finally:
         wall = time.perf_counter() - t_wall
         with _deferred_interrupt():  # a second Ctrl-C must not lose the record
+            while len(truth) < len(ctrl.record):  # interrupted between the two appends
+                truth.append(_truth_row(plant))
             drv.close()
             writer.flush(ctrl.record, status_names=names)
             sink.close()
