@@ -199,6 +199,17 @@ def test_drive_fault_disables_the_outputs():
     assert ctrl.status == ControllerStatus.DRIVE_FAULT and not out.enable
 
 
+def test_record_grows_in_chunks_without_changing_a_value():
+    runs = []
+    for capacity in (97, 65536):
+        ctrl, plant = controller(record_capacity=capacity), LinearPlant()
+        ctrl.run(plant, max_time=60.0)
+        runs.append(ctrl.record.as_arrays())
+    assert len(runs[0]["t"]) > 10 * 97
+    for name, values in runs[1].items():
+        np.testing.assert_array_equal(runs[0][name], values)
+
+
 def test_encoder_wrap_mid_run_is_harmless():
     runs = []
     for offset in ((0, 0), (2**32 - 250_010, 2**32 - 300)):   # x wraps after 50 mm of travel
@@ -214,6 +225,12 @@ def test_program_leaving_the_work_zone_is_refused_before_motion():
     bad = "G21 G90\nG1 X60 Y50 F600\nG1 X60 Y250\nM2"
     with pytest.raises(PlanningError, match="line 3"):
         controller(bad)
+
+
+def test_program_that_does_not_start_at_the_table_is_refused():
+    prog = parse(PROGRAM, start=(0.05, 0.05))
+    with pytest.raises(PlanningError, match="line 2: the program starts at"):
+        Controller.from_machine(CFG, prog, start=(0.05, 0.06))
 
 
 def test_streamed_program_stops_at_rest_before_the_bad_block():

@@ -172,6 +172,15 @@ def test_block_source_error_stops_at_rest_and_reports():
     assert interp.update() == InterpolatorStatus.ERROR
 
 
+def test_reference_starts_at_the_first_block_even_after_leading_events():
+    prog = parse("G21 G90 M3 S100\nG4 P0.01\nG1 X60 Y50 F600\nM2", start=(0.05, 0.05))
+    interp = Interpolator(planner().plan(prog), period=5e-3)
+    assert interp.reference.position.tolist() == [0.05, 0.05]
+    interp.update()
+    assert interp.status == InterpolatorStatus.DWELLING
+    assert [i.kind for _, i in interp.events] == ["spindle_speed", "spindle_cw"]
+
+
 def test_zero_dwell_and_bare_events_cost_no_time():
     items = [Dwell(0.0, 1), Event("spindle_stop", None, 2), ProgramEnd("M2", 3)]
     interp, out = run(items, period=5e-3, start=(0.1, 0.2))

@@ -44,6 +44,7 @@ from typing import Any
 from twin.config import AXES, AxisConfig, ControllerSettings, MachineConfig
 from twin.controller.corner import CornerModel, SeedCornerModel
 from twin.controller.encoder import EncoderUnwrapper
+from twin.controller.gcode.items import Move
 from twin.controller.geometry import Line
 from twin.controller.interpolator import Interpolator, InterpolatorStatus
 from twin.controller.io import Inputs, MachineIO, Outputs
@@ -108,6 +109,8 @@ columns ``regulator.TERMS``: p, i, d, ff, dcu), drive enable, active block index
 and ``ControllerStatus`` code."""
 
 _INTEGER_FIELDS = ("enable", "block", "line", "status")
+_START_TOLERANCE = 1e-6
+"""Largest distance (m) between the table and the first point of a program it may run."""
 _FAULTS = {RegulatorStatus.FOLLOWING_ERROR: ControllerStatus.FOLLOWING_ERROR,
            RegulatorStatus.INVALID_INPUT: ControllerStatus.INVALID_INPUT}
 
@@ -201,7 +204,8 @@ class Controller:
     Raises
     ------
     PlanningError
-        An in-memory program leaves the work zone (naming its line).
+        An in-memory program leaves the work zone, or does not start at ``start`` (naming
+        its line).
     ConfigError
         An invalid option.
     """
@@ -254,7 +258,7 @@ class Controller:
         self._limits_prev = [False] * 4
         self._homing: tuple[int, float] | None = None
         self._home_latch: float | None = None
-        self.interpolator = self._interpolator(self._blocks(program), start)
+        self.interpolator = self._interpolator(self._blocks(program, start), start)
         if program is not None:
             self.status = ControllerStatus.RUNNING
         self._start = [float(p) for p in self.interpolator.reference.position]
@@ -266,16 +270,28 @@ class Controller:
         return cls(cfg.controller, cfg.axes, program, **options)
 
     # ------------------------------------------------------------------ set-up helpers
-    def _blocks(self, program: Iterable[Any] | None) -> Iterable[Any]:
+    def _blocks(self, program: Iterable[Any] | None, here: Sequence[float] | None
+                ) -> Iterable[Any]:
+        """The planned blocks of ``program``; an in-memory one is checked first: the work
+        zone, and that it starts where the table is (``here``, if known)."""
         if program is None:
             return ()
-        if isinstance(program, Sequence) or hasattr(program, "items"):
-            items = list(program)
-            if items and isinstance(items[0], PlannedBlock):
-                return items
-            self.planner.check(items)
-            return self.planner.plan(items)
-        return self.planner.plan(program)
+        if not (isinstance(program, Sequence) or hasattr(program, "items")):
+            return self.planner.plan(program)
+        items = list(program)
+        first = next((i for i in items if isinstance(i, Move | MotionBlock | PlannedBlock)),
+                     None)
+        if first is not None and here is not None:
+            begin = first.start if isinstance(first, Move) else first.segment.start
+            if math.dist(begin, here) > _START_TOLERANCE:
+                raise PlanningError(
+                    f"line {first.line}: the program starts at ({begin[0]:.6g}, "
+                    f"{begin[1]:.6g}) m but the table is at ({here[0]:.6g}, {here[1]:.6g}) "
+                    "m; read it with start= the table position")
+        if isinstance(first, PlannedBlock):
+            return items
+        self.planner.check(items)
+        return self.planner.plan(items)
 
     def _interpolator(self, blocks: Iterable[Any], start: Sequence[float] | None
                       ) -> Interpolator:
@@ -318,7 +334,7 @@ class Controller:
 
     def _safety(self, inputs: Inputs, v_ref: Any) -> ControllerStatus:
         """Limit switches (rising edge, or moving toward a closed one) and drive ready."""
-        if not inputs.drive_ready:
+        if not inputs.drive_ready and self.status != ControllerStatus.IDLE:
             return ControllerStatus.DRIVE_FAULT
         lo, hi = inputs.limit_min, inputs.limit_max
         prev = self._limits_prev
@@ -400,7 +416,8 @@ class Controller:
 
     def run_program(self, program: Iterable[Any]) -> None:
         """Start another program from rest (checked against the work zone first)."""
-        self._start_motion(self._blocks(program), ControllerStatus.RUNNING)
+        self._start_motion(self._blocks(program, self.position_reference),
+                           ControllerStatus.RUNNING)
 
     def jog(self, target: Sequence[float], *, feed: float | None = None) -> None:
         """Move in a straight line to ``target`` (m) at ``feed`` (m/s; default the contour

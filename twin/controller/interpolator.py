@@ -168,9 +168,7 @@ class Interpolator:
         self._cur: _Active | None = None
         self._prepare()
         if start is None:
-            first = self._ready[0] if self._ready else self._pending
-            seg = getattr(first, "segment", None)
-            start = (float(seg.start[0]), float(seg.start[1])) if seg is not None else (0, 0)
+            start = self._first_start()
         self._hold = (float(start[0]), float(start[1]))
         self.reference.position[:] = self._hold
         self._cur = self._advance()
@@ -292,6 +290,17 @@ class Interpolator:
             self._exhausted = True
             self.error = exc
         return None
+
+    def _first_start(self) -> tuple[float, float]:
+        """Start point of the first block (m), reading past leading events; (0, 0) if none."""
+        while True:
+            for item in (*self._ready, self._pending):
+                if isinstance(item, PlannedBlock | _Active):
+                    return float(item.segment.start[0]), float(item.segment.start[1])
+            item = self._pull()
+            if item is None:
+                return 0.0, 0.0
+            self._ready.append(item)
 
     def _prepare(self) -> None:
         """One step of read-ahead: fetch the next item, or plan the fetched block's profile."""
