@@ -4,8 +4,9 @@ Prints one JSON object:
 
 * ``planner_blocks_per_s``: line blocks per second through ``segments_from_program`` +
   ``Planner.plan`` with look-ahead on (target ≥ 50 000), best of 3, wall clock;
-* ``planner_peak_rss_mb``: peak resident memory of a subprocess that streams a generated
-  1 000 000-line G-code file through ``gcode.read_file`` and the planner (target ≤ 200 MB);
+* ``planner_peak_rss_mb``: peak resident memory (VmHWM) of a subprocess that streams a
+  generated 1 000 000-line G-code file through ``gcode.read_file`` and the planner (target
+  ≤ 200 MB);
 * ``tick_p99_us``: 99th percentile of one ``Controller.tick`` — encoder, interpolation,
   regulation, record — over a program of short lines (target ≤ 50 µs);
 
@@ -22,7 +23,6 @@ import json
 import math
 import os
 import platform
-import resource
 import subprocess
 import sys
 import tempfile
@@ -44,14 +44,14 @@ STEP = (0.5e-3, 2e-3)             # segment lengths (m)
 TURN = 0.5                        # largest change of heading per block (rad)
 
 
-def polyline(n: int, seed: int = 0):
+def polyline(n: int, seed: int = 0, step: tuple[float, float] = STEP):
     """(x, y) vertices (m) of a random polyline inside the work zone: n + 1 points."""
     rng = np.random.default_rng(seed)
     x, y, heading = 0.05, 0.05, 0.0
     yield x, y
     for _ in range(n):
         heading += rng.uniform(-TURN, TURN)
-        length = rng.uniform(*STEP)
+        length = rng.uniform(*step)
         x = min(max(x + length * math.cos(heading), 0.01), 0.19)
         y = min(max(y + length * math.sin(heading), 0.01), 0.19)
         yield x, y
@@ -84,7 +84,9 @@ from twin.controller.planner import Planner
 cfg = load_machine({machine!r})
 planner = Planner.from_settings(cfg.controller, cfg.axes)
 count = sum(1 for _ in planner.plan(read_file(sys.argv[1], start=(0.05, 0.05))))
-print(count)
+with open("/proc/self/status") as status:
+    hwm = next(line.split()[1] for line in status if line.startswith("VmHWM:"))
+print(count, hwm)
 """
 
 
@@ -100,9 +102,11 @@ def bench_stream(lines: int) -> dict:
         done = subprocess.run([sys.executable, "-c", _STREAM.format(machine=MACHINE),
                                str(path)], capture_output=True, text=True, check=True)
         elapsed = time.perf_counter() - t0
-    peak_kb = resource.getrusage(resource.RUSAGE_CHILDREN).ru_maxrss   # KiB on Linux
-    return {"lines": lines, "file_mb": round(size_mb, 1), "blocks": int(done.stdout),
-            "seconds": round(elapsed, 1), "peak_rss_mb": round(peak_kb / 1024, 1)}
+    blocks, peak_kb = (int(v) for v in done.stdout.split())
+    return {"lines": lines, "file_mb": round(size_mb, 1), "blocks": blocks,
+            "seconds": round(elapsed, 1), "peak_rss_mb": round(peak_kb / 1024, 1),
+            "measured_by": "VmHWM of the child's /proc/self/status (ru_maxrss of children "
+                           "would include the parent's image copied by fork)"}
 
 
 class _Servo:
@@ -126,10 +130,10 @@ class _Servo:
                 self.x[k] += self.kh[k] * float(out.dac_volts[k]) * self.period
 
 
-def bench_tick(blocks: int, ticks: int) -> dict:
+def bench_tick(blocks: int, ticks: int, step: tuple[float, float] = STEP) -> dict:
     cfg = load_machine(MACHINE)
     text = [f"G21 G90 G1 X50 Y50 F{FEED * 60e3:.0f}"]
-    text += [f"G1 X{x * 1e3:.4f} Y{y * 1e3:.4f}" for x, y in polyline(blocks, seed=2)]
+    text += [f"G1 X{x * 1e3:.4f} Y{y * 1e3:.4f}" for x, y in polyline(blocks, 2, step)]
     prog = parse("\n".join(text), start=(0.05, 0.05))
     ctrl = Controller.from_machine(cfg, prog, start=(0.05, 0.05))
     io = _Servo(cfg, (0.05, 0.05))
@@ -146,7 +150,8 @@ def bench_tick(blocks: int, ticks: int) -> dict:
         n += 1
     us = times[:n] / 1e3
     p50, p90, p99, p999 = np.percentile(us, [50, 90, 99, 99.9])
-    return {"ticks": n, "status": ctrl.status.name, "p50_us": round(p50, 1),
+    return {"ticks": n, "segments_mm": [1e3 * v for v in step], "status": ctrl.status.name,
+            "p50_us": round(p50, 1),
             "p90_us": round(p90, 1), "p99_us": round(p99, 1), "p999_us": round(p999, 1),
             "max_us": round(float(us.max()), 1), "over_1ms": int((us > 1000).sum()),
             "blocks_run": int(ctrl.interpolator.reference.block) + 1}
@@ -161,6 +166,7 @@ def main() -> None:
     planner = bench_planner(n_plan)
     stream = bench_stream(n_stream)
     tick = bench_tick(4_000, n_ticks)
+    dense = bench_tick(20_000, n_ticks, step=(0.02e-3, 0.1e-3))     # a block every tick
     cfg = load_machine(MACHINE)
     print(json.dumps({
         "planner_blocks_per_s": planner["parabolic"]["blocks_per_s"],
@@ -172,7 +178,7 @@ def main() -> None:
             "program": f"random polyline, segments {STEP[0] * 1e3}-{STEP[1] * 1e3} mm, "
                        f"heading change up to ±{TURN} rad per block, feed {FEED * 60e3:.0f} "
                        "mm/min",
-            "planner_by_law": planner, "stream": stream, "tick": tick,
+            "planner_by_law": planner, "stream": stream, "tick": tick, "tick_dense": dense,
             "python": platform.python_version(), "cpus": os.cpu_count(),
             "load_average": [round(v, 2) for v in os.getloadavg()],
             "quick": args.quick,
