@@ -80,7 +80,7 @@ ERRORS = [
     ("G3 R5 F100", 1, 1, "arc-full-circle-r", "full circle"),
     ("G0 X1\nG1 F100\nN3 G3 X1 Y0 R-5", 3, 4, "arc-full-circle-r", "I/J"),
     ("G2 X10 I4 F100", 1, 1, "arc-end-off-circle", "off the circle"),
-    ("G0 X10\nG3 X0 Y10.02 I-10 F100", 2, 1, "arc-end-off-circle", "allowed 0.01 mm"),
+    ("G0 X10\nG3 X0 Y10.02 I-10 F100", 2, 1, "arc-end-off-circle", "allowed 0.01002 mm"),
 ]
 
 
@@ -98,6 +98,19 @@ def test_error_place_code_and_message(text, line, column, code, words):
     assert first == f"line {line}, col {column}: {error.message}"
     # the caret line points at the column
     assert str(error).splitlines()[-1] == "    " + " " * (column - 1) + "^"
+
+
+@pytest.mark.timeout(30)
+@pytest.mark.parametrize(("line", "column"), [
+    (" ".join(["X1    "] * 2000) + "#", 14_000),       # many blank runs, then a bad tail
+    ("X" + "1 " * 5000 + "#", 10_002),                  # one long number with blanks
+    ("X" + " 1" * 3000 + " . .", 6005),                 # a long number, then a lone point
+])
+def test_pathological_lines_fail_fast_at_the_right_column(line, column):
+    # a backtracking lexer takes exponential time on these; the guard is the timeout
+    with pytest.raises(GCodeError) as info:
+        parse(line)
+    assert info.value.column == column
 
 
 def test_every_documented_code_is_exercised():

@@ -156,13 +156,14 @@ def center_from_offset(start: Point, end: Point, center: Point, *, ccw: bool, tu
     if r_start == 0.0:
         raise ArcError("arc-zero-radius", "arc centre is the start point (I and J are zero)")
     r_end = math.hypot(ex - cx, ey - cy)
+    rule = tolerance.describe(max(r_start, r_end))
     allowed = tolerance.allowed(max(r_start, r_end))
     end_error = abs(r_end - r_start)
     if end_error > allowed:
         raise ArcError("arc-end-off-circle",
                        f"arc end point is {end_error / MM:.4g} mm off the circle around the "
                        f"centre (radius {r_start / MM:.6g} mm at the start, "
-                       f"{r_end / MM:.6g} mm at the end; {tolerance.describe(r_start)})")
+                       f"{r_end / MM:.6g} mm at the end; {rule})")
     if start == end:
         return center
     chord = math.hypot(ex - sx, ey - sy)
@@ -186,13 +187,29 @@ def center_from_offset(start: Point, end: Point, center: Point, *, ccw: bool, tu
         raise ArcError("arc-end-off-circle",
                        f"arc end point does not fit the centre: an arc through both end "
                        f"points strays {worst / MM:.4g} mm from the programmed circle "
-                       f"({tolerance.describe(r_start)})")
+                       f"({rule})")
     return fixed
 
 
 def center_from_radius(start: Point, end: Point, radius: float, *, ccw: bool,
                        tolerance: ArcTolerance) -> Point:
     """Centre of an R arc (m): R > 0 the arc of at most 180°, R < 0 the one of more.
+
+    Parameters
+    ----------
+    start, end : tuple of float
+        Arc start and end (m).
+    radius : float
+        Programmed R (m), signed.
+    ccw : bool
+        G3 if True, G2 if False.
+    tolerance : ArcTolerance
+        How much farther apart than 2·|R| start and end may be (then: a half circle).
+
+    Returns
+    -------
+    tuple of float
+        The centre (m), exactly on the bisector of start and end.
 
     Raises
     ------

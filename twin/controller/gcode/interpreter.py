@@ -43,7 +43,6 @@ WORKSPACE = 1e3
 
 _VALUE_LETTERS = frozenset("FIJNPRSTXY")
 _OTHER_AXES = frozenset("ABCUVW")
-_KIND = {"rapid": "rapid", "line": "line", "arc_cw": "arc", "arc_ccw": "arc"}
 _WRITTEN = {"rapid": "G0", "line": "G1", "arc_cw": "G2", "arc_ccw": "G3"}
 _SPINDLE = {"cw": "spindle_cw", "ccw": "spindle_ccw", "stop": "spindle_stop"}
 _COOLANT = {"mist": "coolant_mist", "flood": "coolant_flood", "off": "coolant_off"}
@@ -107,6 +106,58 @@ def _read(words: list[Word], line: int, source: str) -> _Block:
         else:
             raise block.error(column, f"unknown word {letter}", "unknown-word")
     return block
+
+
+def _at_least_zero(block: _Block, letter: str, what: str) -> float:
+    value, column = block.values[letter]
+    if value < 0:
+        raise block.error(column, f"{what} must be >= 0", "bad-value")
+    return value
+
+
+def _whole_number(block: _Block, letter: str, what: str, *, least: int = 0) -> int:
+    value, column = block.values[letter]
+    if value < least or not _whole(value):
+        raise block.error(column, f"{what} must be a whole number >= {least}", "bad-value")
+    return int(value)
+
+
+def _machine_functions(block: _Block, old: ModalState, changes: dict[str, object]) -> list[Item]:
+    """Events of S, T, M6, M3/M4/M5, M7/M8/M9 in that order; records them in ``changes``."""
+    codes, values, line = block.codes, block.values, block.line
+    items: list[Item] = []
+    if "S" in values:
+        speed = _at_least_zero(block, "S", "spindle speed S") * RPM
+        changes["spindle_speed"] = speed
+        items.append(Event("spindle_speed", speed, line))
+    if "T" in values:
+        tool = _whole_number(block, "T", "tool number T")
+        changes["tool"] = tool
+        items.append(Event("tool_select", tool, line))
+    if "tool_change" in codes:
+        items.append(Event("tool_change", changes.get("tool", old.tool), line))
+    for group, kinds in (("spindle", _SPINDLE), ("coolant", _COOLANT)):
+        if group in codes:
+            changes[group] = codes[group][0].value
+            items.append(Event(kinds[codes[group][0].value], None, line))
+    return items
+
+
+def _check_claims(block: _Block, *, dwell: bool, arc: bool) -> None:
+    """Every I, J, R, P word must be used by exactly one command of the block."""
+    values = block.values
+    for letter in "IJR":
+        if letter in values and not arc:
+            raise block.error(values[letter][1], f"{letter} word without an arc (G2/G3) to "
+                                                 "use it", "unused-word")
+    if "P" in values:
+        if dwell and arc:
+            raise block.error(values["P"][1], "P word claimed by both G4 (dwell) and the arc "
+                                              "(turns): put them in two blocks",
+                              "ambiguous-word")
+        if not (dwell or arc):
+            raise block.error(values["P"][1], "P word without G4 or an arc to use it",
+                              "unused-word")
 
 
 class Interpreter:
@@ -182,7 +233,7 @@ class Interpreter:
 
     def _run(self, block: _Block) -> tuple[ModalState, tuple[float, float], list[Item]]:
         """Step 2: what the block means, from a copy of the state; raises, never mutates."""
-        old, codes, values, line = self._modal, block.codes, block.values, block.line
+        old, codes, values = self._modal, block.codes, block.values
         changes: dict[str, object] = {
             group: codes[group][0].value
             for group in ("motion", "plane", "distance", "units", "feed_mode") if group in codes
@@ -190,69 +241,28 @@ class Interpreter:
         unit = INCH if changes.get("units", old.units) == "inch" else MM
         number = None
         if "N" in values:
-            value, column = values["N"]
-            if value < 0 or not _whole(value):
-                raise block.error(column, "block number N must be a whole number >= 0",
-                                  "bad-value")
-            number = int(value)
+            number = _whole_number(block, "N", "block number N")
         if "F" in values:
-            value, column = values["F"]
-            if value < 0:
-                raise block.error(column, "feed F must be >= 0", "bad-value")
-            changes["feed"] = value * unit / 60.0
-        items: list[Item] = []
-        if "S" in values:
-            value, column = values["S"]
-            if value < 0:
-                raise block.error(column, "spindle speed S must be >= 0", "bad-value")
-            changes["spindle_speed"] = value * RPM
-            items.append(Event("spindle_speed", value * RPM, line))
-        if "T" in values:
-            value, column = values["T"]
-            if value < 0 or not _whole(value):
-                raise block.error(column, "tool number T must be a whole number >= 0",
-                                  "bad-value")
-            changes["tool"] = int(value)
-            items.append(Event("tool_select", int(value), line))
-        if "tool_change" in codes:
-            items.append(Event("tool_change", changes.get("tool", old.tool), line))
-        for group, kinds in (("spindle", _SPINDLE), ("coolant", _COOLANT)):
-            if group in codes:
-                changes[group] = codes[group][0].value
-                items.append(Event(kinds[codes[group][0].value], None, line))
+            changes["feed"] = _at_least_zero(block, "F", "feed F") * unit / 60.0
+        items = _machine_functions(block, old, changes)
         dwell = "non_modal" in codes
         if dwell:
             if "P" not in values:
                 raise block.error(codes["non_modal"][2], "G4 needs a P word (dwell time, s)",
                                   "missing-word")
-            value, column = values["P"]
-            if value < 0:
-                raise block.error(column, "dwell time P must be >= 0 (s)", "bad-value")
-            items.append(Dwell(value, line))
+            items.append(Dwell(_at_least_zero(block, "P", "dwell time P (s)"), block.line))
         changes = {name: value for name, value in changes.items() if getattr(old, name) != value}
         modal = replace(old, **changes) if changes else old
         arc = modal.motion == "arc_cw" or modal.motion == "arc_ccw"
-        moved = "X" in values or "Y" in values or (arc and not values.keys().isdisjoint("IJR"))
-        arc_runs = moved and arc
-        for letter in "IJR":
-            if letter in values and not arc_runs:
-                raise block.error(values[letter][1], f"{letter} word without an arc (G2/G3) "
-                                                     "to use it", "unused-word")
-        if "P" in values:
-            if dwell and arc_runs:
-                raise block.error(values["P"][1], "P word claimed by both G4 (dwell) and the "
-                                                  "arc (turns): put them in two blocks",
-                                  "ambiguous-word")
-            if not (dwell or arc_runs):
-                raise block.error(values["P"][1], "P word without G4 or an arc to use it",
-                                  "unused-word")
+        moves = "X" in values or "Y" in values or (arc and not values.keys().isdisjoint("IJR"))
+        _check_claims(block, dwell=dwell, arc=moves and arc)
         position = self._position
-        if moved:
+        if moves:
             position, move = self._motion(block, modal, unit, number)
             if move is not None:
                 items.append(move)
         if "stopping" in codes:
-            items.append(ProgramEnd(codes["stopping"][0].value, line))
+            items.append(ProgramEnd(codes["stopping"][0].value, block.line))
         return modal, position, items
 
     def _motion(self, block: _Block, modal: ModalState, unit: float,
@@ -285,45 +295,44 @@ class Interpreter:
             end = [*start]
         target = (end[0], end[1])
         feed = None if motion == "rapid" else modal.feed
-        if motion != "rapid":
-            feed_column = values["F"][1] if "F" in values else column
+        if motion != "rapid" and not feed:
             if feed is None:
                 raise block.error(column, f"{name} needs a feed: no F word programmed yet",
                                   "missing-feed")
-            if feed == 0.0:
-                raise block.error(feed_column, f"{name} with zero feed (F0)",
-                                  "zero-feed")
+            raise block.error(values["F"][1] if "F" in values else column,
+                              f"{name} with zero feed (F0)", "zero-feed")
         if motion == "rapid" or motion == "line":
             if target == start:
                 return target, None
-            return target, Move(_KIND[motion], start, target, feed, line=block.line,
+            return target, Move(motion, start, target, feed, line=block.line,
                                 block_number=number)
+        return target, self._arc(block, motion, start, target, feed, unit, number, column)
+
+    def _arc(self, block: _Block, motion: str, start: tuple[float, float],
+             target: tuple[float, float], feed: float, unit: float, number: int | None,
+             column: int) -> Move:
+        """The G2/G3 move from ``start`` to ``target``: turns, centre, tolerance checks."""
+        values, name = block.values, _WRITTEN[motion]
         ccw = motion == "arc_ccw"
         turns = 0
         if "P" in values:
-            value, p_column = values["P"]
-            if value < 1 or not _whole(value):
-                raise block.error(p_column, "arc P (number of turns) must be a whole number "
-                                            ">= 1", "bad-value")
-            turns = int(value) - 1
+            turns = _whole_number(block, "P", "arc P (number of turns)", least=1) - 1
         has_offset = "I" in values or "J" in values
+        if "R" in values and has_offset:
+            raise block.error(values["R"][1], "arc with both I/J and R: program the centre "
+                                              "one way only", "arc-center-and-radius")
+        if not ("R" in values or has_offset):
+            raise block.error(column, f"{name} needs the centre as I/J or the radius as R",
+                              "arc-missing-center")
         try:
             if "R" in values:
-                if has_offset:
-                    raise block.error(values["R"][1], "arc with both I/J and R: program the "
-                                                      "centre one way only",
-                                      "arc-center-and-radius")
                 center = center_from_radius(start, target, values["R"][0] * unit, ccw=ccw,
                                             tolerance=self._tolerance)
-            elif has_offset:
-                offset = (values["I"][0] * unit if "I" in values else 0.0,
-                          values["J"][0] * unit if "J" in values else 0.0)
-                center = center_from_offset(start, target, (start[0] + offset[0],
-                                                            start[1] + offset[1]),
-                                            ccw=ccw, turns=turns, tolerance=self._tolerance)
             else:
-                raise block.error(column, f"{name} needs the centre as I/J or the radius as R",
-                                  "arc-missing-center")
+                programmed = (start[0] + values["I"][0] * unit if "I" in values else start[0],
+                              start[1] + values["J"][0] * unit if "J" in values else start[1])
+                center = center_from_offset(start, target, programmed, ccw=ccw, turns=turns,
+                                            tolerance=self._tolerance)
         except ArcError as exc:
             raise block.error(column, exc.message, exc.code) from None
-        return target, Move("arc", start, target, feed, center, ccw, turns, block.line, number)
+        return Move("arc", start, target, feed, center, ccw, turns, block.line, number)

@@ -74,8 +74,8 @@ class Move:
     kind : str
         ``"rapid"`` (G0), ``"line"`` (G1) or ``"arc"`` (G2/G3).
     start, end : tuple of float
-        Start and end point, absolute machine coordinates (m). ``start == end`` only for a
-        full-circle arc.
+        Start and end point, absolute machine coordinates (m). The reader yields
+        ``start == end`` only for a full-circle arc.
     feed : float or None
         Programmed contour feed (m/s); None for a rapid (the machine's rapid speed applies).
     center : tuple of float or None
@@ -118,6 +118,8 @@ class Move:
             return
         if not isinstance(self.turns, int) or self.turns < 0:
             raise ConfigError("Move.turns", f"must be an int >= 0, got {self.turns!r}")
+        if not isinstance(self.ccw, bool):
+            raise ConfigError("Move.ccw", f"must be a bool, got {self.ccw!r}")
         center = _point(self.center, "Move.center")
         object.__setattr__(self, "center", center)
         r0 = math.dist(self.start, center)

@@ -27,9 +27,15 @@ MAX_VALUE = 1e9
 Word = tuple[str, float, int]
 """A word: upper-case letter, value, 1-based column of the letter."""
 
-_NUMBER = r"[+-]?[ \t]*(?:[0-9][0-9 \t]*(?:\.[0-9 \t]*)?|\.[ \t]*[0-9][0-9 \t]*)"
-_WORD = re.compile(rf"[ \t]*([A-Z])[ \t]*({_NUMBER})")
-_WORDS = re.compile(rf"(?:[ \t]*[A-Z][ \t]*{_NUMBER})*[ \t]*")
+# Whitespace may sit between any two characters of a word, so a naive pattern can split a
+# run of blanks in many ways and backtrack exponentially on a bad line. Here every blank run
+# is followed by a specific character (digit, point, letter) and every repetition is
+# possessive (*+, ?+), so matching is linear in the line length.
+_BLANKS = r"[ \t]*+"
+_NUMBER = (rf"[+-]?{_BLANKS}(?:[0-9](?:{_BLANKS}[0-9])*+(?:{_BLANKS}\.(?:{_BLANKS}[0-9])*+)?+"
+           rf"|\.(?:{_BLANKS}[0-9])++)")
+_WORD = re.compile(rf"{_BLANKS}([A-Z]){_BLANKS}({_NUMBER})")
+_WORDS = re.compile(rf"(?:{_BLANKS}[A-Z]{_BLANKS}{_NUMBER})*+{_BLANKS}")
 _SPECIAL = re.compile(r"[();]")
 
 
