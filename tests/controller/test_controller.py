@@ -13,16 +13,11 @@ import numpy as np
 import pytest
 
 from twin.config import load_machine
-from twin.controller.controller import (
-    RECORD_FIELDS,
-    Controller,
-    ControllerStatus,
-    estimated_axis_model,
-    servo_lag,
-)
+from twin.controller.controller import RECORD_FIELDS, Controller, ControllerStatus
 from twin.controller.gcode import parse
 from twin.controller.io import Inputs, MachineIO, Outputs
 from twin.controller.linear import LinearAxisModel
+from twin.controller.loop_defaults import estimated_axis_model, servo_lag
 from twin.controller.metrics import contour_error
 from twin.controller.planner import MotionBlock, segments_from_program
 from twin.controller.regulator import RegulatorGains, default_gains

@@ -20,10 +20,11 @@ from twin.controller.gcode import parse
 from twin.controller.gcode.items import Dwell, Event, Move, ProgramEnd
 from twin.controller.geometry import Arc, Line, SplinePath
 from twin.controller.metrics import corner_error
-from twin.controller.planner import MotionBlock, PlannedBlock, Planner, WorkZone
+from twin.controller.planner import MotionBlock, PlannedBlock, Planner
 from twin.controller.profiles import LAWS, Limits, max_end_speed
 from twin.controller.reach import monotone_end_speed, reach_floor
 from twin.controller.segment_limits import SegmentLimits
+from twin.controller.workzone import WorkZone
 from twin.errors import ConfigError, PlanningError
 
 CFG = load_machine("tomsk_xy")

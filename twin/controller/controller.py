@@ -35,7 +35,6 @@ the latched position to be the configured home position.
 
 from __future__ import annotations
 
-import dataclasses
 import math
 from collections.abc import Iterable, Mapping, Sequence
 from enum import IntEnum
@@ -49,6 +48,7 @@ from twin.controller.geometry import Line
 from twin.controller.interpolator import Interpolator, InterpolatorStatus
 from twin.controller.io import Inputs, MachineIO, Outputs
 from twin.controller.linear import LinearAxisModel
+from twin.controller.loop_defaults import estimated_axis_model, loop_gains, servo_lag
 from twin.controller.planner import MotionBlock, PlannedBlock, Planner
 from twin.controller.record import Record
 from twin.controller.regulator import (
@@ -56,17 +56,10 @@ from twin.controller.regulator import (
     PositionRegulator,
     RegulatorGains,
     RegulatorStatus,
-    default_gains,
 )
 from twin.errors import ConfigError, PlanningError, TwinError
 
-__all__ = [
-    "RECORD_FIELDS",
-    "Controller",
-    "ControllerStatus",
-    "estimated_axis_model",
-    "servo_lag",
-]
+__all__ = ["RECORD_FIELDS", "Controller", "ControllerStatus"]
 
 
 class ControllerStatus(IntEnum):
@@ -115,54 +108,6 @@ _FAULTS = {RegulatorStatus.FOLLOWING_ERROR: ControllerStatus.FOLLOWING_ERROR,
            RegulatorStatus.INVALID_INPUT: ControllerStatus.INVALID_INPUT}
 
 
-def estimated_axis_model(axis: AxisConfig) -> LinearAxisModel:
-    """A first-order estimate ``K_H/(p(T·p + 1))`` of an axis from its configuration.
-
-    ``K_H = 1/volts_per_speed`` (m/s per V). T is the closed speed loop by the tuning rules
-    the drive uses: converter dead time ``T_μ = firing_period/2``, current loop (modulus
-    optimum) ≈ ``2·T_μ``, speed-loop small time constant ``T_σ = 2·T_μ + T_tacho``, and
-    the symmetric optimum with its reference filter ≈ a first-order lag ``a²·T_σ``. Pass
-    the twin's own linear model (``axis_models=``) where accuracy matters (issue 5).
-    """
-    t_mu = 0.5 * axis.converter.firing_period
-    t_sigma = 2.0 * t_mu + axis.tacho.filter_time_constant
-    a = axis.speed_loop.symmetric_optimum_a
-    return LinearAxisModel.servo(1.0 / axis.volts_per_speed, a * a * t_sigma)
-
-
-def servo_lag(gains: RegulatorGains, models: Sequence[LinearAxisModel], period: float
-              ) -> float:
-    """Time constant of the slowest closed position loop, for the corner model (s).
-
-    A type-1 loop with velocity gain ``K_v = kp·K_H`` follows a ramp of speed V with the
-    error ``V·(1 − ff1·K_H)/K_v``; with full velocity feed-forward the lag left is the
-    drive's own (the sum of the model's time constants) plus the one-period computation
-    delay. The larger of the two, per axis.
-    """
-    lags = []
-    for k, model in enumerate(models):
-        kh = model.velocity_gain
-        kp = gains.kp[k] if isinstance(gains.kp, tuple) else gains.kp
-        ff1 = gains.ff1[k] if isinstance(gains.ff1, tuple) else gains.ff1
-        den = model.den
-        own = (float(den[-3] / den[-2]) if den.size >= 3 else 0.0) + period
-        loop = abs(1.0 - ff1 * kh) / (kp * kh) if kp > 0.0 else math.inf
-        lags.append(max(loop, own))
-    return max(lags)
-
-
-def _gains(settings: ControllerSettings, axes: Sequence[AxisConfig],
-           models: Sequence[LinearAxisModel], dcu_order: int) -> RegulatorGains:
-    """Gains from the settings; values left ``None`` there come from ``default_gains``."""
-    reg = settings.regulator
-    base = default_gains(list(models), settings.period, dcu_order=dcu_order,
-                         following_error_limit=reg.following_error_limit)
-    given = {name: getattr(reg, name) for name in ("kp", "ki", "kd", "ff1", "ff2", "ff3")
-             if getattr(reg, name) is not None}
-    dac = axes[0].dac
-    return dataclasses.replace(base, output_limit=dac.full_scale, dac_bits=dac.bits, **given)
-
-
 class Controller:
     """The cyclic controller of a two-axis table (see the module docstring).
 
@@ -177,10 +122,10 @@ class Controller:
         ``PlannedBlock``s, or None to start idle (for ``jog``/``home``).
     gains : RegulatorGains, optional
         Default: ``settings.regulator`` with the unset gains from ``default_gains`` of the
-        axis models.
+        axis models (``loop_defaults.loop_gains``).
     axis_models : sequence of 2 LinearAxisModel, optional
         Reference (V) → position (m) models for the gain rules and the DCU; default
-        `estimated_axis_model` of each axis.
+        ``loop_defaults.estimated_axis_model`` of each axis.
     profile : str, optional
         Acceleration law; default ``settings.profile``.
     planner : str, optional
@@ -191,7 +136,7 @@ class Controller:
         Interpolator interface (seed 004).
     corner_model : CornerModel, optional
         For the planner; default the seed-001 model of these axes with the servo time
-        constant of the regulator (`servo_lag`).
+        constant of the regulator (``loop_defaults.servo_lag``).
     lookahead : int, optional
         Window (blocks); default ``settings.lookahead``.
     start : sequence of 2 float, optional
@@ -231,7 +176,7 @@ class Controller:
             estimated_axis_model(ax) for ax in self.axes]
         if gains is None:
             order = settings.regulator.dcu_order if dcu_order is None else dcu_order
-            gains = _gains(settings, self.axes, models, order)
+            gains = loop_gains(settings, self.axes, models, order)
         self.gains = gains
         if corner_model is None:
             corner_model = SeedCornerModel.from_axes(

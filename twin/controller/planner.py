@@ -65,14 +65,14 @@ from twin.controller.profiles.laws import check_law
 from twin.controller.reach import monotone_end_speed as reach_speed
 from twin.controller.reach import reach_floor
 from twin.controller.segment_limits import SegmentLimits
-from twin.errors import ConfigError, PlanningError, TwinError
+from twin.controller.workzone import WorkZone
+from twin.errors import ConfigError, TwinError
 
 __all__ = [
     "MODES",
     "MotionBlock",
     "PlannedBlock",
     "Planner",
-    "WorkZone",
     "segment_of",
     "segments_from_program",
 ]
@@ -139,52 +139,6 @@ class PlannedBlock(NamedTuple):
         """The block's speed profile along its segment (``plan_move`` of its law)."""
         return plan_move(self.law, self.segment.length, v_start=self.v_start,
                          v_end=self.v_end, v_max=self.v_nominal, limits=self.limits)
-
-
-@dataclass(frozen=True)
-class WorkZone:
-    """The rectangle the tool may reach (soft limits).
-
-    Attributes
-    ----------
-    lower, upper : tuple of float
-        Corners (m), ``lower < upper`` on each axis.
-    """
-
-    lower: tuple[float, float]
-    upper: tuple[float, float]
-
-    def __post_init__(self) -> None:
-        if not all(lo < hi for lo, hi in zip(self.lower, self.upper, strict=True)):
-            raise ConfigError("work_zone", f"need lower < upper, got {self.lower}, {self.upper}")
-
-    @classmethod
-    def from_axes(cls, axes: Mapping[str, AxisConfig]) -> WorkZone:
-        """Travel of each axis, narrowed to the inside of its end limit switches."""
-        lo = tuple(max(axes[a].mechanics.travel[0], axes[a].switches.limit_min) for a in "xy")
-        hi = tuple(min(axes[a].mechanics.travel[1], axes[a].switches.limit_max) for a in "xy")
-        return cls(lo, hi)  # type: ignore[arg-type]
-
-    def contains(self, point: Sequence[float]) -> bool:
-        """Whether ``point`` (m) lies in the zone (edges included)."""
-        return (self.lower[0] <= point[0] <= self.upper[0]
-                and self.lower[1] <= point[1] <= self.upper[1])
-
-    def check(self, segment: Segment, line: int = 0) -> None:
-        """Raise ``PlanningError`` naming ``line`` if ``segment`` leaves the zone."""
-        if type(segment) is Line:
-            inside = self.contains(segment.start.tolist()) and \
-                self.contains(segment.end.tolist())
-        else:
-            lo, hi = segment.bounding_box()
-            inside = self.contains(lo) and self.contains(hi)
-        if not inside:
-            box_lo, box_hi = segment.bounding_box()
-            raise PlanningError(
-                f"line {line}: the move leaves the work zone x {self.lower[0]:.6g} … "
-                f"{self.upper[0]:.6g} m, y {self.lower[1]:.6g} … {self.upper[1]:.6g} m "
-                f"(it spans x {box_lo[0]:.6g} … {box_hi[0]:.6g}, "
-                f"y {box_lo[1]:.6g} … {box_hi[1]:.6g} m)")
 
 
 def segment_of(move: Move) -> Segment | None:
