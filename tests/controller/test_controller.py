@@ -20,6 +20,7 @@ from twin.controller.linear import LinearAxisModel
 from twin.controller.loop_defaults import estimated_axis_model, servo_lag
 from twin.controller.metrics import contour_error
 from twin.controller.planner import MotionBlock, segments_from_program
+from twin.controller.record import Record
 from twin.controller.regulator import RegulatorGains, default_gains
 from twin.errors import PlanningError
 
@@ -203,6 +204,21 @@ def test_record_grows_in_chunks_without_changing_a_value():
     assert len(runs[0]["t"]) > 10 * 97
     for name, values in runs[1].items():
         np.testing.assert_array_equal(runs[0][name], values)
+
+
+@pytest.mark.parametrize("capacity", [1, 3, 7, 64])
+def test_record_reads_any_tail_across_chunks(capacity):
+    rec = Record([("t", 1), ("terms", (2, 2)), ("status", 1)], integer=("status",),
+                 capacity=capacity)
+    rows = np.arange(50 * 6, dtype=float).reshape(50, 6)
+    for row in rows:
+        rec.append(row)
+    assert len(rec) == 50
+    for start in range(0, 55):
+        np.testing.assert_array_equal(rec.table(start), rows[start:].reshape(-1, 6))
+        arrays = rec.as_arrays(start)
+        np.testing.assert_array_equal(arrays["terms"], rows[start:, 1:5].reshape(-1, 2, 2))
+        assert arrays["status"].dtype == np.int64
 
 
 def test_encoder_wrap_mid_run_is_harmless():

@@ -103,16 +103,31 @@ class Record:
         self._i = 0
         self._n_full = 0
 
-    def table(self) -> np.ndarray:
-        """All rows as one (n, width) float64 array (a copy)."""
-        parts = [*self._chunks[:-1], self._chunk[: self._i]]
+    def table(self, start: int = 0) -> np.ndarray:
+        """Rows ``start`` … end as one (n − start, width) float64 array (a copy).
+
+        Only the chunks that hold those rows are touched, so reading what was appended since
+        the last read (``start = previous length``) costs the new rows, not the whole run.
+        """
+        start = max(int(start), 0)
+        if start >= len(self):
+            return np.empty((0, self.width))
+        first = start // self.capacity
+        parts = [*self._chunks[first:-1], self._chunk[: self._i]]
+        parts[0] = parts[0][start - first * self.capacity:]
         if len(parts) == 1:
             return parts[0].copy()
         return np.concatenate(parts, axis=0)
 
-    def as_arrays(self) -> dict[str, np.ndarray]:
-        """Every field as its own array, shape (n, *shape) or (n,); integer fields int64."""
-        table = self.table()
+    def as_arrays(self, start: int = 0) -> dict[str, np.ndarray]:
+        """Every field as its own array, shape (n, *shape) or (n,); integer fields int64.
+
+        Parameters
+        ----------
+        start : int
+            First row to return (default all rows).
+        """
+        table = self.table(start)
         out: dict[str, np.ndarray] = {}
         for name, width in self._fields:
             col = table[:, self._slices[name]]
