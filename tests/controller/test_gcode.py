@@ -292,7 +292,7 @@ def test_path_length_against_the_analytic_sum():
 # -- events, dwell, end of program ----------------------------------------------------------
 
 def test_events_in_execution_order_with_si_values():
-    prog = parse("M8 M3 T2 M6 S1200 G4 P1.5 G0 X1 M30")
+    prog = parse("M8 M3 T2 M6 S1200 G4 P1.5 M30")
     speed, *rest = prog.items
     assert speed.kind == "spindle_speed"
     assert speed.value == pytest.approx(1200 * 2 * math.pi / 60, rel=1e-15)
@@ -302,7 +302,6 @@ def test_events_in_execution_order_with_si_values():
         Event("spindle_cw", None, 1),
         Event("coolant_flood", None, 1),
         Dwell(1.5, 1),
-        Move("rapid", (0.0, 0.0), (1 * MM, 0.0), None, line=1),
         ProgramEnd("M30", 1),
     )
     assert prog.end == ProgramEnd("M30", 1)

@@ -51,7 +51,8 @@ ERRORS = [
     ("G0 X1 I5", 1, 7, "unused-word", "I word without an arc"),
     ("G1 X1 R5 F100", 1, 7, "unused-word", "R word"),
     ("P1", 1, 1, "unused-word", "P word without G4"),
-    ("G4 P1 G2 X1 I0.5 F100", 1, 4, "ambiguous-word", "both G4"),
+    ("G4 P1 G2 I0.5 F100", 1, 4, "ambiguous-word", "both G4"),
+    ("G1 F100\nG4 X1.5", 2, 4, "ambiguous-word", "dwell time is P"),
     ("G4", 1, 1, "missing-word", "G4 needs a P word"),
     # bad values
     ("G4 P-1", 1, 4, "bad-value", "dwell time"),

@@ -21,6 +21,8 @@ Decisions
   an error, not a silent rapid), no feed (a G1 before any F is an error).
 * Order of execution inside a block as RS-274/NGC: F, S, T, M6, M3/M4/M5, M7/M8/M9, G4,
   then motion, then M2/M30. G20/G21 and G90/G91 apply to the words of their own block.
+* G4 blocks take no X/Y: ``G4 X2`` is a two-second dwell on some controls and a move on
+  others, so it is refused rather than guessed.
 * An end point within 1 nm of the start (``interpreter.COINCIDENT``) is the start: such a
   G0/G1 produces no ``Move``, such a G2/G3 is a full circle. Every arc ``Move`` is an exact
   circle through its start and end (I/J centres are corrected, see ``arcs``).

@@ -247,6 +247,11 @@ class Interpreter:
         items = _machine_functions(block, old, changes)
         dwell = "non_modal" in codes
         if dwell:
+            if "X" in values or "Y" in values:
+                letter = "X" if "X" in values else "Y"
+                raise block.error(values[letter][1], f"{letter} word in a G4 block: dwell "
+                                  "time is P (s), and a move beside a dwell is not run here",
+                                  "ambiguous-word")
             if "P" not in values:
                 raise block.error(codes["non_modal"][2], "G4 needs a P word (dwell time, s)",
                                   "missing-word")

@@ -8,6 +8,7 @@ speeds rad/s. Nothing here knows about G-code syntax; the reader builds these.
 from __future__ import annotations
 
 import math
+from collections.abc import Iterator
 from dataclasses import dataclass
 
 from twin.controller.gcode.arcs import arc_sweep
@@ -257,7 +258,7 @@ class Program:
         last = self.items[-1] if self.items else None
         return last if isinstance(last, ProgramEnd) else None
 
-    def __iter__(self):
+    def __iter__(self) -> Iterator[Item]:
         return iter(self.items)
 
     def __len__(self) -> int:
