@@ -167,7 +167,8 @@ class Dwell:
     line: int = 1
 
     def __post_init__(self) -> None:
-        if not (math.isfinite(self.duration) and self.duration >= 0.0):
+        if not (isinstance(self.duration, float | int) and math.isfinite(self.duration)
+                and self.duration >= 0.0):
             raise ConfigError("Dwell.duration", f"must be >= 0 (s), got {self.duration!r}")
         _check_line(self.line, "Dwell.line")
 
