@@ -296,9 +296,12 @@ def test_leaving_the_work_zone_is_refused_naming_the_line():
         planner.check([MotionBlock(arc, 0.01, 7)])
 
 
-def test_work_zone_is_inside_the_limit_switches():
+def test_work_zone_is_inside_the_limit_switches_unless_soft_limits_are_off():
     zone = WorkZone.from_axes(CFG.axes)
     assert zone.lower == (0.002, 0.002) and zone.upper == (0.298, 0.198)
+    assert Planner.from_settings(CFG.controller, CFG.axes).work_zone == zone
+    off = CFG.with_overrides({"controller.soft_limits": False})
+    assert Planner.from_settings(off.controller, off.axes).work_zone is None
 
 
 @pytest.mark.parametrize(("options", "field"), [

@@ -232,13 +232,15 @@ class Planner:
 
         Keyword options override: ``law`` (default ``settings.profile``), ``mode``
         (``settings.planner``), ``lookahead``, ``corner_model``, ``work_zone`` (default the
-        axes' travel inside the limit switches; pass None to disable), ``tolerance``.
+        axes' travel inside the limit switches when ``settings.soft_limits``, else None;
+        pass None to disable), ``tolerance``.
         """
         options.setdefault("law", settings.profile)
         options.setdefault("mode", settings.planner)
         options.setdefault("lookahead", settings.lookahead)
         options.setdefault("tolerance", settings.contour_tolerance)
-        options.setdefault("work_zone", WorkZone.from_axes(axes))
+        if "work_zone" not in options:
+            options["work_zone"] = WorkZone.from_axes(axes) if settings.soft_limits else None
         return cls(Limits.from_config(settings.limits),
                    [Limits.from_config(axes[a].limits) for a in "xy"],
                    rapid_velocity=settings.rapid_velocity, **options)
