@@ -1,9 +1,9 @@
 """The cyclic controller against a simulated linear plant behind a tiny MachineIO.
 
 The plant is the seed's continuous part K_H/(p·(T·p + 1)) per axis, discretised exactly
-under a zero-order hold, with one period of output delay (sample → compute → apply at the
-next tick, as the regulator's models assume), quantised encoders on wrapping counters, limit
-and home switches. The real twin (MuJoCo + thyristor drives) comes later.
+under a zero-order hold over the period after each write (like the lock-step twin), quantised
+encoders on wrapping counters, limit and home switches. The one period of delay that the
+regulator's models assume is the controller's own (it computes ahead).
 """
 
 import itertools
@@ -31,7 +31,7 @@ PROGRAM = ("G21 G90\nG1 X60 Y50 F600\nG1 X60 Y60\nG3 X50 Y70 I-10 J0\nG4 P0.1\n"
 
 
 class LinearPlant(MachineIO):
-    """K_H/(p(Tp+1)) per axis, exact ZOH, one tick of delay, 32-bit wrapping counters."""
+    """K_H/(p(Tp+1)) per axis, exact ZOH, 32-bit wrapping counters."""
 
     def __init__(self, *, start=(0.05, 0.05), time_constant=0.0173, count_offset=(0, 0)):
         self.kh = [1.0 / ax.volts_per_speed for ax in AXES]
@@ -40,7 +40,7 @@ class LinearPlant(MachineIO):
         self.tc = time_constant
         self.x, self.v = list(start), [0.0, 0.0]
         self.offset = list(count_offset)
-        self.pending, self.applied = Outputs(), Outputs()
+        self.applied = Outputs()
         self.inputs = Inputs()
         self.forced_limit: tuple[int, str] | None = None
         self.jammed = False
@@ -63,6 +63,7 @@ class LinearPlant(MachineIO):
 
     def write(self, outputs: Outputs) -> None:
         period = CFG.controller.period
+        self.applied = Outputs(outputs.dac_volts.copy(), outputs.enable)
         for k in range(2):
             u = self.applied.dac_volts[k] if self.applied.enable else 0.0
             target = self.kh[k] * u
@@ -70,7 +71,6 @@ class LinearPlant(MachineIO):
             if not self.jammed:
                 self.x[k] += target * period + dv * self.tc * (1.0 - self.decay)
                 self.v[k] = target + dv * self.decay
-        self.applied = Outputs(outputs.dac_volts.copy(), outputs.enable)
         self.ticks += 1
 
     def close(self) -> None:

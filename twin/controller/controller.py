@@ -7,7 +7,9 @@ Each tick runs, in this order (seed 000's single-PC loop):
 3. interpolation: the next reference (position, velocity, acceleration, jerk) of the
    planned program (`Interpolator` over `Planner.plan`);
 4. regulation: PID + FF1..FF3 + DCU (`PositionRegulator`), saturation, DAC quantisation;
-5. outputs and one row of the record (`Controller.record`).
+5. outputs — the DAC values computed in the *previous* tick (compute ahead, as seed 000's
+   rig did: the delay from sample to drive is exactly one period on any driver, which is
+   what the DCU and the gain rules are derived for) — and one row of the record.
 
 The cyclic path never raises for expected conditions; it reports a `ControllerStatus`:
 
@@ -195,6 +197,7 @@ class Controller:
         """Record: one row per tick, fields ``RECORD_FIELDS``; ``record.as_arrays()``."""
         self.outputs = Outputs()
         """Outputs: written in place and returned by every ``tick``."""
+        self._held = [0.0, 0.0]
         self.error: TwinError | None = None
         """The exception behind ``PROGRAM_ERROR``, if any."""
         self.status = ControllerStatus.IDLE
@@ -252,6 +255,7 @@ class Controller:
         if not enc.ready:
             enc.reset(inputs.encoder_counts, position=self._start)
             self.regulator.reset(self._start)
+            self._held[0] = self._held[1] = 0.0
         pos = enc.update(inputs.encoder_counts)
         status = self.status
         interp = self.interpolator
@@ -268,10 +272,17 @@ class Controller:
                 status = self._progress(status, istatus, inputs, pos)
         out = self.outputs
         if status < ControllerStatus.FINISHED and status != ControllerStatus.IDLE:
-            out.dac_volts[:] = reg.output
+            # Compute ahead (seed 000): write what the previous tick computed, so the
+            # reference reaches the drive exactly one period after its sample, whatever
+            # the driver's timing. The DCU and the gain rules assume this delay.
+            held = self._held
+            out.dac_volts[0], out.dac_volts[1] = held
+            out_now = reg.output
+            held[0], held[1] = out_now[0], out_now[1]
             out.enable = True
-        else:
+        else:  # faults and the end stop at once: no held value survives
             out.dac_volts[:] = 0.0
+            self._held[0] = self._held[1] = 0.0
             out.enable = False
         self.status = status
         self._log(pos, inputs, status)
@@ -347,6 +358,7 @@ class Controller:
         self.error = None
         self._homing = self._home_latch = None
         self.regulator.reset(self.interpolator.reference.position)
+        self._held[0] = self._held[1] = 0.0
         self.interpolator = self._interpolator((), self.position_reference)
         self.status = ControllerStatus.IDLE
 
@@ -357,6 +369,7 @@ class Controller:
         here = self.position_reference
         self.interpolator = self._interpolator(blocks, here)
         self.regulator.reset(here)
+        self._held[0] = self._held[1] = 0.0
         self.status = status
 
     def run_program(self, program: Iterable[Any]) -> None:
@@ -415,6 +428,7 @@ class Controller:
         here[k] += offset[k]
         self.interpolator = self._interpolator((), here)
         self.regulator.reset(here)
+        self._held[0] = self._held[1] = 0.0
         self._homing = self._home_latch = None
 
     def run(self, io: MachineIO, *, max_time: float = math.inf) -> ControllerStatus:
