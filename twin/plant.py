@@ -39,7 +39,12 @@ from twin.drive import Drives
 from twin.errors import SimulationError
 from twin.model import load_model, resolve_machine
 
-__all__ = ["Plant", "Reading", "StepStatus", "Truth"]
+__all__ = ["TRUTH_FIELDS", "Plant", "Reading", "StepStatus", "Truth"]
+
+TRUTH_FIELDS = (("table_position", 2), ("table_velocity", 2), ("screw_deflection", 2),
+                ("armature_current", 2), ("converter_voltage", 2))
+"""The twin's truth channels of :meth:`Plant.truth_row`, for a per-tick record (m, m/s, m, A,
+V; x then y)."""
 
 _BAD_STATE = ("mjWARN_BADQPOS", "mjWARN_BADQVEL", "mjWARN_BADQACC")
 _WARNING_NAMES = tuple(mujoco.mjtWarning(i).name for i in range(mujoco.mjtWarning.mjNWARNING))
@@ -387,6 +392,14 @@ class Plant:
                        tacho_volts=self.drives.tacho_volts, limit_min=states[:, 0],
                        limit_max=states[:, 1], home=states[:, 2],
                        drive_ready=not self.drives.fault.any(), time=self.time)
+
+    def truth_row(self) -> tuple[float, ...]:
+        """The ``TRUTH_FIELDS`` of now as one flat row of floats (cheap: for per-tick
+        recording)."""
+        x, v, th, r = self._table_pos, self._table_vel, self._rotor_pos, self._ratio
+        cur, volt = self.drives.current, self.drives.voltage
+        return (x[0], x[1], v[0], v[1], r[0] * th[0] - x[0], r[1] * th[1] - x[1],
+                cur[0], cur[1], volt[0], volt[1])
 
     def truth(self) -> Truth:
         """The full state of the twin (see :class:`Truth`)."""

@@ -11,9 +11,7 @@ from __future__ import annotations
 
 import contextlib
 import dataclasses
-import json
 import math
-import os
 import signal
 import threading
 import time
@@ -31,19 +29,23 @@ from twin.controller.gcode import parse
 from twin.controller.library import build_program, program_path
 from twin.controller.linear import LinearAxisModel
 from twin.controller.record import Record
-from twin.controller.summary import summarize
 from twin.drive.linear import axis_transfer_function
-from twin.errors import ConfigError
-from twin.hardware.realtime import TickStats
+from twin.errors import ConfigError, DriverError
+from twin.hardware.realtime import RealTimeLoop, TickStats
 from twin.hardware.sim import SimDriver
-from twin.overrides import parse_sets
-from twin.plant import Plant
-from twin.telemetry.channels import TRUTH_FIELDS, TelemetryWriter
-from twin.telemetry.sink import NullSink, Sink
+from twin.plant import TRUTH_FIELDS, Plant
+from twin.runrecord import (
+    make_sink,
+    parse_command,
+    run_summary,
+    ticks_dict,
+    write_json_atomic,
+)
+from twin.telemetry.channels import TelemetryWriter
+from twin.telemetry.sink import Sink
 
-__all__ = ["RunResult", "RunSpec", "axis_models", "load_program", "parse_command", "prepare",
-           "run",
-           "write_json_atomic"]
+__all__ = ["Prepared", "RunResult", "RunSpec", "axis_models", "load_program", "prepare", "run",
+           "run_summary", "write_json_atomic"]
 
 
 @dataclass(frozen=True)
@@ -77,6 +79,10 @@ class RunSpec:
     commands : tuple of str
         Manual mode instead of a program (``builtin="none"``): ``"home x"``, ``"jog x 0.01"``
         (relative, m), ``"goto 0.05 0.02"`` (absolute, m), run one after the other.
+    driver : str
+        ``"sim"``: the twin in lock-step; or a URL of real I/O such as
+        ``modbus://127.0.0.1:5020`` (``twin.hardware.drivers.open_driver``), paced in real
+        time by ``RealTimeLoop``.
     """
 
     machine: str = "tomsk_xy"
@@ -92,6 +98,7 @@ class RunSpec:
     max_time: float = 3600.0
     start: tuple[float, float] | None = None
     commands: tuple[str, ...] = ()
+    driver: str = "sim"
 
     def machine_config(self) -> MachineConfig:
         """The machine with this run's overrides applied (validated)."""
@@ -156,47 +163,49 @@ def load_program(spec: RunSpec, cfg: MachineConfig, start: np.ndarray) -> list[A
 
 @dataclass
 class Prepared:
-    """A run wired and ready to tick."""
+    """A run wired and ready to tick (``plant`` is None behind real I/O)."""
 
     cfg: MachineConfig
     items: list[Any]
     path: list
-    plant: Plant
+    plant: Plant | None
     controller: Controller
     driver: Any
 
 
 def prepare(spec: RunSpec) -> Prepared:
-    """Load the machine, the program and the twin; build the controller (checks the
-    program against the work zone before any motion)."""
+    """Load the machine, the program and the machine's I/O (the twin, or a driver URL); build
+    the controller (checks the program against the work zone before any motion)."""
     cfg = spec.machine_config()
-    plant = Plant.from_machine(cfg)
-    plant.reset(positions=None if spec.start is None else np.asarray(spec.start, float))
-    start = plant.truth().table_position
-    items = load_program(spec, cfg, start)
-    controller = Controller.from_machine(cfg, items or None, axis_models=axis_models(cfg),
-                                         mode=spec.mode, start=start)
-    driver = SimDriver(plant, cfg.controller.period, dry_run=spec.dry_run)
+    plant = None
+    if spec.driver == "sim":
+        plant = Plant.from_machine(cfg)
+        plant.reset(positions=None if spec.start is None else np.asarray(spec.start, float))
+        start = plant.truth().table_position
+        driver = SimDriver(plant, cfg.controller.period, dry_run=spec.dry_run)
+    else:
+        from twin.hardware.drivers import open_driver
+
+        driver = open_driver(spec.driver, cfg)
+        start = _measured_position(driver.read().encoder_counts, cfg)
+    try:
+        items = load_program(spec, cfg, start)
+        controller = Controller.from_machine(cfg, items or None, axis_models=axis_models(cfg),
+                                             mode=spec.mode, start=start)
+    except BaseException:
+        driver.close()
+        raise
     return Prepared(cfg, items, program_path(items), plant, controller, driver)
 
 
-def write_json_atomic(path: Path, obj: Any) -> None:
-    """Write JSON to ``path`` via a temporary file and ``os.replace``."""
-    tmp = path.with_name(path.name + ".partial")
-    tmp.write_text(json.dumps(obj, indent=2, default=_json_default) + "\n", encoding="utf-8")
-    os.replace(tmp, path)
-
-
-def _json_default(obj: Any) -> Any:
-    if isinstance(obj, np.generic):
-        return obj.item()
-    if isinstance(obj, np.ndarray):
-        return obj.tolist()
-    if dataclasses.is_dataclass(obj):
-        return dataclasses.asdict(obj)
-    if isinstance(obj, Path):
-        return str(obj)
-    raise TypeError(f"not JSON serialisable: {type(obj).__name__}")
+def _measured_position(counts: np.ndarray, cfg: MachineConfig) -> np.ndarray:
+    """Table position (m) of raw counter values read as signed numbers of their width."""
+    out = np.empty(2)
+    for k, a in enumerate(AXES):
+        bits = cfg.axes[a].encoder.bits
+        c = int(counts[k]) & ((1 << bits) - 1)
+        out[k] = (c - (1 << bits) if c >= 1 << (bits - 1) else c) / cfg.axes[a].counts_per_metre
+    return out
 
 
 def run(spec: RunSpec, *, out_dir: str | Path = "runs", rerun: str = "file",
@@ -204,7 +213,13 @@ def run(spec: RunSpec, *, out_dir: str | Path = "runs", rerun: str = "file",
         progress: Callable[[float, float], None] | None = None,
         prepared: Prepared | None = None,
         commands: Sequence[Callable[[Controller], None]] = ()) -> RunResult:
-    """Run ``spec`` on the twin in lock-step and write ``<run_id>.rrd`` and ``.json``.
+    """Run ``spec`` and write ``<run_id>.rrd`` and ``<run_id>.json`` into ``out_dir``.
+
+    On the twin (``driver="sim"``) the loop runs in lock-step, as fast as the machine allows;
+    behind real I/O it is paced by ``RealTimeLoop`` and the deadline report goes into the
+    summary. A driver fault (``DriverError``) or Ctrl-C stops the machine (outputs zero,
+    drives disabled) and the run ends ``aborted`` with its record intact; any other error
+    does the same and is then raised.
 
     Parameters
     ----------
@@ -230,48 +245,129 @@ def run(spec: RunSpec, *, out_dir: str | Path = "runs", rerun: str = "file",
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
     p = prepared or prepare(spec)
+    pending = [*(parse_command(c) for c in spec.commands), *commands]
     recording = None
     if sink is None:
-        sink, recording = _make_sink(rerun, out, run_id)
-    truth = Record(TRUTH_FIELDS)
-    writer = TelemetryWriter(sink, p.path, truth_record=truth)
-    names = {int(s): s.name for s in ControllerStatus}
-    ctrl, drv, plant = p.controller, p.driver, p.plant
-    limit = round(spec.max_time / p.cfg.controller.period)
-    every = max(1, round(1.0 / p.cfg.controller.period))
+        sink, recording = make_sink(rerun, out, run_id)
+    loop = _Loop(p, sink, spec.max_time, pending, progress)
     aborted = None
-    ticks = 0
     t_wall = time.perf_counter()
-    pending = [*(parse_command(c) for c in spec.commands), *commands]
     try:
-        while ticks < limit:
-            if ctrl.done:
-                if not pending or ctrl.status not in _READY:
-                    break
-                pending.pop(0)(ctrl)
-            drv.write(ctrl.tick(drv.read()))
-            truth.append(_truth_row(plant))
-            ticks += 1
-            if ticks % every == 0:
-                writer.flush(ctrl.record, status_names=names)
-                if progress is not None:
-                    progress(ticks * p.cfg.controller.period, spec.max_time)
+        loop.run_lockstep() if p.plant is not None else loop.run_paced()
     except KeyboardInterrupt:
         aborted = "interrupted (Ctrl-C)"
-    except Exception as exc:  # a driver or simulation fault: stop safely, keep the record
+    except DriverError as exc:
+        aborted = f"driver fault: {exc}"
+    except Exception as exc:
         aborted = f"{type(exc).__name__}: {exc}"
         raise
     finally:
         wall = time.perf_counter() - t_wall
         with _deferred_interrupt():  # a second Ctrl-C must not lose the record
-            while len(truth) < len(ctrl.record):  # interrupted between the two appends
-                truth.append(_truth_row(plant))
-            drv.close()
-            writer.flush(ctrl.record, status_names=names)
-            sink.close()
-            result = _finish(spec, p, run_id, out, recording, ticks, wall, aborted, writer,
-                             truth)
+            result = loop.finish(spec, run_id, out, recording, wall, aborted)
     return result
+
+
+class _Loop:
+    """The cyclic loop of one run and its records (controller, twin truth, telemetry)."""
+
+    def __init__(self, p: Prepared, sink: Sink, max_time: float,
+                 pending: list[Callable[[Controller], None]],
+                 progress: Callable[[float, float], None] | None):
+        self.p, self.sink, self.pending, self.progress = p, sink, pending, progress
+        self.period = p.cfg.controller.period
+        self.max_time = max_time
+        self.limit = round(max_time / self.period)
+        self.every = max(1, round(1.0 / self.period))
+        self.truth = Record(TRUTH_FIELDS) if p.plant is not None else None
+        self.writer = TelemetryWriter(sink, p.path, truth_record=self.truth)
+        self.names = {int(s): s.name for s in ControllerStatus}
+        self.ticks = 0
+        self.stats: TickStats | None = None
+
+    def _next_command(self) -> bool:
+        """At rest: start the next manual command; False when the run is over."""
+        ctrl = self.p.controller
+        if not self.pending or ctrl.status not in _READY:
+            return False
+        self.pending.pop(0)(ctrl)
+        return True
+
+    def _batch(self) -> None:
+        self.writer.flush(self.p.controller.record, status_names=self.names)
+        if self.progress is not None:
+            self.progress(self.ticks * self.period, self.max_time)
+
+    def run_lockstep(self) -> None:
+        """The twin: as fast as the machine allows (the hot loop: locals only)."""
+        ctrl, drv, plant, truth = self.p.controller, self.p.driver, self.p.plant, self.truth
+        tick, read, write = ctrl.tick, drv.read, drv.write
+        append, row = truth.append, plant.truth_row
+        every, limit = self.every, self.limit
+        while self.ticks < limit:
+            if ctrl.done and not self._next_command():
+                break
+            write(tick(read()))
+            append(row())
+            self.ticks += 1
+            if self.ticks % every == 0:
+                self._batch()
+
+    def run_paced(self) -> None:
+        """Real I/O: one tick per period of wall time, absolute deadlines."""
+        ctrl, drv = self.p.controller, self.p.driver
+        loop = RealTimeLoop(self.period)
+
+        def step(_k: int, _t: float) -> bool:
+            if ctrl.done and not self._next_command():
+                return False
+            drv.write(ctrl.tick(drv.read()))
+            self.ticks += 1
+            if self.ticks % self.every == 0:
+                self._batch()
+            return True
+
+        try:
+            self.stats = loop.run(step, max_ticks=self.limit)
+        finally:
+            self.stats = self.stats or loop.last_stats()
+
+    def finish(self, spec: RunSpec, run_id: str, out: Path, recording: str | None,
+               wall: float, aborted: str | None) -> RunResult:
+        """Stop the machine, flush the telemetry, write the summary (atomically)."""
+        p, ctrl = self.p, self.p.controller
+        if self.truth is not None:
+            while len(self.truth) < len(ctrl.record):  # interrupted between the appends
+                self.truth.append(p.plant.truth_row())
+        p.driver.close()
+        self.writer.flush(ctrl.record, status_names=self.names)
+        self.sink.close()
+        rec = ctrl.record.as_arrays()
+        if self.truth is not None:
+            rec.update(self.truth.as_arrays())
+        sim_time = self.ticks * self.period
+        stats = self.stats or TickStats.lockstep(self.period, self.ticks)
+        summary: dict[str, Any] = {"run_id": run_id, "status": ctrl.status.name,
+                                   "aborted": aborted, "machine": p.cfg.name,
+                                   "driver": spec.driver}
+        summary.update(run_summary(rec, p.path))
+        summary.update({
+            "sim_time_s": sim_time,
+            "wall_time_s": wall,
+            "real_time_factor": sim_time / wall if wall > 0 else math.inf,
+            "telemetry_wall_s": self.writer.wall,
+            "recording": recording,
+            "ticks": ticks_dict(stats),
+            "spec": spec.to_dict(),
+            "config": dataclasses.asdict(p.cfg),
+        })
+        if ctrl.error is not None:
+            summary["error"] = str(ctrl.error)
+        write_json_atomic(out / f"{run_id}.json", summary)
+        return RunResult(summary, rec, p.path, ctrl.status, p.cfg)
+
+
+_READY = (ControllerStatus.IDLE, ControllerStatus.FINISHED)
 
 
 @contextlib.contextmanager
@@ -288,115 +384,3 @@ def _deferred_interrupt() -> Iterator[None]:
         signal.signal(signal.SIGINT, previous)
     if caught:
         raise KeyboardInterrupt
-
-
-def _truth_row(plant: Plant) -> tuple[float, ...]:
-    tr = plant.truth()
-    return (*tr.table_position.tolist(), *tr.table_velocity.tolist(),
-            *tr.screw_deflection.tolist(), *tr.armature_current.tolist(),
-            *tr.converter_voltage.tolist())
-
-
-_READY = (ControllerStatus.IDLE, ControllerStatus.FINISHED)
-
-
-def parse_command(text: str) -> Callable[[Controller], None]:
-    """A manual-mode command: ``home AXIS``, ``jog AXIS DISTANCE`` (m, relative),
-    ``goto X Y`` (m, absolute). Raises ``ConfigError`` naming the command if malformed."""
-    words = text.split()
-    try:
-        if words[0] == "home" and len(words) == 2 and words[1] in AXES:
-            return lambda c: c.home(words[1])
-        if words[0] == "jog" and len(words) == 3 and words[1] in AXES:
-            k, dist = AXES.index(words[1]), float(words[2])
-
-            def jog(c: Controller) -> None:
-                target = list(c.position_reference)
-                target[k] += dist
-                c.jog(target)
-
-            return jog
-        if words[0] == "goto" and len(words) == 3:
-            target = [float(words[1]), float(words[2])]
-            return lambda c: c.jog(target)
-    except (IndexError, ValueError):
-        pass
-    raise ConfigError("commands", f"bad command {text!r}; expected 'home x|y', "
-                      "'jog x|y DISTANCE_M' or 'goto X_M Y_M'")
-
-
-def _make_sink(rerun: str, out: Path, run_id: str) -> tuple[Sink, str | None]:
-    if rerun == "none":
-        return NullSink(), None
-    from twin.telemetry.rerun_sink import RerunSink
-
-    if rerun.endswith(".rrd"):
-        path = Path(rerun)
-        live = None
-    elif rerun in ("file", "spawn", "serve"):
-        path = out / f"{run_id}.rrd"
-        live = None if rerun == "file" else rerun
-    else:
-        raise ConfigError("rerun", f"must be spawn, serve, none, file or a path ending in "
-                          f".rrd, got {rerun!r}")
-    return RerunSink(path, live=live, recording_id=run_id, recording_name=run_id), str(path)
-
-
-def _finish(spec: RunSpec, p: Prepared, run_id: str, out: Path, recording: str | None,
-            ticks: int, wall: float, aborted: str | None, writer: TelemetryWriter,
-            truth: Record) -> RunResult:
-    rec = p.controller.record.as_arrays()
-    rec.update(truth.as_arrays())
-    period = p.cfg.controller.period
-    sim_time = ticks * period
-    summary: dict[str, Any] = {"run_id": run_id, "status": p.controller.status.name,
-                               "aborted": aborted, "machine": p.cfg.name}
-    summary.update(run_summary(rec, p.path))
-    summary.update({
-        "sim_time_s": sim_time,
-        "wall_time_s": wall,
-        "real_time_factor": sim_time / wall if wall > 0 else math.inf,
-        "telemetry_wall_s": writer.wall,
-        "recording": recording,
-        "ticks": _ticks_dict(TickStats.lockstep(period, ticks)),
-        "spec": spec.to_dict(),
-        "config": dataclasses.asdict(p.cfg),
-    })
-    if p.controller.error is not None:
-        summary["error"] = str(p.controller.error)
-    write_json_atomic(out / f"{run_id}.json", summary)
-    return RunResult(summary, rec, p.path, p.controller.status, p.cfg)
-
-
-def _ticks_dict(stats: TickStats) -> dict[str, Any]:
-    d = stats.to_dict()
-    return {"due": d["due"], "on_time": d["on_time"], "late": d["late"],
-            "skipped": d["skipped"], "jitter_p50_us": d["jitter_p50_us"],
-            "jitter_p99_us": d["jitter_p99_us"], "jitter_max_us": d["jitter_max_us"],
-            "paced": d["paced"]}
-
-
-def run_summary(rec: Mapping[str, np.ndarray], path: list) -> dict[str, Any]:
-    """The metric part of the summary (µm, mm, s) from a run's record."""
-    if len(rec["t"]) == 0 or not path:
-        return {"cycle_time_s": 0.0, "path_length_mm": 0.0}
-    segment = np.clip(rec["block"], 0, len(path) - 1)
-    m = summarize(rec["t"], rec["ref_position"], rec["ref_velocity"], rec["position"],
-                  rec["table_velocity"], path, segment=segment)
-    r = m.to_report()
-    return {
-        "cycle_time_s": r["cycle_time_s"],
-        "path_length_mm": r["path_length_mm"],
-        "max_contour_error_um": r["max_contour_error_um"],
-        "rms_contour_error_um": r["rms_contour_error_um"],
-        "max_coordinate_error_um": {a: r[f"max_coordinate_error_{a}_um"] for a in AXES},
-        "max_velocity_error_um_s": {
-            a: m.max_velocity_error[i] * 1e6 for i, a in enumerate(AXES)},
-        "max_vector_error_um": r["max_vector_error_um"],
-        "residual_vibration_um": r["residual_vibration_um"],
-        "overshoot_um": r["overshoot_um"],
-        "productivity_mm_per_min": r["productivity_mm_per_min"],
-    }
-
-
-__all__ += ["parse_sets", "run_summary"]

@@ -114,6 +114,8 @@ class RealTimeLoop:
         self._clock = clock
         self._sleep = sleep
         self._stop = False
+        self._lateness: list[float] = []
+        self._skipped = 0
 
     def stop(self) -> None:
         """Ask the loop to end after the current tick (safe from another thread)."""
@@ -128,7 +130,8 @@ class RealTimeLoop:
         """
         period, clock = self.period, self._clock
         lateness: list[float] = []
-        skipped = 0
+        self._lateness = lateness
+        self._skipped = skipped = 0
         k = 0
         self._stop = False
         t0 = clock()
@@ -149,8 +152,13 @@ class RealTimeLoop:
             behind = int((clock() - t0) / period) - k
             if behind > 0:
                 skipped += behind
+                self._skipped = skipped
                 k += behind
-        return TickStats.from_lateness(period, np.array(lateness), skipped,
+        return self.last_stats()
+
+    def last_stats(self) -> TickStats:
+        """The deadline report of the latest ``run`` so far (also after it raised)."""
+        return TickStats.from_lateness(self.period, np.array(self._lateness), self._skipped,
                                        tolerance=self.tolerance)
 
     def _wait_until(self, deadline: float) -> None:

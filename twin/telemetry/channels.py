@@ -20,11 +20,7 @@ from twin.controller.record import Record
 from twin.controller.regulator import TERMS
 from twin.telemetry.sink import Sink
 
-__all__ = ["TRUTH_FIELDS", "TelemetryWriter", "programmed_polyline"]
-
-TRUTH_FIELDS = (("table_position", 2), ("table_velocity", 2), ("screw_deflection", 2),
-                ("armature_current", 2), ("converter_voltage", 2))
-"""The twin's truth channels recorded each tick (m, m/s, m, A, V)."""
+__all__ = ["TelemetryWriter", "programmed_polyline"]
 
 _LEVEL = {"LIMIT_TRIP": "ERROR", "FOLLOWING_ERROR": "ERROR", "INVALID_INPUT": "ERROR",
           "DRIVE_FAULT": "ERROR", "PROGRAM_ERROR": "ERROR", "HOMING_FAILED": "WARN"}
@@ -40,10 +36,6 @@ def programmed_polyline(path: Sequence, *, per_metre: float = 2e4, max_points: i
     return np.concatenate(parts) if parts else np.zeros((0, 2))
 
 
-def _rows(record: Record, start: int) -> dict[str, np.ndarray]:
-    return {k: v[start:] for k, v in record.as_arrays().items()}
-
-
 class TelemetryWriter:
     """Batches a run's records into a ``Sink``.
 
@@ -53,7 +45,7 @@ class TelemetryWriter:
     path : sequence of Segment
         The programmed path (drawn once; used for the contour error).
     truth_record : Record
-        The twin's truth channels (``TRUTH_FIELDS``); None for real hardware.
+        The twin's truth channels (``twin.plant.TRUTH_FIELDS``); None behind real I/O.
     """
 
     def __init__(self, sink: Sink, path: Sequence, *, truth_record: Record | None = None):
@@ -84,8 +76,8 @@ class TelemetryWriter:
         if n <= self._sent:
             return
         t0 = time.perf_counter()
-        c = _rows(record, self._sent)
-        tr = _rows(self.truth_record, self._sent) if self.truth_record is not None else {}
+        c = record.as_arrays(self._sent)
+        tr = self.truth_record.as_arrays(self._sent) if self.truth_record is not None else {}
         t = c["t"]
         cols: dict[str, np.ndarray] = {}
         for k, ax in enumerate(AXES):
