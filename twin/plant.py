@@ -30,12 +30,14 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 from pathlib import Path
+from typing import Any
 
 import mujoco
 import numpy as np
 
 from twin.config import AXES, MachineConfig, SwitchConfig
 from twin.drive import Drives
+from twin.drive.kernel import S_ADC, S_FAULT, S_I, S_V
 from twin.errors import SimulationError
 from twin.model import load_model, resolve_machine
 
@@ -271,6 +273,10 @@ class Plant:
         self._intervals: dict[float, int] = {}
         self._samples = np.empty((0, 2))
         self._encoder_offset = np.zeros(2, dtype=np.int64)
+        self._cpr = self._counts_per_rad.tolist()          # scalar copies for read_into
+        self._mask = self._counter_mask.tolist()
+        self._offset = [0, 0]
+        self._ratio_f = self._ratio.tolist()
         self._u = np.zeros(2)
         self.reset()
 
@@ -326,6 +332,7 @@ class Plant:
         self._encoder_offset[:] = 0
         if encoder_preset is not None:
             self._encoder_offset[:] = np.asarray(encoder_preset, np.int64) - self._raw_counts()
+        self._offset = self._encoder_offset.tolist()
         self._warnings_seen = self._warning_count.tobytes()
         for sw, x in zip(self._monitors, self._table_pos.tolist(), strict=True):
             sw.settle(x)
@@ -362,11 +369,11 @@ class Plant:
             self._samples = np.empty((n, 2))
         samples = self._samples[:n]
         m, d, k, u, x = self.model, self.data, self._substeps, self._u, self._table_pos
-        drive_step, torque, omega, mj_step = self.drives.step, self._torque, self._rotor_vel, \
-            mujoco.mj_step
+        drive_step, torque, omega, mj_step = self.drives.step_into, self._torque, \
+            self._rotor_vel, mujoco.mj_step
         t0 = d.time
         for i in range(n):
-            torque[:] = drive_step(u, omega)
+            drive_step(u, omega, torque)
             mj_step(m, d, k)
             samples[i] = x
         warnings = () if self._warning_count.tobytes() == self._warnings_seen \
@@ -382,6 +389,29 @@ class Plant:
                           warnings=warnings, time=d.time)
 
     # ------------------------------------------------------------------ sensing
+    def read_into(self, inputs: Any) -> None:
+        """Write the I/O sample into ``inputs`` in place (any object with the
+        :class:`Reading` attributes as arrays, e.g. ``controller.io.Inputs``): the cheap path
+        of :meth:`read` for a driver's every period (same values, scalar arithmetic)."""
+        if self.noise:
+            r = self.read()
+            inputs.encoder_counts[:] = r.encoder_counts
+        else:
+            theta = self._rotor_pos.tolist()
+            for k in (0, 1):
+                c = math.floor(theta[k] * self._cpr[k]) + self._offset[k]
+                inputs.encoder_counts[k] = c & self._mask[k]
+        st = self.drives.snapshot()
+        tacho, counts_ok = inputs.tacho_volts, True
+        for k, mon in enumerate(self._monitors):
+            tacho[k] = st[k][S_ADC]
+            counts_ok = counts_ok and st[k][S_FAULT] == 0.0
+            inputs.limit_min[k], inputs.limit_max[k], inputs.home[k] = mon.state
+        if self.noise:
+            tacho[:] = r.tacho_volts
+        inputs.drive_ready = counts_ok
+        inputs.time = self.data.time
+
     def read(self) -> Reading:
         """Sample the I/O: encoder counters, tacho voltages, switches (see :class:`Reading`)."""
         counts = self._raw_counts() + self._encoder_offset
@@ -396,10 +426,10 @@ class Plant:
     def truth_row(self) -> tuple[float, ...]:
         """The ``TRUTH_FIELDS`` of now as one flat row of floats (cheap: for per-tick
         recording)."""
-        x, v, th, r = self._table_pos, self._table_vel, self._rotor_pos, self._ratio
-        cur, volt = self.drives.current, self.drives.voltage
+        x, v, th = self._table_pos.tolist(), self._table_vel.tolist(), self._rotor_pos.tolist()
+        r, st = self._ratio_f, self.drives.snapshot()
         return (x[0], x[1], v[0], v[1], r[0] * th[0] - x[0], r[1] * th[1] - x[1],
-                cur[0], cur[1], volt[0], volt[1])
+                st[0][S_I], st[1][S_I], st[0][S_V], st[1][S_V])
 
     def truth(self) -> Truth:
         """The full state of the twin (see :class:`Truth`)."""

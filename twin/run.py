@@ -278,7 +278,11 @@ class _Loop:
         self.period = p.cfg.controller.period
         self.max_time = max_time
         self.limit = round(max_time / self.period)
-        self.every = max(1, round(1.0 / self.period))
+        # Telemetry goes out in batches: every 50 ticks the wall clock is checked and a batch
+        # is sent when BATCH_WALL seconds have passed (a few per second for a live viewer,
+        # few enough that send overhead stays small).
+        self.every = 50
+        self._next_batch = time.perf_counter() + BATCH_WALL
         self.truth = Record(TRUTH_FIELDS) if p.plant is not None else None
         self.writer = TelemetryWriter(sink, p.path, truth_record=self.truth)
         self.names = {int(s): s.name for s in ControllerStatus}
@@ -294,6 +298,10 @@ class _Loop:
         return True
 
     def _batch(self) -> None:
+        now = time.perf_counter()
+        if now < self._next_batch:
+            return
+        self._next_batch = now + BATCH_WALL
         self.writer.flush(self.p.controller.record, status_names=self.names)
         if self.progress is not None:
             self.progress(self.ticks * self.period, self.max_time)
@@ -368,6 +376,8 @@ class _Loop:
 
 
 _READY = (ControllerStatus.IDLE, ControllerStatus.FINISHED)
+BATCH_WALL = 0.25
+"""Wall time between telemetry batches (s)."""
 
 
 @contextlib.contextmanager

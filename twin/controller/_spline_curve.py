@@ -65,6 +65,7 @@ class SplineCurve:
         self._h = np.diff(u)
         self._a, self._b, self._c, self._d = sp.a, sp.b, sp.c, sp.d  # (K, 2) each
         self._rows = np.concatenate((sp.a, sp.b, sp.c, sp.d), axis=1)  # (K, 8) for scalar use
+        self._rows_py = self._rows.tolist()
         self._velocity = (*sp.b.T, *(2.0 * sp.c.T), *(3.0 * sp.d.T))  # r' = b + 2c·t + 3d·t²
         self._subdivide()
         self._fit_inverse()
@@ -124,6 +125,7 @@ class SplineCurve:
         rhs = np.broadcast_to(_INV_X, x.shape)[..., None]
         self._inverse = np.linalg.solve(vander, rhs)[..., 0]  # (J, degree + 1), ascending
         self._table = np.column_stack((k, a, b, length, self._inverse))
+        self._table_py = self._table.tolist()  # scalar path: no per-call conversion
 
     def _guess(self, j: np.ndarray, sigma: np.ndarray) -> np.ndarray:
         a, b, length = self._sub[1][j], self._sub[2][j], self._sub[3][j]
@@ -146,8 +148,8 @@ class SplineCurve:
         if s == last_s:
             return row, t
         j = min(max(bisect_right(self._s0_py, s) - 1, 0), len(self._s0_py) - 1)
-        k, a, b, length, *inverse = self._table[j].tolist()
-        row = self._rows[int(k)].tolist()
+        k, a, b, length, *inverse = self._table_py[j]
+        row = self._rows_py[int(k)]
         sigma = min(max(s - self._s0_py[j], 0.0), length)
         x = sigma / length
         tau = 0.0

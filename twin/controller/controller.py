@@ -335,12 +335,13 @@ class Controller:
     def _log(self, pos: Any, inputs: Inputs, status: ControllerStatus) -> None:
         ref = self.interpolator.reference
         reg = self.regulator
-        p, v, a, j = ref.position, ref.velocity, ref.acceleration, ref.jerk
-        e, u, tach = reg.error, self.outputs.dac_volts, inputs.tacho_volts
+        # tolist(): one conversion per array instead of a numpy scalar per element
         self.record.append((
-            self._ticks * self.period, p[0], p[1], v[0], v[1], a[0], a[1], j[0], j[1],
-            pos[0], pos[1], e[0], e[1], u[0], u[1], tach[0], tach[1],
-            *reg.terms.ravel(), self.outputs.enable, ref.block, ref.line, status))
+            self._ticks * self.period, *ref.position.tolist(), *ref.velocity.tolist(),
+            *ref.acceleration.tolist(), *ref.jerk.tolist(), *pos.tolist(),
+            *reg.error.tolist(), *self.outputs.dac_volts.tolist(),
+            *inputs.tacho_volts.tolist(), *reg.terms.ravel().tolist(), self.outputs.enable,
+            ref.block, ref.line, status))
 
     # ------------------------------------------------------------------ commands
     @property

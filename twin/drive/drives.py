@@ -224,7 +224,26 @@ class Drives:
         self._n_step += 1
         return tau
 
+    def step_into(self, u_ref: np.ndarray, omega: np.ndarray, torque: np.ndarray) -> None:
+        """``step`` for the plant's hot loop: no copies, the torque written into ``torque``.
+
+        The caller guarantees float64 arrays of shape (n,) (``torque`` may be a view of the
+        simulator's applied forces); non-finite inputs still raise ``SimulationError``.
+        """
+        if self._noisy:
+            self._noise[:] = self._rng.standard_normal(self._noise.shape)
+        status = K.drive_step(self._params, self._state, u_ref, omega, self._noise,
+                              self._n_step, self.dt, self._enabled, torque)
+        if status:
+            self.step(u_ref, omega)  # the checked path raises the named error
+        self._n_step += 1
+
     # ------------------------------------------------------------------ readouts
+    def snapshot(self) -> list[list[float]]:
+        """The whole state as nested lists (axis, column ``kernel.S_*``): one cheap copy for
+        a caller that needs several readouts per period."""
+        return self._state.tolist()
+
     def _column(self, col: int) -> np.ndarray:
         return self._state[:, col].copy()
 

@@ -37,27 +37,25 @@ class SimDriver:
         self.dry_run = dry_run
         self.last_status = None
         self._zero = np.zeros(2)
+        self._inputs = Inputs()
+        self._enabled: bool | None = None  # unknown: the first write sets it
 
     def read(self) -> Inputs:
-        """Sample encoders, tachos and switches now."""
-        r = self.plant.read()
-        return Inputs(
-            encoder_counts=r.encoder_counts,
-            tacho_volts=r.tacho_volts,
-            limit_min=r.limit_min,
-            limit_max=r.limit_max,
-            home=r.home,
-            drive_ready=r.drive_ready,
-            time=r.time,
-        )
+        """Sample encoders, tachos and switches now (one ``Inputs`` object, reused: a
+        controller reads it within its tick and keeps nothing)."""
+        self.plant.read_into(self._inputs)
+        return self._inputs
 
     def write(self, outputs: Outputs) -> None:
         """Apply the outputs and advance the plant one period."""
         enable = bool(outputs.enable) and not self.dry_run
-        self.plant.enable(enable)
+        if enable != self._enabled:
+            self.plant.enable(enable)
+            self._enabled = enable
         self.last_status = self.plant.step(outputs.dac_volts if enable else self._zero,
                                            self.period)
 
     def close(self) -> None:
         """Disable the drives (the plant keeps its state for inspection)."""
         self.plant.enable(False)
+        self._enabled = False
