@@ -1,0 +1,247 @@
+"""``XYTable-GainTuning-v0``: tune the position loop of a machine, one test run per step."""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Sequence
+from typing import Any, ClassVar
+
+import gymnasium as gym
+import numpy as np
+
+from envs.evaluation import (
+    METRICS,
+    RunOutcome,
+    Weights,
+    cost_terms,
+    metric_scales,
+    tuning_run,
+)
+from envs.programs import PROGRAMS
+from envs.randomize import MachineRandomizer
+from envs.space import TuningSettings, TuningSpace, check_action
+from twin.config import MachineConfig, load_machine
+from twin.errors import ConfigError, SimulationError
+from twin.run import axis_models
+
+__all__ = ["GainTuningEnv", "Tuning"]
+
+_LOG_CLIP = 5.0     # |ln(metric/scale)| shown to the agent
+_ABS_CLIP = 10.0
+
+
+class Tuning:
+    """One machine and program under tuning: the space, the baseline and the cost.
+
+    ``Tuning(cfg, program)`` runs the analytic baseline once; ``evaluate(action)`` runs
+    the program with the decoded settings and returns the outcome with its cost terms.
+    The tuning jobs (``tuning``) use this object directly; the env wraps it.
+
+    Parameters
+    ----------
+    cfg : MachineConfig
+        The machine.
+    program : str
+        Tuning program (``envs.programs.PROGRAMS``).
+    weights : Weights, optional
+        Cost weights; default ``Weights()``.
+    penalty : float
+        Cost of a failed run (1).
+    max_time_factor : float
+        A run may take this many times the baseline's simulated time (plus 5 s).
+    """
+
+    def __init__(self, cfg: MachineConfig, program: str = "compact", *,
+                 weights: Weights | None = None, penalty: float = 50.0,
+                 max_time_factor: float = 3.0):
+        if program not in PROGRAMS:
+            raise ConfigError("program", f"unknown tuning program {program!r}; valid: "
+                              f"{', '.join(PROGRAMS)}")
+        if not (math.isfinite(penalty) and penalty > 0.0):
+            raise ConfigError("penalty", f"must be a finite number > 0, got {penalty!r}")
+        self.cfg = cfg
+        self.program = program
+        self.weights = weights or Weights()
+        self.penalty = float(penalty)
+        self.models = axis_models(cfg)
+        self.space = TuningSpace.from_machine(cfg, self.models)
+        self.baseline = tuning_run(cfg, self.space.decode(np.zeros(self.space.dim)),
+                                   models=self.models, program=program)
+        if self.baseline.failed:
+            raise SimulationError(f"the analytic baseline fails on {cfg.name}: "
+                                  f"{self.baseline.status} ({self.baseline.message})")
+        self.scales = metric_scales(self.baseline)
+        self.max_time = max_time_factor * self.baseline.sim_time + 5.0
+
+    def run(self, settings: TuningSettings) -> RunOutcome:
+        """One run with ``settings``."""
+        return tuning_run(self.cfg, settings, models=self.models, program=self.program,
+                          max_time=self.max_time)
+
+    def terms(self, outcome: RunOutcome) -> dict[str, float]:
+        """Weighted cost terms (``cost_terms``) of an outcome on this machine."""
+        return cost_terms(outcome, self.scales, self.weights, penalty=self.penalty)
+
+    def evaluate(self, action: Sequence[float] | np.ndarray
+                 ) -> tuple[TuningSettings, RunOutcome, dict[str, float]]:
+        """Run the settings of a normalised ``action``: (settings, outcome, terms)."""
+        settings = self.space.decode(action)
+        outcome = self.run(settings)
+        return settings, outcome, self.terms(outcome)
+
+    @property
+    def baseline_cost(self) -> float:
+        """Cost of the analytic baseline (the sum of the weights of non-zero scales)."""
+        return math.fsum(self.terms(self.baseline).values())
+
+    def relative(self, outcome: RunOutcome) -> np.ndarray:
+        """``ln(metric/scale)`` per metric, clipped to ±5; +5 everywhere for a failed run."""
+        if outcome.failed:
+            return np.full(len(METRICS), _LOG_CLIP)
+        ratio = outcome.vector() / np.array([self.scales[m] for m in METRICS])
+        return np.clip(np.log(np.maximum(ratio, 1e-12)), -_LOG_CLIP, _LOG_CLIP)
+
+    def descriptor(self) -> np.ndarray:
+        """What the baseline says about the machine: ``log10`` of its metrics in µm (s for
+        times), clipped to ±10."""
+        v = self.baseline.vector()
+        unit = np.array([1e-6 if "time" not in m else 1.0 for m in METRICS])
+        return np.clip(np.log10(np.maximum(v / unit, 1e-9)), -_ABS_CLIP, _ABS_CLIP)
+
+
+class GainTuningEnv(gym.Env):
+    """Tune the regulator gains, DCU coefficients and jerk limit of a cross table.
+
+    One step is one complete test run of a program on the twin with the settings the
+    action selects; an episode is a budget of tuning runs on one machine (the
+    ``TimeLimit`` wrapper of the registered id ends it after ``max_episode_steps``).
+
+    ## Action Space
+
+    ``Box(-1, 1, (11,), float32)``, normalised; ``envs.space.TuningSpace`` maps it to
+    physical values around the analytic design (the zero action *is* the analytic design):
+
+    | Num | Action     | Unit       | Mapping at -1 … 0 … +1                              |
+    |-----|------------|------------|-----------------------------------------------------|
+    | 0   | kp_x       | V/m        | kp0/4 … kp0 … 4·kp0 (log)                           |
+    | 1   | ki_x       | V/(m·s)    | 0 for ≤ 0; 1e-3 … 1 × kp0·K_v (log) above           |
+    | 2-4 | a1_x…a3_x  | V/m        | α_k⁰·(1 + s_k·a), s = 0.1, 0.5, 1.0                  |
+    | 5-9 | same, y    |            |                                                     |
+    | 10  | max_jerk   | m/s³       | J0/4 … J0 … 4·J0 (log)                              |
+
+    NaN or inf entries raise ``ValueError``; finite ones are clipped to [-1, 1].
+
+    ## Observation Space
+
+    ``Box(-10, 10, (35,), float32)``:
+
+    | Num   | Observation                                   | Unit                   |
+    |-------|-----------------------------------------------|------------------------|
+    | 0-7   | ln(metric / baseline scale) of the last run   | 1 (+5 for a failed run)|
+    | 8-15  | log10 of the baseline's metrics               | log10 µm / log10 s     |
+    | 16-26 | the settings of the last run (the action)     | 1                      |
+    | 27-34 | ln(metric / scale) of the best run so far     | 1                      |
+
+    The metrics, in order: max and RMS coordinate error (larger axis), max and RMS
+    contour error, overshoot, residual vibration, cycle time, saturation time.
+
+    ## Rewards
+
+    ``reward = -Σ terms``; ``info["terms"]`` holds each weighted term:
+    ``w_i · metric_i / scale_i`` for the eight metrics (scale: the analytic baseline's value
+    on this machine and program, floored at 1 µm / 1 ms / 1 % of the cycle time) and
+    ``failure`` (``penalty`` for a run that diverged or tripped, else 0). The analytic
+    design scores ``-Σ w_i`` (minus the saturation weight when it never saturates).
+
+    ## Starting State
+
+    ``reset`` picks the machine (the nominal one, or a random variant with
+    ``randomize=True``, see ``envs.randomize``) and the program, and runs the analytic
+    baseline once; the first observation describes that run, with settings 0.
+    ``options={"machine": name_or_config, "program": name}`` forces either.
+
+    ## Episode End
+
+    Terminated when a run diverges (``info["diverged"]``) or the controller trips
+    (``info["tripped"]``): the step's reward is ``-penalty``. Truncation is the
+    ``TimeLimit`` wrapper's (5 runs for the registered id).
+
+    ## Arguments
+
+    | Argument    | Default      | Description                                         |
+    |-------------|--------------|-----------------------------------------------------|
+    | machine     | "tomsk_xy"   | preset name, TOML path or ``MachineConfig``         |
+    | program     | "compact"    | tuning program, or a sequence to draw from          |
+    | randomize   | False        | draw a machine variant on every reset               |
+    | weights     | ``Weights()``| cost weights per metric                             |
+    | penalty     | 50.0         | cost of a failed run                                |
+
+    ## Version History
+
+    * v0: initial version.
+    """
+
+    metadata: ClassVar[dict[str, Any]] = {"render_modes": []}
+
+    def __init__(self, *, machine: str | MachineConfig = "tomsk_xy",
+                 program: str | Sequence[str] = "compact", randomize: bool = False,
+                 weights: Weights | dict[str, float] | None = None, penalty: float = 50.0):
+        self._base = machine if isinstance(machine, MachineConfig) else load_machine(machine)
+        self._programs = (program,) if isinstance(program, str) else tuple(program)
+        for p in self._programs:
+            if p not in PROGRAMS:
+                raise ConfigError("program", f"unknown tuning program {p!r}; valid: "
+                                  f"{', '.join(PROGRAMS)}")
+        self._randomizer = MachineRandomizer(self._base) if randomize else None
+        self._weights = weights if isinstance(weights, Weights) else \
+            Weights.from_mapping(weights)
+        self._penalty = float(penalty)
+        dim = 11
+        self.action_space = gym.spaces.Box(-1.0, 1.0, (dim,), dtype=np.float32)
+        n = len(METRICS)
+        self.observation_space = gym.spaces.Box(-_ABS_CLIP, _ABS_CLIP, (3 * n + dim,),
+                                                dtype=np.float32)
+        self.tuning: Tuning | None = None
+        self._best = np.zeros(n)
+        self._best_cost = math.inf
+
+    def reset(self, *, seed: int | None = None, options: dict[str, Any] | None = None
+              ) -> tuple[np.ndarray, dict[str, Any]]:
+        super().reset(seed=seed)
+        options = options or {}
+        cfg = options.get("machine")
+        if cfg is None:
+            cfg = self._randomizer.sample(self.np_random) if self._randomizer else self._base
+        elif not isinstance(cfg, MachineConfig):
+            cfg = load_machine(cfg)
+        program = options.get("program") or self._programs[
+            int(self.np_random.integers(len(self._programs)))]
+        self.tuning = Tuning(cfg, program, weights=self._weights, penalty=self._penalty)
+        base = self.tuning.baseline
+        self._best = self.tuning.relative(base)
+        self._best_cost = self.tuning.baseline_cost
+        obs = self._observation(self.tuning, base, np.zeros(self.action_space.shape[0]))
+        return obs, {"machine": cfg.name, "program": program,
+                     "baseline_cost": self._best_cost,
+                     "baseline_metrics": dict(base.metrics)}
+
+    def step(self, action: np.ndarray) -> tuple[np.ndarray, float, bool, bool, dict]:
+        if self.tuning is None:
+            raise gym.error.ResetNeeded("call reset() before step()")
+        a = check_action(action, self.action_space.shape[0])
+        settings, outcome, terms = self.tuning.evaluate(a)
+        cost = math.fsum(terms.values())
+        if not outcome.failed and cost < self._best_cost:
+            self._best_cost = cost
+            self._best = self.tuning.relative(outcome)
+        obs = self._observation(self.tuning, outcome, a)
+        info = {"terms": terms, "cost": cost, "metrics": dict(outcome.metrics),
+                "diverged": outcome.diverged, "tripped": outcome.tripped,
+                "status": outcome.status, "settings": settings.to_dict(),
+                "sim_time": outcome.sim_time}
+        return obs, -cost, outcome.failed, False, info
+
+    def _observation(self, t: Tuning, outcome: RunOutcome, action: np.ndarray
+                     ) -> np.ndarray:
+        obs = np.concatenate([t.relative(outcome), t.descriptor(), action, self._best])
+        return np.clip(obs, -_ABS_CLIP, _ABS_CLIP).astype(np.float32)

@@ -1,0 +1,199 @@
+"""The tuning space: a normalised vector in [-1, 1]^11 ↔ regulator gains and the jerk limit.
+
+Every coordinate is centred on the analytic design, so the zero vector *is* the analytic
+baseline (``default_gains(models, period, dcu_order=3)`` and the machine's jerk limit):
+
+=============  =====================================================  ===================
+coordinate     physical value                                          range
+=============  =====================================================  ===================
+``kp_<ax>``    ``kp0 · kp_span^a``  (log scale)                       ``kp0/4 … 4·kp0``
+``ki_<ax>``    0 for ``a ≤ 0``; ``kp0·K_v·10^(-3 + 3a)`` for ``a > 0``  ``0, 1e-3 … 1 ·kp0·K_v``
+``a1_<ax>``    ``α1⁰ · (1 + 0.1·a)``                                  ±10 %
+``a2_<ax>``    ``α2⁰ · (1 + 0.5·a)``                                  ±50 %
+``a3_<ax>``    ``α3⁰ · (1 + 1.0·a)``                                  0 … 2·α3⁰
+``max_jerk``   ``J0 · jerk_span^a``  (log scale)                      ``J0/4 … 4·J0``
+=============  =====================================================  ===================
+
+``K_v = kp0·K_H`` is the analytic velocity gain of the position loop (1/s), so the integral
+corner ``ki/kp0`` spans three decades below the loop's crossover; ``a ≤ 0`` switches the
+integrator off, which keeps the analytic point (``ki = 0``) inside the space. The DCU
+coefficients move relative to their analytic values because the derivation is exact only
+for the linear model: friction, the bridge reversal pause and the elastic mode are what is
+left for a tuner to find.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+from collections.abc import Sequence
+from dataclasses import dataclass
+
+import numpy as np
+
+from twin.config import AXES, MachineConfig
+from twin.controller.linear import LinearAxisModel
+from twin.controller.regulator import RegulatorGains, default_gains
+from twin.errors import ConfigError
+
+__all__ = ["ALPHA_SPAN", "KI_DECADES", "TuningSettings", "TuningSpace"]
+
+ALPHA_SPAN = (0.1, 0.5, 1.0)
+"""Relative half-range of α1, α2, α3 around the analytic values (1)."""
+KI_DECADES = 3.0
+"""Decades of ``ki`` below ``kp0·K_v`` the positive half of the ki coordinate spans."""
+_PER_AXIS = ("kp", "ki", "a1", "a2", "a3")
+
+
+@dataclass(frozen=True)
+class TuningSettings:
+    """What one tuning run sets on the machine.
+
+    Attributes
+    ----------
+    gains : RegulatorGains
+        Position regulator gains, per axis (V/m, V/(m·s), DCU α in V/m).
+    max_jerk : float
+        Contour jerk limit of the planner (m/s³).
+    """
+
+    gains: RegulatorGains
+    max_jerk: float
+
+    def __post_init__(self) -> None:
+        if not (isinstance(self.max_jerk, int | float) and math.isfinite(self.max_jerk)
+                and self.max_jerk > 0.0):
+            raise ConfigError("max_jerk", f"must be a finite number > 0 (m/s³), got "
+                              f"{self.max_jerk!r}")
+
+    def to_dict(self) -> dict[str, object]:
+        """Plain per-axis values: ``{"kp": [x, y], "ki": [x, y], "dcu_alpha": [[…], […]],
+        "max_jerk": J}`` (SI)."""
+        g = self.gains
+        return {"kp": list(_pair(g.kp)), "ki": list(_pair(g.ki)),
+                "dcu_alpha": [list(row) for row in _rows(g.dcu_alpha)],
+                "max_jerk": float(self.max_jerk)}
+
+
+def _pair(value: float | tuple[float, ...]) -> tuple[float, float]:
+    return value if isinstance(value, tuple) else (value, value)  # type: ignore[return-value]
+
+
+def _rows(alpha: tuple) -> tuple[tuple[float, ...], ...]:
+    return alpha if isinstance(alpha[0], tuple) else (alpha, alpha)
+
+
+@dataclass(frozen=True)
+class TuningSpace:
+    """The map between a normalised action and ``TuningSettings`` for one machine.
+
+    Attributes
+    ----------
+    analytic : RegulatorGains
+        The analytic design (per axis), the centre of the space.
+    max_jerk : float
+        The machine's contour jerk limit, the centre of the jerk coordinate (m/s³).
+    velocity_gain : tuple of float, (x, y)
+        ``K_H`` of each axis (m/(V·s)), for the ki scale.
+    kp_span, jerk_span : float
+        Factor from the centre to either end of the log-scaled kp and jerk coordinates.
+    """
+
+    analytic: RegulatorGains
+    max_jerk: float
+    velocity_gain: tuple[float, float]
+    kp_span: float = 4.0
+    jerk_span: float = 4.0
+
+    def __post_init__(self) -> None:
+        for name in ("kp_span", "jerk_span"):
+            v = getattr(self, name)
+            if not (math.isfinite(v) and v > 1.0):
+                raise ConfigError(name, f"must be a finite number > 1, got {v!r}")
+
+    @classmethod
+    def from_machine(cls, cfg: MachineConfig, models: Sequence[LinearAxisModel], **options
+                     ) -> TuningSpace:
+        """The space of machine ``cfg`` whose axes have the linear models ``models``: the
+        analytic order-3 DCU design with the machine's DAC and trip limit."""
+        reg = cfg.controller.regulator
+        dac = cfg.axes[AXES[0]].dac
+        base = default_gains(list(models), cfg.controller.period, dcu_order=3,
+                             following_error_limit=reg.following_error_limit)
+        base = dataclasses.replace(base, output_limit=dac.full_scale, dac_bits=dac.bits)
+        kh = tuple(float(m.velocity_gain) for m in models)
+        return cls(base, cfg.controller.limits.max_jerk, kh, **options)  # type: ignore[arg-type]
+
+    @property
+    def names(self) -> tuple[str, ...]:
+        """Coordinate names: ``kp_x, ki_x, a1_x, a2_x, a3_x, kp_y, …, max_jerk``."""
+        return (*(f"{n}_{a}" for a in AXES for n in _PER_AXIS), "max_jerk")
+
+    @property
+    def dim(self) -> int:
+        """Number of coordinates (11)."""
+        return len(self.names)
+
+    def _ki_scale(self, k: int) -> float:
+        kp0 = _pair(self.analytic.kp)[k]
+        return kp0 * kp0 * self.velocity_gain[k]
+
+    def decode(self, action: Sequence[float] | np.ndarray) -> TuningSettings:
+        """Settings of a normalised action (clipped to [-1, 1]).
+
+        Raises
+        ------
+        ValueError
+            If the action has the wrong length or a NaN/inf entry.
+        """
+        a = check_action(action, self.dim)
+        kp0, alpha0 = _pair(self.analytic.kp), _rows(self.analytic.dcu_alpha)
+        kp, ki, alpha = [], [], []
+        for k in range(len(AXES)):
+            u = a[5 * k: 5 * k + 5]
+            kp.append(kp0[k] * self.kp_span ** u[0])
+            ki.append(0.0 if u[1] <= 0.0
+                      else self._ki_scale(k) * 10.0 ** (KI_DECADES * (u[1] - 1.0)))
+            alpha.append(tuple(a0 * (1.0 + span * x) for a0, span, x
+                               in zip(alpha0[k], ALPHA_SPAN, u[2:], strict=True)))
+        gains = dataclasses.replace(self.analytic, kp=tuple(kp), ki=tuple(ki),
+                                    dcu_alpha=tuple(alpha))
+        return TuningSettings(gains, float(self.max_jerk * self.jerk_span ** a[-1]))
+
+    def encode(self, settings: TuningSettings) -> np.ndarray:
+        """The action of ``settings`` (the inverse of ``decode``, clipped to [-1, 1]; a
+        ``ki`` of 0 maps to 0)."""
+        g = settings.gains
+        kp0, alpha0 = _pair(self.analytic.kp), _rows(self.analytic.dcu_alpha)
+        out = []
+        for k in range(len(AXES)):
+            out.append(math.log(_pair(g.kp)[k] / kp0[k]) / math.log(self.kp_span))
+            ki = _pair(g.ki)[k]
+            out.append(0.0 if ki <= 0.0
+                       else 1.0 + math.log10(ki / self._ki_scale(k)) / KI_DECADES)
+            for a, a0, span in zip(_rows(g.dcu_alpha)[k], alpha0[k], ALPHA_SPAN, strict=True):
+                out.append(0.0 if a0 == 0.0 else (a / a0 - 1.0) / span)
+        out.append(math.log(settings.max_jerk / self.max_jerk) / math.log(self.jerk_span))
+        return np.clip(np.asarray(out), -1.0, 1.0)
+
+
+def check_action(action: Sequence[float] | np.ndarray, dim: int) -> np.ndarray:
+    """``action`` as a float64 vector clipped to [-1, 1].
+
+    Raises
+    ------
+    ValueError
+        Wrong shape, or a NaN/inf entry (naming its index).
+    """
+    a = np.asarray(action, dtype=float).reshape(-1)
+    if a.shape != (dim,):
+        raise ValueError(f"action must have {dim} entries, got shape "
+                         f"{np.shape(action)}")
+    bad = np.flatnonzero(~np.isfinite(a))
+    if bad.size:
+        raise ValueError(f"action[{bad[0]}] is {a[bad[0]]}: actions must be finite numbers "
+                         "in [-1, 1]")
+    return np.clip(a, -1.0, 1.0)
+
+
+__all__ += ["check_action"]
