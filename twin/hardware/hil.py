@@ -1,0 +1,366 @@
+"""The twin standing in for the I/O module: a Modbus/TCP server whose registers are the
+plant's I/O, with the physics advanced in real time and the module's watchdog.
+
+``HilModule`` is the module: a process image over a ``Plant`` laid out by a register map
+(``twin.hardware.register_map``). Its clock is the wall clock. Before every access the
+plant is caught up with it in whole drive intervals (``advance``), so an input read at
+wall time t shows the plant at the last drive-interval boundary ≤ t (at most one interval
+old), and an output written at t drives the plant from that boundary on. Between requests
+a background task keeps advancing, so the table moves (and the watchdog runs) whether or not
+anybody asks.
+
+Watchdog: writing the watchdog holding register with a new value restarts the timer. When
+it expires while the outputs are live (enable set or a DAC register non-zero), the module
+zeroes the DAC registers, clears the enable coil, disables the drives and sets the
+``watchdog_tripped`` input, at the plant instant of expiry (even if the check runs later).
+The trip is latched until the enable coil is written 0: until then DAC writes are dropped
+and a write of enable 1 is refused with Modbus exception 4 (device failure).
+
+``serve_hil`` runs the module behind a pymodbus ``ModbusTcpServer`` (asyncio, one thread:
+no locks) until SIGINT/SIGTERM. It binds 127.0.0.1 unless told otherwise.
+"""
+
+from __future__ import annotations
+
+import asyncio
+import gc
+import math
+import signal
+import time
+from collections.abc import Callable
+from dataclasses import dataclass
+
+import numpy as np
+from pymodbus.constants import ExcCodes
+from pymodbus.server import ModbusTcpServer
+from pymodbus.simulator import DataType, SimData, SimDevice
+
+from twin.config import AXES, MachineConfig
+from twin.errors import SimulationError
+from twin.hardware.register_map import RegisterMap, counter_to_words, volts_to_word, word_to_volts
+from twin.plant import Plant
+
+__all__ = ["HilModule", "HilStats", "hil_plant", "serve_hil"]
+
+_READ_BITS = {1: "coils", 5: "coils", 15: "coils", 2: "discrete_inputs"}
+_READ_WORDS = {3: "holding_registers", 6: "holding_registers", 16: "holding_registers",
+               23: "holding_registers", 4: "input_registers"}
+
+
+@dataclass(frozen=True)
+class HilStats:
+    """What the module did.
+
+    Attributes
+    ----------
+    requests : int
+        Register accesses served.
+    intervals : int
+        Drive intervals the plant advanced.
+    max_catch_up : int
+        Most drive intervals advanced at once (1–2 when the physics keeps up).
+    watchdog_trips : int
+        Times the watchdog zeroed the outputs.
+    sim_time, wall_time : float
+        Plant time and wall time since the start (s).
+    fault : str or None
+        Why the module stopped answering (the plant diverged), if it did.
+    """
+
+    requests: int
+    intervals: int
+    max_catch_up: int
+    watchdog_trips: int
+    sim_time: float
+    wall_time: float
+    fault: str | None = None
+
+
+class HilModule:
+    """The plant's I/O as a Modbus process image (see the module docstring).
+
+    Parameters
+    ----------
+    plant : Plant
+        The twin, at its start state (drives are disabled until the enable coil is set).
+    register_map : RegisterMap
+    watchdog : float
+        Watchdog timeout (s).
+    clock : callable
+        Wall clock (s); injected for tests.
+    """
+
+    def __init__(self, plant: Plant, register_map: RegisterMap, *, watchdog: float = 0.1,
+                 sync_phase: float | None = 0.25, sync_gain: float = 0.2,
+                 clock: Callable[[], float] = time.perf_counter):
+        if not (math.isfinite(watchdog) and watchdog > 0):
+            raise ValueError(f"watchdog must be > 0 s, got {watchdog}")
+        if sync_phase is not None and not 0.0 <= sync_phase < 1.0:
+            raise ValueError(f"sync_phase must be in [0, 1), got {sync_phase}")
+        if not 0.0 < sync_gain <= 1.0:
+            raise ValueError(f"sync_gain must be in (0, 1], got {sync_gain}")
+        self.plant, self.map, self.watchdog = plant, register_map, watchdog
+        self.sync_phase, self.sync_gain = sync_phase, sync_gain
+        self.dt = plant.drive_dt
+        self._clock = clock
+        m = register_map.module
+        self._fs_dac, self._fs_tacho, self._order = (m.dac_full_scale, m.tacho_full_scale,
+                                                    m.word_order)
+        self._dac_addr = [register_map.axes[a].dac for a in AXES]
+        self._hr = {addr: 0 for addr in (*self._dac_addr, m.watchdog)}
+        self._u = np.zeros(2)
+        self._zero = np.zeros(2)
+        self.enabled = False
+        self.tripped = False
+        self.fault: str | None = None
+        self._last_feed = -math.inf
+        self._steps = 0
+        self._requests = self._trips = self._max_catch_up = 0
+        plant.enable(False)
+        self._t0 = clock()
+
+    # ------------------------------------------------------------------ physics
+    def start(self) -> None:
+        """Restart the module clock at zero (before the first interval only): call when
+        the server starts listening, so that start-up time is not physics to catch up."""
+        if self._steps == 0:
+            self._t0 = self._clock()
+
+    @property
+    def now(self) -> float:
+        """Module time: wall time since the start (s)."""
+        return self._clock() - self._t0
+
+    def advance(self, now: float | None = None) -> int:
+        """Catch the plant up with the clock (whole drive intervals) and run the watchdog.
+        Returns the intervals advanced. A diverged plant sets ``fault``."""
+        if self.fault is not None:
+            return 0
+        now = self.now if now is None else now
+        target = math.floor(now / self.dt + 1e-9)
+        if target <= self._steps:
+            return 0
+        n = target - self._steps
+        expiry = self._last_feed + self.watchdog
+        try:
+            if self._live() and expiry <= now:
+                k = min(max(math.ceil(expiry / self.dt - 1e-9) - self._steps, 0), n)
+                self._step(k)
+                self._trip()
+                self._step(n - k)
+            else:
+                self._step(n)
+        except SimulationError as exc:
+            self.fault = str(exc)
+        self._max_catch_up = max(self._max_catch_up, n)
+        return n
+
+    def synchronise(self) -> None:
+        """A counter sample arrives now: pull the drive-interval grid a fraction
+        ``sync_gain`` of the way toward putting this instant at ``sync_phase`` of an
+        interval (a phase-locked loop on the client's sampling; nothing with ``sync_phase``
+        None)."""
+        if self.sync_phase is None:
+            return
+        x = self.now / self.dt
+        error = x - math.floor(x) - self.sync_phase
+        error -= round(error)  # wrapped to [-1/2, 1/2] of an interval
+        self._t0 += self.sync_gain * error * self.dt
+
+    def _step(self, n: int) -> None:
+        if n > 0:
+            self.plant.step(self._u if self.enabled else self._zero, n * self.dt)
+            self._steps += n
+
+    def _live(self) -> bool:
+        return self.enabled or any(self._hr[a] for a in self._dac_addr)
+
+    def _trip(self) -> None:
+        for a in self._dac_addr:
+            self._hr[a] = 0
+        self._u[:] = 0.0
+        self._set_enable(False)
+        self.tripped = True
+        self._trips += 1
+
+    def _set_enable(self, flag: bool) -> None:
+        self.enabled = flag
+        self.plant.enable(flag)
+
+    # ------------------------------------------------------------------ process image
+    def input_registers(self) -> dict[int, int]:
+        """Counters and tachos now: {address: register value}."""
+        r = self.plant.read()
+        words: dict[int, int] = {}
+        for k, a in enumerate(AXES):
+            ax = self.map.axes[a]
+            words[ax.encoder], words[ax.encoder + 1] = counter_to_words(
+                int(r.encoder_counts[k]), self._order)
+            if ax.tacho is not None:
+                words[ax.tacho] = volts_to_word(float(r.tacho_volts[k]), self._fs_tacho)
+        return words
+
+    def discrete_inputs(self) -> dict[int, bool]:
+        """Switches, drive ready and the watchdog trip now: {address: state}."""
+        r = self.plant.read()
+        fault = self.plant.drives.fault
+        bits: dict[int, bool] = {}
+        for k, a in enumerate(AXES):
+            ax = self.map.axes[a]
+            bits[ax.limit_min], bits[ax.limit_max] = bool(r.limit_min[k]), bool(r.limit_max[k])
+            if ax.home is not None:
+                bits[ax.home] = bool(r.home[k])
+            if ax.drive_ready is not None:
+                bits[ax.drive_ready] = not fault[k]
+        if self.map.module.watchdog_tripped is not None:
+            bits[self.map.module.watchdog_tripped] = self.tripped
+        return bits
+
+    def holding_registers(self) -> dict[int, int]:
+        """DAC references and the watchdog register: {address: register value}."""
+        return dict(self._hr)
+
+    def coils(self) -> dict[int, bool]:
+        """The enable coil: {address: state}."""
+        return {self.map.module.enable: self.enabled}
+
+    def write_holding(self, address: int, word: int) -> int:
+        """Write one holding register (a DAC reference or the watchdog); returns the value
+        the register holds afterwards (a DAC write is dropped while a trip is latched)."""
+        if address == self.map.module.watchdog:
+            if word != self._hr[address]:
+                self._last_feed = self.now
+            self._hr[address] = word
+        elif address in self._hr:
+            k = self._dac_addr.index(address)
+            self._hr[address] = 0 if self.tripped else word
+            self._u[k] = word_to_volts(self._hr[address], self._fs_dac)
+        return self._hr.get(address, 0)
+
+    def write_coil(self, address: int, flag: bool) -> bool:
+        """Write the enable coil; False if refused (enable while a trip is latched).
+        Writing 0 acknowledges a trip."""
+        if address != self.map.module.enable:
+            return True
+        if flag and self.tripped:
+            return False
+        if not flag:
+            self.tripped = False
+        self._set_enable(bool(flag))
+        return True
+
+    def stats(self) -> HilStats:
+        """What the module did so far."""
+        return HilStats(self._requests, self._steps, self._max_catch_up, self._trips,
+                        self._steps * self.dt, self.now, self.fault)
+
+    # ------------------------------------------------------------------ pymodbus glue
+    def sim_device(self) -> SimDevice:
+        """A pymodbus device whose four tables are this module's image (bit addressing)."""
+        ir, hr, di, co = self.map.signals()
+
+        def block(entries: list[tuple[str, int, int]], bits: bool) -> list[SimData]:
+            lo = min(a for _, a, _ in entries)
+            hi = max(a + w for _, a, w in entries)
+            kind = DataType.BITS if bits else DataType.REGISTERS
+            return [SimData(lo, count=hi - lo, values=False if bits else 0, datatype=kind)]
+
+        return SimDevice(self.map.module.device_id,
+                         simdata=(block(co, True), block(di, True), block(hr, False),
+                                  block(ir, False)),
+                         action=self._action)
+
+    async def _action(self, function_code: int, start: int, address: int, _count: int,
+                      registers: list[int], values: list[int] | list[bool] | None
+                      ) -> ExcCodes | None:
+        """pymodbus hook before every access: catch up, then apply a write or refresh the
+        registers a read returns from the image (``registers`` is the table's block from
+        ``start``; bit tables pack 16 bits per entry, bit 0 first)."""
+        self._requests += 1
+        if function_code == 4:
+            self.synchronise()
+        self.advance()
+        if self.fault is not None:
+            return ExcCodes.DEVICE_FAILURE
+        if values is not None:
+            if function_code in _READ_BITS:
+                for i, flag in enumerate(values):
+                    if not self.write_coil(address + i, bool(flag)):
+                        return ExcCodes.DEVICE_FAILURE
+            else:
+                for i, word in enumerate(values):
+                    values[i] = self.write_holding(address + i, int(word))
+            return None
+        if function_code in _READ_BITS:
+            for a, flag in getattr(self, _READ_BITS[function_code])().items():
+                i, bit = a // 16 - start, 1 << (a % 16)
+                registers[i] = registers[i] | bit if flag else registers[i] & ~bit
+        else:
+            for a, word in getattr(self, _READ_WORDS[function_code])().items():
+                registers[a - start] = word
+        return None
+
+
+async def _serve(module: HilModule, host: str, port: int,
+                 on_ready: Callable[[str, int], None] | None) -> None:
+    server = ModbusTcpServer(module.sim_device(), address=(host, port))
+    await server.serve_forever(background=True)
+    bound = server.transport.sockets[0].getsockname()  # type: ignore[union-attr]
+    stop = asyncio.Event()
+    loop = asyncio.get_running_loop()
+    for sig in (signal.SIGINT, signal.SIGTERM):
+        loop.add_signal_handler(sig, stop.set)
+    gc.collect()
+    gc.freeze()  # the start-up objects never need scanning again: shorter GC pauses
+    module.start()
+    if on_ready is not None:
+        on_ready(bound[0], bound[1])
+    try:
+        while not stop.is_set():
+            module.advance()
+            await asyncio.sleep(module.dt)
+    finally:
+        await server.shutdown()
+
+
+def hil_plant(cfg: MachineConfig, *, start: np.ndarray | None = None,
+              noise: bool = False) -> Plant:
+    """A plant ready to serve: warmed up (the drive kernels are compiled by a first step,
+    which must not happen on the clock) and reset to ``start`` (m; default: the home
+    keyframe). ``ValueError`` if ``start`` is outside the travel."""
+    plant = Plant.from_machine(cfg, noise=noise)
+    plant.enable(False)
+    plant.step(np.zeros(2), plant.drive_dt)
+    plant.reset(positions=start)
+    return plant
+
+
+def serve_hil(plant: Plant, register_map: RegisterMap, *, host: str = "127.0.0.1",
+              port: int = 5020, watchdog: float = 0.1, sync_phase: float | None = 0.25,
+              on_ready: Callable[[str, int], None] | None = None) -> HilStats:
+    """Serve ``plant`` as a Modbus/TCP I/O module until SIGINT or SIGTERM.
+
+    Parameters
+    ----------
+    plant : Plant
+        The twin at its start state, warmed up (``hil_plant``).
+    register_map : RegisterMap
+    host : str
+        Interface to bind (only this machine by default).
+    port : int
+        TCP port; 0 picks a free one (``on_ready`` gets it).
+    watchdog : float
+        Watchdog timeout (s).
+    sync_phase : float or None
+        Where in a drive interval the client's counter reads are steered (fraction of an
+        interval; see ``HilModule``); None: a free-running grid.
+    on_ready : callable(host, port), optional
+        Called once the server listens.
+
+    Returns
+    -------
+    HilStats
+    """
+    module = HilModule(plant, register_map, watchdog=watchdog, sync_phase=sync_phase)
+    asyncio.run(_serve(module, host, port, on_ready))
+    return module.stats()

@@ -1,0 +1,274 @@
+"""``ModbusDriver``: a two-axis I/O module over Modbus/TCP behind the ``MachineIO`` port.
+
+A PC-based retrofit reads encoder counters, tacho voltages and switches and writes analog
+speed references through an I/O module; this driver talks to such a module (or to the twin
+standing in for one, ``twin hil-server``) with the pymodbus client. Which signal lives where
+is the register map (``twin.hardware.register_map``).
+
+One tick is as few requests as the map allows — with the default map three:
+
+* ``read``: one ``read_input_registers`` (counters + tachos), one ``read_discrete_inputs``
+  (switches, drive ready, watchdog trip);
+* ``write``: one ``write_registers`` per contiguous run of holding registers (DACs + the
+  watchdog life counter, incremented every tick), and the enable coil only when it changes
+  (cleared before the references when disabling, set after them when enabling).
+
+Failures are ``DriverError`` naming the request and what was wrong: no answer within
+``timeout``, the connection lost (after ``reconnects`` attempts to re-establish it), a
+Modbus exception response, or a garbled, short or mismatched answer. After a failure the
+driver refuses further I/O; ``close`` still tries to leave the module safe (references zero,
+drives disabled). Opening the driver puts the module in that safe state as well, which also
+acknowledges a latched watchdog trip.
+
+Typical use::
+
+    drv = ModbusDriver("127.0.0.1", 5020, timeout=0.02)
+    inputs = drv.read()
+    drv.write(Outputs(dac_volts=np.array([0.5, 0.0]), enable=True))
+    drv.close()
+"""
+
+from __future__ import annotations
+
+import contextlib
+import logging
+import math
+import time
+from collections.abc import Callable, Iterator
+from typing import Any
+
+import numpy as np
+from pymodbus.client import ModbusTcpClient
+from pymodbus.constants import ExcCodes
+from pymodbus.exceptions import ConnectionException, ModbusException, ModbusIOException
+
+from twin.config import AXES
+from twin.controller.io import Inputs, Outputs
+from twin.errors import DriverError
+from twin.hardware.register_map import (
+    RegisterMap,
+    load_register_map,
+    volts_to_word,
+    word_to_volts,
+    words_to_counter,
+)
+
+__all__ = ["ModbusDriver"]
+
+_FC_READ_DISCRETE, _FC_READ_INPUT, _FC_WRITE_COIL, _FC_WRITE_REGISTERS = 2, 4, 5, 16
+
+
+@contextlib.contextmanager
+def _quiet_pymodbus() -> Iterator[None]:
+    """Hold pymodbus's own error log while the driver retries (it reports failures itself
+    as ``DriverError``)."""
+    log = logging.getLogger("pymodbus.logging")
+    level = log.level
+    log.setLevel(logging.CRITICAL + 1)
+    try:
+        yield
+    finally:
+        log.setLevel(level)
+
+
+class ModbusDriver:
+    """``MachineIO`` over Modbus/TCP (see the module docstring).
+
+    Parameters
+    ----------
+    host : str
+        Module address (``127.0.0.1`` for the twin on this machine).
+    port : int
+        TCP port (502 on a real module; 5020 for ``twin hil-server`` by default).
+    register_map : RegisterMap, optional
+        Default: the documented default map.
+    timeout : float
+        Time to wait for each answer (s). The loop cannot use an answer later than about a
+        period, and a silent module must be noticed quickly.
+    retries : int
+        Re-sends of a request after a timeout within the same tick.
+    reconnects : int
+        Attempts to re-establish a lost connection before the request fails (0: fail at
+        once; a position loop that lost its module should stop, not wait).
+    connect_timeout : float
+        How long opening keeps trying to connect (s): the module may still be starting.
+
+    Attributes
+    ----------
+    requests : int
+        Modbus requests sent so far (a tick of the default map costs three).
+    url : str
+        ``modbus://host:port``, for messages.
+    """
+
+    def __init__(self, host: str, port: int = 502, *, register_map: RegisterMap | None = None,
+                 timeout: float = 0.02, retries: int = 0, reconnects: int = 0,
+                 connect_timeout: float = 2.0):
+        for name, value in (("timeout", timeout), ("connect_timeout", connect_timeout)):
+            if not (math.isfinite(value) and value > 0):
+                raise ValueError(f"{name} must be > 0 s, got {value}")
+        for name, count in (("retries", retries), ("reconnects", reconnects)):
+            if count < 0:
+                raise ValueError(f"{name} must be >= 0, got {count}")
+        self.url = f"modbus://{host}:{port}"
+        self.map = register_map or load_register_map()
+        self.timeout = timeout
+        self.reconnects = reconnects
+        self.requests = 0
+        self._unit = self.map.module.device_id
+        self._client = ModbusTcpClient(host, port=port, timeout=timeout, retries=retries,
+                                       reconnect_delay=0.0)
+        self._failed: str | None = None
+        self._closed = False
+        self._enable: bool | None = None
+        self._life = 0
+        self._plan()
+        self._connect(connect_timeout)
+        self._t0 = time.perf_counter()
+        try:
+            self._write(np.zeros(2), False)  # a known, safe state (acknowledges a trip)
+        except DriverError:
+            self._client.close()
+            raise
+
+    # ------------------------------------------------------------------ MachineIO
+    def read(self) -> Inputs:
+        """Sample counters, tachos, switches and drive status in one pass of requests."""
+        self._check_usable()
+        ir: dict[int, int] = {}
+        for start, count in self._ir_spans:
+            resp = self._request(f"read_input_registers({start}, count={count})",
+                                 _FC_READ_INPUT, self._client.read_input_registers, start,
+                                 count=count)
+            words = resp.registers
+            if len(words) != count:
+                self._fail(f"short response to read_input_registers({start}, count={count}):"
+                           f" {len(words)} registers")
+            ir.update(zip(range(start, start + count), words, strict=True))
+        di: dict[int, bool] = {}
+        for start, count in self._di_spans:
+            resp = self._request(f"read_discrete_inputs({start}, count={count})",
+                                 _FC_READ_DISCRETE, self._client.read_discrete_inputs,
+                                 start, count=count)
+            bits = resp.bits
+            if len(bits) < count:
+                self._fail(f"short response to read_discrete_inputs({start}, count={count}):"
+                           f" {len(bits)} bits")
+            di.update(zip(range(start, start + count), bits[:count], strict=True))
+        m, order = self.map.module, self.map.module.word_order
+        counts = np.empty(2, dtype=np.int64)
+        tacho = np.zeros(2)
+        flags = np.zeros((3, 2), dtype=bool)
+        ready = m.watchdog_tripped is None or not di[m.watchdog_tripped]
+        for k, a in enumerate(AXES):
+            ax = self.map.axes[a]
+            counts[k] = words_to_counter(ir[ax.encoder], ir[ax.encoder + 1], order)
+            if ax.tacho is not None:
+                tacho[k] = word_to_volts(ir[ax.tacho], m.tacho_full_scale)
+            flags[0, k], flags[1, k] = di[ax.limit_min], di[ax.limit_max]
+            flags[2, k] = ax.home is not None and di[ax.home]
+            ready = ready and (ax.drive_ready is None or di[ax.drive_ready])
+        return Inputs(encoder_counts=counts, tacho_volts=tacho, limit_min=flags[0],
+                      limit_max=flags[1], home=flags[2], drive_ready=bool(ready),
+                      time=time.perf_counter() - self._t0)
+
+    def write(self, outputs: Outputs) -> None:
+        """Write the references and the watchdog life counter; the enable coil on change."""
+        self._check_usable()
+        self._write(outputs.dac_volts, bool(outputs.enable))
+
+    def close(self) -> None:
+        """Leave the module safe (references zero, drives disabled; best effort, also after
+        a failure) and release the connection. Idempotent."""
+        if self._closed:
+            return
+        self._closed = True
+        with _quiet_pymodbus(), contextlib.suppress(DriverError, ModbusException, OSError):
+            self._failed = None
+            self._enable = None
+            self._write(np.zeros(2), False)
+        self._client.close()
+
+    # ------------------------------------------------------------------ internals
+    def _plan(self) -> None:
+        """Requests of one tick, from the map (computed once)."""
+        rmap = self.map
+        self._ir_spans = rmap.input_spans()
+        self._di_spans = rmap.discrete_spans()
+        slots = {f"axes.{a}.dac": k for k, a in enumerate(AXES)}
+        slots["module.watchdog"] = 2
+        self._hr_runs = [(start, [slots[n] for n in names])
+                         for start, names in rmap.holding_runs()]
+
+    def _connect(self, patience: float) -> None:
+        deadline = time.monotonic() + patience
+        with _quiet_pymodbus():
+            while not self._client.connect():
+                if time.monotonic() >= deadline:
+                    raise DriverError(f"cannot connect to {self.url} within {patience:g} s")
+                time.sleep(0.05)
+
+    def _write(self, dac_volts: Any, enable: bool) -> None:
+        fs = self.map.module.dac_full_scale
+        self._life = (self._life + 1) & 0xFFFF
+        values = (volts_to_word(float(dac_volts[0]), fs),
+                  volts_to_word(float(dac_volts[1]), fs), self._life)
+        change = enable != self._enable
+        if change and not enable:
+            self._write_enable(False)
+        for start, slots in self._hr_runs:
+            words = [values[s] for s in slots]
+            what = f"write_registers({start}, {len(words)} values)"
+            resp = self._request(what, _FC_WRITE_REGISTERS, self._client.write_registers,
+                                 start, words)
+            if resp.address != start or resp.count != len(words):
+                self._fail(f"garbled response to {what}: echoed address {resp.address}, "
+                           f"count {resp.count}")
+        if change and enable:
+            self._write_enable(True)
+
+    def _write_enable(self, flag: bool) -> None:
+        coil = self.map.module.enable
+        what = f"write_coil({coil}, {flag})"
+        resp = self._request(what, _FC_WRITE_COIL, self._client.write_coil, coil, flag)
+        if resp.address != coil or bool(resp.bits and resp.bits[0]) != flag:
+            self._fail(f"garbled response to {what}: echoed address {resp.address}, "
+                       f"value {resp.bits[:1]}")
+        self._enable = flag
+
+    def _request(self, what: str, function_code: int, call: Callable[..., Any], *args: Any,
+                 **kwargs: Any) -> Any:
+        """One request with the timeout and reconnect policy; every failure → DriverError."""
+        for attempt in range(self.reconnects + 1):
+            self.requests += 1
+            try:
+                resp = call(*args, device_id=self._unit, **kwargs)
+            except ConnectionException as exc:
+                self._client.close()
+                if attempt < self.reconnects:
+                    continue
+                self._fail(f"connection lost during {what}: {exc}")
+            except ModbusIOException as exc:
+                self._fail(f"no valid response to {what} within {self.timeout * 1e3:g} ms "
+                           f"({exc})")
+            except (ModbusException, ValueError, TypeError, IndexError, KeyError) as exc:
+                self._fail(f"garbled response to {what}: {type(exc).__name__}: {exc}")
+            break
+        if resp.isError():
+            code = getattr(resp, "exception_code", 0)
+            name = ExcCodes(code).name if code in ExcCodes._value2member_map_ else "?"
+            self._fail(f"the module refused {what}: Modbus exception {code} ({name})")
+        if resp.function_code != function_code:
+            self._fail(f"garbled response to {what}: function code {resp.function_code}, "
+                       f"expected {function_code}")
+        return resp
+
+    def _fail(self, message: str) -> None:
+        self._failed = message
+        raise DriverError(f"{self.url}: {message}")
+
+    def _check_usable(self) -> None:
+        if self._closed:
+            raise DriverError(f"{self.url}: the driver is closed")
+        if self._failed is not None:
+            raise DriverError(f"{self.url}: the driver failed earlier: {self._failed}")

@@ -1,0 +1,317 @@
+"""The Modbus register map of a two-axis I/O module: which signal lives at which address,
+how values are scaled, and how one tick's I/O packs into the fewest requests.
+
+The map is a TOML file validated on load (every error a ``ConfigError`` naming the dotted
+field); the default, ``register_map.toml`` beside this module, documents the layout as a
+table. Both ends use this module: the driver (``twin.hardware.modbus``) and the twin standing
+in for the module (``twin.hardware.hil``), so they cannot disagree on a scale or word order.
+
+Encodings (the conversions to and from SI happen here, once):
+
+* encoder counters: unsigned 32-bit in two consecutive input registers, high word first
+  (``word_order = "high_first"``, "ABCD") or low word first;
+* DAC outputs and tacho inputs: int16 two's complement, ``±32767`` = ``±full_scale`` volts,
+  rounded to the nearest code and clipped to ``±32767``;
+* switches, drive ready and the watchdog trip: discrete inputs, 1 = actuated / true;
+  the drive enable: a coil.
+
+Typical use::
+
+    rmap = load_register_map()                      # the documented default
+    rmap = load_register_map("my_module.toml")
+    for start, count in rmap.input_spans():         # one read_input_registers each
+        ...
+"""
+
+from __future__ import annotations
+
+import math
+import tomllib
+from dataclasses import dataclass, field, fields
+from pathlib import Path
+from typing import Any
+
+from twin.config import AXES, from_dict
+from twin.errors import ConfigError
+
+__all__ = [
+    "DEFAULT_MAP",
+    "INT16_FULL",
+    "MAX_READ_BITS",
+    "MAX_READ_REGISTERS",
+    "MAX_WRITE_REGISTERS",
+    "WORD_ORDERS",
+    "AxisRegisters",
+    "ModuleSettings",
+    "RegisterMap",
+    "counter_to_words",
+    "load_register_map",
+    "register_map_from_dict",
+    "volts_to_word",
+    "word_to_volts",
+    "words_to_counter",
+]
+
+DEFAULT_MAP = Path(__file__).resolve().with_name("register_map.toml")
+"""The documented default map."""
+
+INT16_FULL = 32767
+"""Register value of +full scale (int16 codes; −32767 is −full scale)."""
+
+MAX_READ_REGISTERS = 125
+"""Modbus limit of one read of input or holding registers (function codes 3, 4)."""
+MAX_READ_BITS = 2000
+"""Modbus limit of one read of discrete inputs or coils (function codes 1, 2)."""
+MAX_WRITE_REGISTERS = 123
+"""Modbus limit of one write of multiple registers (function code 16)."""
+
+WORD_ORDERS = ("high_first", "low_first")
+"""Word orders of a 32-bit counter in two registers (each register is big-endian)."""
+
+_ADDRESS_MAX = 65535
+
+
+def _check_address(value: int | None, name: str, *, width: int = 1) -> None:
+    if value is not None and not 0 <= value <= _ADDRESS_MAX - (width - 1):
+        raise ConfigError(name, f"must be an address in 0 … {_ADDRESS_MAX - (width - 1)}, "
+                          f"got {value}")
+
+
+@dataclass(frozen=True)
+class AxisRegisters:
+    """Addresses of one axis's signals (0-based protocol addresses).
+
+    Attributes
+    ----------
+    encoder : int
+        Input registers ``encoder`` and ``encoder + 1``: the 32-bit counter (counts).
+    dac : int
+        Holding register: the analog speed reference (int16 code of volts).
+    limit_min, limit_max : int
+        Discrete inputs: end limit switches (1 = actuated).
+    tacho : int or None
+        Input register: tacho voltage (int16 code of volts); None: not wired (reads 0 V).
+    home : int or None
+        Discrete input: home switch; None: not wired (reads open).
+    drive_ready : int or None
+        Discrete input: the drive reports no fault; None: not wired (always ready).
+    """
+
+    encoder: int
+    dac: int
+    limit_min: int
+    limit_max: int
+    tacho: int | None = None
+    home: int | None = None
+    drive_ready: int | None = None
+
+    def __post_init__(self) -> None:
+        _check_address(self.encoder, "encoder", width=2)
+        for name in ("dac", "limit_min", "limit_max", "tacho", "home", "drive_ready"):
+            _check_address(getattr(self, name), name)
+
+
+@dataclass(frozen=True)
+class ModuleSettings:
+    """Module-wide signals and encodings.
+
+    Attributes
+    ----------
+    enable : int
+        Coil: drive enable of both drives.
+    watchdog : int
+        Holding register the driver writes with a new value every tick (a life counter).
+    device_id : int
+        Modbus unit identifier, 0 … 247.
+    word_order : {"high_first", "low_first"}
+        Order of the two 16-bit words of a 32-bit counter.
+    dac_full_scale, tacho_full_scale : float
+        Volts at register value +32767 of the DAC outputs and of the tacho inputs (V).
+    watchdog_tripped : int or None
+        Discrete input: the module's watchdog zeroed the outputs (latched); None: not
+        reported.
+    """
+
+    enable: int
+    watchdog: int
+    device_id: int = 1
+    word_order: str = "high_first"
+    dac_full_scale: float = 10.0
+    tacho_full_scale: float = 10.24
+    watchdog_tripped: int | None = None
+
+    def __post_init__(self) -> None:
+        for name in ("enable", "watchdog", "watchdog_tripped"):
+            _check_address(getattr(self, name), name)
+        if not 0 <= self.device_id <= 247:
+            raise ConfigError("device_id", f"must be 0 … 247, got {self.device_id}")
+        if self.word_order not in WORD_ORDERS:
+            raise ConfigError("word_order", f"must be one of {', '.join(WORD_ORDERS)}, got "
+                              f"{self.word_order!r}")
+        for name in ("dac_full_scale", "tacho_full_scale"):
+            value = getattr(self, name)
+            if not (math.isfinite(value) and value > 0):
+                raise ConfigError(name, f"must be > 0 V, got {value}")
+
+
+_TABLES = ("input registers", "holding registers", "discrete inputs", "coils")
+"""The four Modbus tables, in the order of ``RegisterMap.signals``."""
+
+
+@dataclass(frozen=True)
+class RegisterMap:
+    """A validated register map (see the module docstring and ``register_map.toml``).
+
+    Attributes
+    ----------
+    module : ModuleSettings
+    axes : dict of str to AxisRegisters
+        Exactly the axes ``x`` and ``y``.
+    source : str
+        Where the map came from (a path, or ``<dict>``).
+    """
+
+    module: ModuleSettings
+    axes: dict[str, AxisRegisters]
+    source: str = field(default="<dict>", compare=False)
+
+    def __post_init__(self) -> None:
+        if sorted(self.axes) != sorted(AXES):
+            raise ConfigError("axes", f"must have exactly the axes {', '.join(AXES)}, got "
+                              f"{', '.join(sorted(self.axes)) or 'none'}")
+        for table, entries in zip(_TABLES, self.signals(), strict=True):
+            owner: dict[int, str] = {}
+            for name, address, width in entries:
+                for a in range(address, address + width):
+                    if a in owner:
+                        raise ConfigError(name, f"{table[:-1]} {a} is already used by "
+                                          f"{owner[a]}")
+                    owner[a] = name
+
+    def signals(self) -> tuple[list[tuple[str, int, int]], ...]:
+        """Mapped signals per table (input registers, holding registers, discrete inputs,
+        coils): lists of (dotted field name, first address, number of addresses)."""
+        ir: list[tuple[str, int, int]] = []
+        hr: list[tuple[str, int, int]] = []
+        di: list[tuple[str, int, int]] = []
+        for a in AXES:
+            ax, p = self.axes[a], f"axes.{a}."
+            ir.append((p + "encoder", ax.encoder, 2))
+            if ax.tacho is not None:
+                ir.append((p + "tacho", ax.tacho, 1))
+            hr.append((p + "dac", ax.dac, 1))
+            di += [(p + n, getattr(ax, n), 1) for n in ("limit_min", "limit_max", "home",
+                                                        "drive_ready")
+                   if getattr(ax, n) is not None]
+        m = self.module
+        hr.append(("module.watchdog", m.watchdog, 1))
+        if m.watchdog_tripped is not None:
+            di.append(("module.watchdog_tripped", m.watchdog_tripped, 1))
+        return ir, hr, di, [("module.enable", m.enable, 1)]
+
+    def input_spans(self) -> list[tuple[int, int]]:
+        """(start, count) of the fewest input-register reads covering every mapped input
+        register (a read spans the gaps between them)."""
+        return _spans(self.signals()[0], MAX_READ_REGISTERS)
+
+    def discrete_spans(self) -> list[tuple[int, int]]:
+        """(start, count) of the fewest discrete-input reads covering the mapped inputs."""
+        return _spans(self.signals()[2], MAX_READ_BITS)
+
+    def holding_runs(self) -> list[tuple[int, tuple[str, ...]]]:
+        """Contiguous runs of mapped holding registers, each one write_registers request:
+        (start address, dotted names in address order). Gaps are never written."""
+        runs: list[tuple[int, list[str]]] = []
+        for name, address, _ in sorted(self.signals()[1], key=lambda s: s[1]):
+            if runs and address == runs[-1][0] + len(runs[-1][1]) \
+                    and len(runs[-1][1]) < MAX_WRITE_REGISTERS:
+                runs[-1][1].append(name)
+            else:
+                runs.append((address, [name]))
+        return [(start, tuple(names)) for start, names in runs]
+
+    def describe(self) -> list[tuple[str, str, str, str]]:
+        """The map as a table: (Modbus table, address(es), signal, encoding) rows."""
+        m = self.module
+        enc = {"encoder": f"uint32 counts, {m.word_order.replace('_', ' ')}",
+               "tacho": f"int16, ±{INT16_FULL} = ±{m.tacho_full_scale:g} V",
+               "dac": f"int16, ±{INT16_FULL} = ±{m.dac_full_scale:g} V",
+               "watchdog": "uint16, a new value every tick",
+               "enable": "1 = drives enabled", "watchdog_tripped": "1 = outputs zeroed"}
+        rows = []
+        for table, entries in zip(_TABLES, self.signals(), strict=True):
+            for name, address, width in sorted(entries, key=lambda s: s[1]):
+                where = str(address) if width == 1 else f"{address}-{address + width - 1}"
+                rows.append((table, where, name, enc.get(name.rsplit(".", 1)[1],
+                                                         "1 = actuated")))
+        return rows
+
+
+def _spans(entries: list[tuple[str, int, int]], limit: int) -> list[tuple[int, int]]:
+    """Greedy cover of the occupied addresses by reads of at most ``limit`` addresses (a
+    signal is never split between two reads)."""
+    spans: list[list[int]] = []
+    for _, address, width in sorted(entries, key=lambda s: s[1]):
+        if spans and address + width - spans[-1][0] <= limit:
+            spans[-1][1] = max(spans[-1][1], address + width - spans[-1][0])
+        else:
+            spans.append([address, width])
+    return [(s, c) for s, c in spans]
+
+
+def register_map_from_dict(doc: dict[str, Any], *, source: str = "<dict>") -> RegisterMap:
+    """Validate a parsed map document (``[module]``, ``[axes.x]``, ``[axes.y]``)."""
+    names = {f.name for f in fields(RegisterMap) if f.name != "source"}
+    for key in doc:
+        if key not in names:
+            raise ConfigError(key, f"unknown key; valid: {', '.join(sorted(names))}")
+    rmap = from_dict(RegisterMap, doc)
+    return RegisterMap(rmap.module, rmap.axes, source)
+
+
+def load_register_map(path: str | Path | None = None) -> RegisterMap:
+    """Load and validate a register map TOML file (default: the documented default map).
+
+    Raises
+    ------
+    ConfigError
+        If the file is missing or not TOML (field ``register_map``), or a field is missing,
+        of the wrong type, out of range or overlapping another signal (its dotted name).
+    """
+    p = DEFAULT_MAP if path is None else Path(path)
+    if not p.is_file():
+        raise ConfigError("register_map", f"no such file: {str(p)!r}")
+    try:
+        doc = tomllib.loads(p.read_text(encoding="utf-8"))
+    except tomllib.TOMLDecodeError as exc:
+        raise ConfigError("register_map", f"{p}: invalid TOML: {exc}") from None
+    return register_map_from_dict(doc, source=str(p))
+
+
+# ---------------------------------------------------------------------------- encodings
+def volts_to_word(volts: float, full_scale: float) -> int:
+    """Register value (0 … 65535, int16 two's complement) of ``volts`` (V): the nearest
+    code, clipped to ±32767; NaN gives 0."""
+    if not math.isfinite(volts):
+        return 0 if math.isnan(volts) else (INT16_FULL if volts > 0 else -INT16_FULL) & 0xFFFF
+    code = math.floor(volts * (INT16_FULL / full_scale) + 0.5)
+    return max(-INT16_FULL, min(INT16_FULL, code)) & 0xFFFF
+
+
+def word_to_volts(word: int, full_scale: float) -> float:
+    """Volts (V) of an int16 register value (0 … 65535)."""
+    code = word - 0x10000 if word & 0x8000 else word
+    return code * (full_scale / INT16_FULL)
+
+
+def counter_to_words(count: int, word_order: str = "high_first") -> tuple[int, int]:
+    """The two registers of a 32-bit counter value (taken modulo 2³²), in address order."""
+    c = int(count) & 0xFFFFFFFF
+    high, low = c >> 16, c & 0xFFFF
+    return (high, low) if word_order == "high_first" else (low, high)
+
+
+def words_to_counter(first: int, second: int, word_order: str = "high_first") -> int:
+    """The unsigned 32-bit counter value (counts) of two registers in address order."""
+    high, low = (first, second) if word_order == "high_first" else (second, first)
+    return (high << 16) | low
