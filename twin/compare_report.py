@@ -3,8 +3,9 @@ that overlays the laws.
 
 Report panels, one colour per law (``twin.compare.LAW_COLOURS``), against time: the contour
 speed (reference dashed, table solid), the reference's acceleration and jerk (magnitudes of
-the vectors), the contour error; and the programmed path with every law's table path. The
-sweep report plots one summary figure against the swept parameter, one line per law.
+the vectors; the jerk as the drive sees it, ``|Δa_ref|/T``), the contour error; and the
+programmed path with every law's table path, and the key figures side by side. The sweep
+report plots one summary figure against the swept parameter, one line per law.
 """
 
 from __future__ import annotations
@@ -48,7 +49,8 @@ def write_report(comparison: Comparison, path: str | Path, *, title: str = "") -
         speed.plot(t, np.hypot(*rec["ref_velocity"].T) * 1e3, "--", color=c, lw=0.8)
         speed.plot(t, np.hypot(*rec["table_velocity"].T) * 1e3, color=c, lw=1.0, label=law)
         acc.plot(t, np.hypot(*rec["ref_acceleration"].T), color=c, lw=1.0, label=law)
-        jerk.plot(t, np.hypot(*rec["ref_jerk"].T), color=c, lw=1.0, label=law)
+        jerk.plot(t[1:], np.hypot(*np.diff(rec["ref_acceleration"], axis=0).T)
+                  / r.summary["spec_period_s"], color=c, lw=1.0, label=law)
         hint = np.clip(rec["block"], 0, len(r.path) - 1)
         err.plot(t, contour_error(r.path, rec["position"], hint=hint) * 1e6, color=c, lw=1.0,
                  label=law)
@@ -58,7 +60,7 @@ def write_report(comparison: Comparison, path: str | Path, *, title: str = "") -
         paths.plot(*(programmed_polyline(first.path) * 1e3).T, color="0.6", lw=0.6, ls=":",
                    label="programmed")
     for a, ylabel in ((speed, "contour speed (mm/s)"), (acc, "|a_ref| (m/s²)"),
-                      (jerk, "|j_ref| (m/s³)"), (err, "contour error (µm)")):
+                      (jerk, "|Δa_ref|/T (m/s³)"), (err, "contour error (µm)")):
         a.set_xlabel("time (s)")
         a.set_ylabel(ylabel)
         a.grid(True, alpha=0.3)

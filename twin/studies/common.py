@@ -18,10 +18,10 @@ from typing import Any
 
 import numpy as np
 
+from twin.compare import DeflectionProbe
 from twin.config import MachineConfig
 from twin.controller.controller import Controller
 from twin.controller.library import program_path
-from twin.compare import DeflectionProbe
 from twin.run import RunResult, RunSpec, axis_models, prepare, run
 
 __all__ = ["ProgramBuilder", "fit_line", "percent", "run_items"]

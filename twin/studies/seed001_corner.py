@@ -40,7 +40,8 @@ from twin.controller.planner import MotionBlock
 from twin.run import RunSpec, axis_models, prepare
 from twin.studies.common import fit_line, run_items
 
-__all__ = ["SEED_MEAN_ERROR_PCT", "corner_point", "fit_seed_relation", "run_study"]
+__all__ = ["SEED_MEAN_ERROR_PCT", "calibrated_model", "corner_point", "fit_seed_relation",
+           "machine_corner_model", "run_study"]
 
 MACHINE = "laser_belt"
 SEED_MEAN_ERROR_PCT = 12.0
@@ -60,8 +61,8 @@ def _grid(quick: bool) -> dict[str, tuple[float, ...]]:
             "cross_sines": (0.3, 0.7)}
 
 
-def corner_point(speed: float, sine: float, damping: float, *, friction: bool = True
-                 ) -> dict[str, float]:
+def corner_point(speed: float, sine: float, damping: float, *, friction: bool = True,
+                 machine: str = MACHINE) -> dict[str, float]:
     """One corner on the twin.
 
     Parameters
@@ -75,6 +76,8 @@ def corner_point(speed: float, sine: float, damping: float, *, friction: bool = 
     friction : bool
         False: no Coulomb friction on the slides and rotors (seed 001's reduced model has
         none).
+    machine : str
+        Machine preset (default laser_belt).
 
     Returns
     -------
@@ -85,7 +88,7 @@ def corner_point(speed: float, sine: float, damping: float, *, friction: bool = 
     angle = math.asin(sine)
     accel = 0.8
     length = speed * speed / accel + 0.4 * speed + 0.005
-    spec = RunSpec(machine=MACHINE, profile="trapezoid", planner="lookahead", overrides={
+    spec = RunSpec(machine=machine, profile="trapezoid", planner="lookahead", overrides={
         "controller.contour_tolerance": 1.0,
         "controller.limits.max_velocity": max(speed, 0.05),
         "controller.limits.max_acceleration": accel,
@@ -135,6 +138,30 @@ def fit_seed_relation(points: Iterable[dict[str, float]]) -> dict[str, Any]:
             "points": len(pts)}
 
 
+def machine_corner_model(machine: str = MACHINE) -> SeedCornerModel:
+    """The corner model the controller builds for ``machine`` (servo lag from its gains)."""
+    p = prepare(RunSpec(machine=machine, builtin="none"))
+    lag = servo_lag(p.controller.gains, axis_models(p.cfg), p.cfg.controller.period)
+    return SeedCornerModel.from_axes(p.cfg.axes, servo_time_constant=lag)
+
+
+def calibrated_model(machine: str, speed: float) -> tuple[SeedCornerModel, float]:
+    """``machine``'s corner model with c making it exact for a simulated 90° corner at
+    ``speed`` (m/s) and the machine's own damping ratio.
+
+    Returns
+    -------
+    (SeedCornerModel, float)
+        The calibrated model and the measured δ* of that corner (s).
+    """
+    base = machine_corner_model(machine)
+    measured = corner_point(speed, 1.0, base.damping_ratio,
+                            machine=machine)["relative_error_ms"] * 1e-3
+    c = measured / (damping_factor(base.damping_ratio)
+                    * (base.servo_time_constant + 1.0 / base.natural_frequency))
+    return dataclasses.replace(base, calibration=c), measured
+
+
 def _model_errors(points: list[dict[str, float]], model_for) -> dict[str, float]:
     errs = []
     for p in points:
@@ -182,9 +209,8 @@ def run_study(*, quick: bool = False) -> dict[str, Any]:
     twin = _sweeps(grid, friction=True)
     frictionless = _sweeps(grid, friction=False)
 
-    p = prepare(RunSpec(machine=MACHINE, builtin="none"))
-    lag = servo_lag(p.controller.gains, axis_models(p.cfg), p.cfg.controller.period)
-    base = SeedCornerModel.from_axes(p.cfg.axes, servo_time_constant=lag)
+    base = machine_corner_model()
+    tomsk, _ = calibrated_model("tomsk_xy", 0.01)
 
     def model_for(xi: float) -> SeedCornerModel:
         return dataclasses.replace(base, damping_ratio=xi)
@@ -206,7 +232,8 @@ def run_study(*, quick: bool = False) -> dict[str, Any]:
                          "fitted_calibration": twin["seed_relation_fit"]["f2_ms"] * 1e-3
                          / lag_sum,
                          "fitted_calibration_frictionless":
-                             frictionless["seed_relation_fit"]["f2_ms"] * 1e-3 / lag_sum},
+                             frictionless["seed_relation_fit"]["f2_ms"] * 1e-3 / lag_sum,
+                         "tomsk_xy_calibration_90deg": tomsk.calibration},
         "quick": quick,
         "wall_time_s": time.perf_counter() - t0,
     }

@@ -1,0 +1,156 @@
+"""``twin compare``: the figures that tell laws apart, against references, and the command as
+a user runs it (a subprocess: one JSON object, a PNG, one .rrd with one subtree per law)."""
+
+from __future__ import annotations
+
+import json
+import math
+import os
+import subprocess
+import sys
+
+import numpy as np
+import pytest
+import rerun.chunk as rc
+
+from twin.compare import elastic_oscillation, junction_speed_jump, junctions, mode_periods
+from twin.config import load_machine
+
+TWIN = [sys.executable, "-m", "twin.cli"]
+ENV = {**os.environ, "RERUN_ANALYTICS": "0", "MPLBACKEND": "Agg", "COLUMNS": "200"}
+PROGRAM = """G21 G90 G17 G94
+G1 X40 Y10 F600
+G1 X40 Y30
+G0 X10 Y10
+M30
+"""
+
+
+# ------------------------------------------------------------------ metrics, synthetic
+@pytest.mark.parametrize("freq, amp", [(93.0, 0.4e-6), (161.0, 1e-6), (15.9, 50e-6)])
+def test_elastic_oscillation_recovers_a_sine_on_a_quasi_static_ramp(freq, amp):
+    dt = 1e-4
+    t = np.arange(0.0, 1.0, dt)
+    slow = 2e-6 * t + 1e-6 * np.sin(2 * np.pi * 0.5 * t)      # m·a/k and friction: slow
+    d = np.column_stack([slow + amp * np.sin(2 * np.pi * freq * t), np.zeros_like(t)])
+    got = elastic_oscillation(t, d, (1.0 / freq, 1.0 / freq))
+    assert got == pytest.approx(amp, rel=0.03)
+
+
+def test_elastic_oscillation_of_a_quasi_static_signal_is_tiny():
+    t = np.arange(0.0, 1.0, 1e-3)
+    d = np.column_stack([3e-6 * t**2, 1e-6 * t])
+    assert elastic_oscillation(t, d, (0.0107, 0.0062)) < 1e-10
+
+
+def test_mode_periods_match_the_locked_rotor_modes_of_the_model_readme():
+    # twin/models/README.md: tomsk X 93.2 Hz, Y 161.4 Hz; laser_belt ω_L = 100 rad/s
+    px, py = mode_periods(load_machine("tomsk_xy"))
+    assert 1.0 / px == pytest.approx(93.2, rel=0.01)
+    assert 1.0 / py == pytest.approx(161.4, rel=0.01)
+    lx, ly = mode_periods(load_machine("laser_belt"))
+    assert lx == pytest.approx(2 * math.pi / 100.0, rel=1e-3)
+    assert ly == pytest.approx(2 * math.pi / 100.0, rel=1e-3)
+
+
+def _trapezoid_record(period=0.01, accel=1.0, v=0.5, cruise=0.5, lag=0.0):
+    """A 1-D trapezoid along x: accelerate, cruise, brake; the table at ``ref − lag·a``."""
+    t_acc = v / accel
+    t = np.arange(0.0, 2 * t_acc + cruise + 0.3, period)
+    a = np.where(t < t_acc, accel, np.where(t < t_acc + cruise, 0.0,
+                                            np.where(t < 2 * t_acc + cruise, -accel, 0.0)))
+    vel = np.concatenate([[0.0], np.cumsum(a[:-1]) * period])
+    z = np.zeros_like(t)
+    return {"t": t, "ref_velocity": np.column_stack([vel, z]),
+            "ref_acceleration": np.column_stack([a, z]),
+            "table_velocity": np.column_stack([vel - lag * a, z]),
+            "block": np.zeros(t.size, dtype=np.int64)}
+
+
+def test_junctions_are_the_four_ends_of_the_speed_changes():
+    rec = _trapezoid_record()
+    j = junctions(rec)
+    t_acc = 0.5
+    expected = [0.0, t_acc, t_acc + 0.5, 2 * t_acc + 0.5]
+    got = rec["t"][j]
+    assert len(got) == 3          # the start at t = 0 is no change of state (tick 0)
+    np.testing.assert_allclose(got, expected[1:], atol=0.011)
+
+
+def test_junction_speed_jump_is_the_speed_lag_a_over_kv():
+    # a table lagging the reference speed by a/K_v (K_v = 20 1/s) during each change
+    rec = _trapezoid_record(lag=1.0 / 20.0)
+    assert junction_speed_jump(rec, 0.01) == pytest.approx(1.0 / 20.0, rel=1e-9)
+    assert junction_speed_jump(_trapezoid_record(), 0.01) == 0.0
+
+
+# ------------------------------------------------------------------ the command
+def _twin(*args: str) -> subprocess.CompletedProcess:
+    return subprocess.run([*TWIN, *args], capture_output=True, text=True, env=ENV,
+                          timeout=300)
+
+
+@pytest.fixture(scope="module")
+def compared(tmp_path_factory):
+    tmp = tmp_path_factory.mktemp("compare")
+    prog = tmp / "two_lines.ngc"
+    prog.write_text(PROGRAM)
+    r = _twin("compare", str(prog), "--profiles", "trapezoid,parabolic", "--out",
+              str(tmp / "out"), "--json")
+    assert r.returncode == 0, r.stderr
+    lines = [ln for ln in r.stdout.splitlines() if ln.strip()]
+    assert len(lines) == 1, r.stdout
+    return json.loads(lines[0])
+
+
+def test_compare_json_has_one_summary_per_law_and_the_report(compared):
+    assert set(compared["profiles"]) == {"trapezoid", "parabolic"}
+    for s in compared["profiles"].values():
+        assert s["status"] == "FINISHED"
+        for key in ("cycle_time_s", "max_contour_error_um", "rms_contour_error_um",
+                    "max_coordinate_error_um", "max_velocity_error_um_s",
+                    "peak_reference_jerk_m_per_s3", "junction_speed_jump_mm_per_s",
+                    "elastic_oscillation_um", "residual_vibration_um"):
+            assert key in s, key
+    png = compared["report"]
+    with open(png, "rb") as f:
+        assert f.read(8) == b"\x89PNG\r\n\x1a\n"
+    # the trapezoid's acceleration steps: at the 90° node braking along x (−A) turns into
+    # accelerating along y (+A) from one tick to the next: |Δa|/T = √2·A/T, A = 0.2 m/s²
+    trap = compared["profiles"]["trapezoid"]["peak_reference_jerk_m_per_s3"]
+    para = compared["profiles"]["parabolic"]["peak_reference_jerk_m_per_s3"]
+    assert trap == pytest.approx(math.sqrt(2.0) * 0.2 / 0.005, rel=1e-6)
+    assert para <= 5.0 * 1.01                       # tomsk_xy's contour max_jerk
+
+
+def test_rrd_holds_one_subtree_per_law_with_every_tick(compared):
+    reader = rc.RrdReader(compared["recording"])
+    assert len(reader.recordings()) == 1
+    assert reader.blueprints(), "the overlay blueprint is in the file"
+    counts: dict[str, int] = {}
+    for chunk in reader.stream().to_chunks():
+        path = chunk.entity_path.lstrip("/")
+        if path.endswith("errors/contour_um") and not chunk.is_static:
+            counts[path] = counts.get(path, 0) + chunk.num_rows
+    for law, s in compared["profiles"].items():
+        assert counts[f"laws/{law}/errors/contour_um"] == s["ticks"]["due"]
+
+
+def test_sweep_plots_a_figure_against_the_parameter(tmp_path):
+    prog = tmp_path / "two_lines.ngc"
+    prog.write_text(PROGRAM)
+    r = _twin("compare", str(prog), "--profiles", "parabolic", "--sweep",
+              "max_jerk=1.0,5.0", "--figure", "peak_reference_jerk_m_per_s3", "--out",
+              str(tmp_path / "out"), "--json")
+    assert r.returncode == 0, r.stderr
+    d = json.loads(r.stdout)
+    assert d["sweep"]["key"] == "controller.limits.max_jerk"
+    low, high = d["sweep"]["table"]["parabolic"]
+    assert low <= 1.0 * 1.01 and 1.0 < high <= 5.0 * 1.01   # the law keeps its jerk limit
+    assert os.path.getsize(d["report"]) > 1000
+
+
+def test_unknown_law_exits_2_naming_it(tmp_path):
+    r = _twin("compare", "--profiles", "trapezoid,sinusoid", "--out", str(tmp_path))
+    assert r.returncode == 2
+    assert "sinusoid" in r.stderr
