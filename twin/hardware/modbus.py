@@ -116,8 +116,9 @@ class ModbusDriver:
         self.reconnects = reconnects
         self.requests = 0
         self._unit = self.map.module.device_id
+        self._rx = b""  # what arrived since the last request was sent
         self._client = ModbusTcpClient(host, port=port, timeout=timeout, retries=retries,
-                                       reconnect_delay=0.0)
+                                       reconnect_delay=0.0, trace_packet=self._trace)
         self._failed: str | None = None
         self._closed = False
         self._enable: bool | None = None
@@ -249,6 +250,10 @@ class ModbusDriver:
                     continue
                 self._fail(f"connection lost during {what}: {exc}")
             except ModbusIOException as exc:
+                if self._rx:
+                    self._fail(f"garbled response to {what}: {len(self._rx)} bytes that are "
+                               f"no valid answer ({self._rx[:16].hex(' ')}"
+                               f"{' …' if len(self._rx) > 16 else ''})")
                 self._fail(f"no valid response to {what} within {self.timeout * 1e3:g} ms "
                            f"({exc})")
             except (ModbusException, ValueError, TypeError, IndexError, KeyError) as exc:
@@ -262,6 +267,12 @@ class ModbusDriver:
             self._fail(f"garbled response to {what}: function code {resp.function_code}, "
                        f"expected {function_code}")
         return resp
+
+    def _trace(self, sending: bool, data: bytes) -> bytes:
+        """pymodbus packet hook: keep the bytes received for the current request (the
+        receive buffer so far), so a timeout after garbage can say what arrived."""
+        self._rx = b"" if sending else data
+        return data
 
     def _fail(self, message: str) -> None:
         self._failed = message
