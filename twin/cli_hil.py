@@ -8,6 +8,7 @@ in real time in this process.
 from __future__ import annotations
 
 import json
+import os
 import sys
 from pathlib import Path
 
@@ -50,6 +51,9 @@ def hil_server(
     no_sync: bool = typer.Option(False, "--no-sync", help="Free-running drive-interval "
                                  "grid instead (no phase lock)."),
     noise: bool = typer.Option(False, "--noise", help="Sensor noise on."),
+    rt_priority: int = typer.Option(0, "--rt-priority", min=0, max=99,
+                                    help="Serve under SCHED_FIFO at this priority (Linux, "
+                                    "needs CAP_SYS_NICE); 0: normal scheduling."),
     as_json: bool = typer.Option(False, "--json", help="Print one JSON object on stdout "
                                  "once listening (host, port, ...)."),
 ) -> None:
@@ -72,8 +76,16 @@ def hil_server(
     except TwinError as exc:
         _fail(exc)
 
+    if rt_priority:
+        try:
+            os.sched_setscheduler(0, os.SCHED_FIFO, os.sched_param(rt_priority))
+        except (AttributeError, OSError) as exc:
+            err.print(f"[yellow]warning:[/] no real-time priority ({exc}); serving with "
+                      "normal scheduling", highlight=False)
+
     def ready(bound_host: str, bound_port: int) -> None:
         info = {"host": bound_host, "port": bound_port, "machine": cfg.name,
+                "realtime": os.sched_getscheduler(0) == os.SCHED_FIFO,
                 "watchdog_ms": watchdog_ms, "drive_interval_s": plant.drive_dt,
                 "register_map": rmap.source}
         if as_json:

@@ -1,0 +1,225 @@
+"""HilModule on an injected clock: physics in whole drive intervals that equals a plant
+stepped by hand, the process image against the plant's own reading, the watchdog at the
+exact instant of expiry, the phase lock, and the pymodbus glue."""
+
+from __future__ import annotations
+
+import asyncio
+import math
+
+import numpy as np
+import pytest
+from pymodbus.constants import ExcCodes
+
+from twin.config import load_machine
+from twin.errors import SimulationError
+from twin.hardware.hil import HilModule, hil_plant
+from twin.hardware.register_map import (
+    load_register_map,
+    volts_to_word,
+    word_to_volts,
+    words_to_counter,
+)
+
+CFG = load_machine("tomsk_xy")
+RMAP = load_register_map()
+WATCHDOG, FEED, DAC_X, DAC_Y, ENABLE = 0.05, 2, 0, 1, 0
+
+
+class Clock:
+    def __init__(self):
+        self.now = 0.0
+
+    def __call__(self):
+        return self.now
+
+
+@pytest.fixture(scope="module")
+def plants():
+    """Two warmed-up plants: one behind the module, one stepped by hand as the reference."""
+    return hil_plant(CFG), hil_plant(CFG)
+
+
+@pytest.fixture
+def rig(plants):
+    plant, ref = plants
+    for p in plants:
+        p.reset()
+    clock = Clock()
+    module = HilModule(plant, RMAP, watchdog=WATCHDOG, sync_phase=None, clock=clock)
+    ref.enable(False)
+    return module, ref, clock
+
+
+def _counts(module):
+    words = module.input_registers()
+    return [words_to_counter(words[a], words[a + 1]) for a in (0, 2)]
+
+
+def _drive(module, volts, feed=1):
+    for addr, v in zip((DAC_X, DAC_Y), volts, strict=True):
+        module.write_holding(addr, volts_to_word(v, 10.0))
+    module.write_holding(FEED, feed)
+    assert module.write_coil(ENABLE, True)
+
+
+def test_physics_advances_in_whole_intervals_with_the_clock(rig):
+    module, _, clock = rig
+    dt = module.dt
+    for now, total in ((3.7 * dt, 3), (3.9 * dt, 3), (4.0 * dt, 4), (10.2 * dt, 10)):
+        clock.now = now
+        module.advance()
+        assert module.plant.time == pytest.approx(total * dt, abs=1e-12)
+    assert module.stats().max_catch_up == 6
+
+
+def test_outputs_drive_the_plant_exactly_like_a_plant_stepped_by_hand(rig):
+    module, ref, clock = rig
+    dt, u = module.dt, np.array([2.0, -1.5])
+    uq = np.array([word_to_volts(volts_to_word(v, 10.0), 10.0) for v in u])
+    _drive(module, u)
+    ref.enable(True)
+    rng = np.random.default_rng(7)
+    steps = 0
+    for feed in range(2, 60):   # irregular request times, fed at each
+        clock.now += rng.uniform(0.1, 3.0) * dt
+        steps += module.advance()
+        module.write_holding(FEED, feed)
+    ref.step(uq, steps * dt)
+    r = ref.read()
+    assert _counts(module) == r.encoder_counts.tolist()
+    assert module.plant.truth().table_position.tolist() == ref.truth().table_position.tolist()
+    assert r.encoder_counts[0] > 50_000 > r.encoder_counts[1]    # X forward, Y back
+
+
+def test_image_is_the_plant_reading(rig):
+    module, _, clock = rig
+    _drive(module, [3.0, 3.0])
+    clock.now = 0.8 * WATCHDOG
+    module.advance()
+    r = module.plant.read()
+    words, bits = module.input_registers(), module.discrete_inputs()
+    assert _counts(module) == r.encoder_counts.tolist()
+    lsb = 10.24 / 32767
+    for k, a in enumerate((4, 5)):
+        assert abs(word_to_volts(words[a], 10.24) - r.tacho_volts[k]) <= 0.5 * lsb + 1e-12
+    assert [bits[a] for a in range(6)] == [r.limit_min[0], r.limit_max[0], r.home[0],
+                                          r.limit_min[1], r.limit_max[1], r.home[1]]
+    assert bits[6] and bits[7] and not bits[8]
+    assert module.holding_registers() == {0: volts_to_word(3.0, 10.0),
+                                          1: volts_to_word(3.0, 10.0), 2: 1}
+    assert module.coils() == {0: True}
+
+
+def test_a_fed_or_idle_module_never_trips(rig):
+    module, _, clock = rig
+    for feed in range(1, 40):             # idle: outputs not live, nobody feeds
+        clock.now += WATCHDOG
+        module.advance()
+    assert not module.tripped
+    _drive(module, [1.0, 0.0])
+    for feed in range(2, 200):
+        clock.now += 0.9 * WATCHDOG
+        module.advance()
+        module.write_holding(FEED, feed)
+    assert not module.tripped and module.enabled
+    module.write_holding(FEED, 199)       # the same value again is no feed
+    clock.now += 1.01 * WATCHDOG
+    module.advance()
+    assert module.tripped
+
+
+@pytest.mark.parametrize("late", [1.0, 3.5])
+def test_watchdog_trips_at_the_instant_of_expiry_even_when_checked_late(rig, late):
+    module, ref, clock = rig
+    dt, u = module.dt, np.array([2.0, 1.0])
+    uq = np.array([word_to_volts(volts_to_word(v, 10.0), 10.0) for v in u])
+    clock.now = 3.3 * dt
+    module.advance()
+    _drive(module, u)                      # fed at 3.3 dt: expires at 3.3 dt + 50 ms
+    clock.now += late * WATCHDOG + 0.01
+    module.advance()
+    assert module.tripped and not module.enabled
+    k = math.ceil((3.3 * dt + WATCHDOG) / dt)         # the first boundary at/after expiry
+    total = math.floor(clock.now / dt)
+    ref.step(np.zeros(2), 3 * dt)
+    ref.enable(True)
+    ref.step(uq, (k - 3) * dt)
+    ref.enable(False)
+    ref.step(np.zeros(2), (total - k) * dt)
+    assert _counts(module) == ref.read().encoder_counts.tolist()
+    assert module.holding_registers()[DAC_X] == 0 == module.holding_registers()[DAC_Y]
+    assert module.discrete_inputs()[8] and module.coils() == {0: False}
+    assert module.stats().watchdog_trips == 1
+
+
+def test_a_latched_trip_drops_references_and_refuses_enable_until_acknowledged(rig):
+    module, _, clock = rig
+    _drive(module, [1.0, 1.0])
+    clock.now = 2 * WATCHDOG
+    module.advance()
+    assert module.write_holding(DAC_X, volts_to_word(4.0, 10.0)) == 0
+    assert not module.write_coil(ENABLE, True)
+    assert module.tripped and not module.enabled
+    assert module.write_coil(ENABLE, False)          # acknowledge
+    assert not module.tripped
+    _drive(module, [1.0, 1.0], feed=7)
+    assert module.enabled and module.holding_registers()[DAC_X] == volts_to_word(1.0, 10.0)
+
+
+@pytest.mark.parametrize("phase", [0.25, 0.6])
+def test_phase_lock_steers_periodic_reads_to_the_set_phase(plants, phase):
+    plant = plants[0]
+    plant.reset()
+    clock = Clock()
+    module = HilModule(plant, RMAP, sync_phase=phase, clock=clock)
+    dt = module.dt
+    clock.now = 0.873 * dt                     # reads every 5 intervals from an odd phase
+    for _ in range(60):
+        module.synchronise()
+        module.advance()
+        clock.now += 5 * dt
+    x = module.now / dt
+    assert x - math.floor(x) == pytest.approx(phase, abs=1e-4)
+    assert abs(module.now - clock.now) < dt      # the grid moved by less than an interval
+
+
+def test_without_phase_lock_the_grid_never_moves(rig):
+    module, _, clock = rig
+    clock.now = 0.873
+    module.synchronise()
+    assert module.now == 0.873
+
+
+def test_pymodbus_glue_fills_reads_applies_writes_and_reports_faults(rig, monkeypatch):
+    module, _, clock = rig
+
+    def act(fc, start, address, registers, values=None):
+        return asyncio.run(module._action(fc, start, address, 1, registers, values))
+
+    regs = [0] * 7
+    assert act(4, 0, 0, regs) is None
+    assert [words_to_counter(regs[0], regs[1]), words_to_counter(regs[2], regs[3])] == \
+        _counts(module)
+    bits = [0, 0]                              # discrete inputs, 16 per entry, bit 0 first
+    assert act(2, 0, 0, bits) is None
+    expected = module.discrete_inputs()
+    assert [(bits[0] >> a) & 1 == 1 for a in range(9)] == [expected[a] for a in range(9)]
+    values = [volts_to_word(1.0, 10.0), volts_to_word(-1.0, 10.0), 5]
+    assert act(16, 0, 0, [0] * 4, values) is None
+    assert act(5, 0, 0, [0], [True]) is None
+    assert module.enabled and module.holding_registers() == {0: values[0], 1: values[1], 2: 5}
+    clock.now = 1.0
+    module.advance()
+    assert module.tripped
+    values = [volts_to_word(2.0, 10.0)]
+    assert act(16, 0, 0, [0] * 4, values) is None and values == [0]   # dropped while latched
+    assert act(5, 0, 0, [0], [True]) == ExcCodes.DEVICE_FAILURE
+
+    def diverge(*_args):
+        raise SimulationError("the plant state diverged")
+
+    monkeypatch.setattr(module.plant, "step", diverge)
+    clock.now = 2.0
+    assert act(4, 0, 0, [0] * 7) == ExcCodes.DEVICE_FAILURE
+    assert module.stats().fault == "the plant state diverged"
