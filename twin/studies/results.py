@@ -258,6 +258,18 @@ def _laser(r: Mapping[str, Any]) -> str:
         "The planner gains where blocks are short and meet at small angles (the cam "
         "polylines, the bracket's tangent arcs) and cannot gain at the sprockets' and "
         "combs' sharp corners, where it must slow down to hold the tolerance.",
+        "",
+        "Contour error: the largest error of the table's true path is about "
+        f"{_f(runs['stop']['max_contour_error_um'], 2)} µm in every run, the stop run "
+        "included, so it is not a corner error. It is the quadrant glitch of a semi-closed "
+        "loop: where an axis reverses on a circle, the Coulomb force of its slide flips and "
+        "the belt's stretch with it (2 × 5 N / 10⁵ N/m = 100 µm on y), which the motor "
+        "encoder does not see. Only friction compensation or a table-side encoder removes "
+        "it; the planner's tolerance governs the corners (the run summary's figure, "
+        "measured on the encoder near the active block, is "
+        f"{_f(runs['stop']['summary_max_contour_error_um'], 2)} µm for the stop run; for "
+        "the look-ahead runs it is inflated because the table lags the reference by more "
+        "than one 1.4 mm chord of the cam polylines).",
     ]
     return "\n".join(lines)
 
