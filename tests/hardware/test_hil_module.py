@@ -113,7 +113,7 @@ def test_image_is_the_plant_reading(rig):
 
 def test_a_fed_or_idle_module_never_trips(rig):
     module, _, clock = rig
-    for feed in range(1, 40):             # idle: outputs not live, nobody feeds
+    for _ in range(1, 40):                # idle: outputs not live, nobody feeds
         clock.now += WATCHDOG
         module.advance()
     assert not module.tripped

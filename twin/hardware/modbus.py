@@ -244,7 +244,7 @@ class ModbusDriver:
             self.requests += 1
             try:
                 resp = call(*args, device_id=self._unit, **kwargs)
-            except ConnectionException as exc:
+            except (ConnectionException, OSError) as exc:  # OSError: reset by the peer
                 self._client.close()
                 if attempt < self.reconnects:
                     continue

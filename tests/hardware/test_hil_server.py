@@ -1,0 +1,245 @@
+"""``twin hil-server`` as a real subprocess on a real socket (127.0.0.1, ephemeral port):
+an independent pymodbus client reads the documented registers, the watchdog, a program run
+end to end against the lock-step twin, and the faults (server killed, limit switch).
+
+The paced runs ask for SCHED_FIFO (client thread and server) where the OS allows it, as a
+real-time controller would; without it they still run, with a worse deadline report."""
+
+from __future__ import annotations
+
+import contextlib
+import json
+import os
+import selectors
+import subprocess
+import sys
+import threading
+import time
+from collections.abc import Iterator
+from pathlib import Path
+
+import pytest
+import rerun.chunk as rc
+from pymodbus.client import ModbusTcpClient
+
+from twin.run import RunSpec, prepare, run
+
+TWIN = [sys.executable, "-m", "twin.cli"]
+ENV = {**os.environ, "RERUN_ANALYTICS": "0"}
+UNIT = 1
+TRUTH_ONLY = {f"/axes/{a}/{n}" for a in "xy" for n in
+              ("drive/armature_current", "drive/converter_voltage", "screw_deflection_um")}
+
+
+@contextlib.contextmanager
+def hil_server(*args: str, watchdog_ms: float = 100.0) -> Iterator[tuple[subprocess.Popen, int]]:
+    """A ``twin hil-server`` subprocess; yields (process, port). Always reaped."""
+    proc = subprocess.Popen([*TWIN, "hil-server", "--port", "0", "--json", "--rt-priority",
+                             "10", "--watchdog-ms", str(watchdog_ms), *args], env=ENV,
+                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    try:
+        with selectors.DefaultSelector() as sel:
+            sel.register(proc.stdout, selectors.EVENT_READ)
+            if not sel.select(timeout=60):
+                raise TimeoutError("hil-server did not report its port within 60 s")
+        line = proc.stdout.readline()
+        if not line:
+            raise RuntimeError(f"hil-server failed: {proc.stderr.read()}")
+        yield proc, json.loads(line)["port"]
+    finally:
+        if proc.poll() is None:
+            proc.terminate()
+            try:
+                proc.wait(timeout=10)
+            except subprocess.TimeoutExpired:
+                proc.kill()
+                proc.wait()
+        proc.stdout.close()
+        proc.stderr.close()
+
+
+@contextlib.contextmanager
+def realtime(priority: int = 10) -> Iterator[bool]:
+    """SCHED_FIFO for the calling thread while inside (if permitted)."""
+    try:
+        os.sched_setscheduler(0, os.SCHED_FIFO, os.sched_param(priority))
+        granted = True
+    except (AttributeError, OSError):
+        granted = False
+    try:
+        yield granted
+    finally:
+        if granted:
+            os.sched_setscheduler(0, os.SCHED_OTHER, os.sched_param(0))
+
+
+@contextlib.contextmanager
+def client(port: int) -> Iterator[ModbusTcpClient]:
+    c = ModbusTcpClient("127.0.0.1", port=port, timeout=1.0)
+    assert c.connect()
+    try:
+        yield c
+    finally:
+        c.close()
+
+
+def _url(port: int) -> str:
+    return f"modbus://127.0.0.1:{port}"
+
+
+def _int16(word: int) -> int:
+    return word - 0x10000 if word & 0x8000 else word
+
+
+def _entities(path: str) -> set[str]:
+    return {c.entity_path for c in rc.RrdReader(Path(path)).stream().to_chunks()}
+
+
+def test_an_independent_client_reads_the_documented_registers():
+    with hil_server("--from", "50", "20") as (_, port), client(port) as c:
+        # Documented: counters at input registers 0-3, X then Y, high word first; 5 counts
+        # per µm on the Tomsk rig; tachos at 4, 5.
+        ir = c.read_input_registers(0, count=6, device_id=UNIT).registers
+        x0, y0 = (ir[0] << 16) | ir[1], (ir[2] << 16) | ir[3]
+        assert abs(x0 - 250_000) <= 1 and abs(y0 - 100_000) <= 1
+        assert ir[4:] == [0, 0]
+        di = c.read_discrete_inputs(0, count=9, device_id=UNIT).bits[:9]
+        assert di == [False] * 6 + [True, True, False]   # no switch, drives ready, no trip
+        assert c.read_coils(0, count=1, device_id=UNIT).bits[0] is False
+        assert c.read_holding_registers(0, count=3, device_id=UNIT).registers == [0, 0, 0]
+        # +1 V on X (int16, 32767 = 10 V), the watchdog fed every 10 ms.
+        assert not c.write_registers(0, [3277, 0, 1], device_id=UNIT).isError()
+        assert not c.write_coil(0, True, device_id=UNIT).isError()
+        for feed in range(2, 40):
+            time.sleep(0.01)
+            c.write_register(2, feed, device_id=UNIT)
+        ir = c.read_input_registers(0, count=6, device_id=UNIT).registers
+        c.write_coil(0, False, device_id=UNIT)
+    x1, y1 = (ir[0] << 16) | ir[1], (ir[2] << 16) | ir[3]
+    assert x1 - x0 > 1000 and abs(y1 - y0) < 50          # X moved forward, Y held
+    assert _int16(ir[4]) * 10.24 / 32767 > 0.5           # X tacho follows the reference
+
+
+def test_watchdog_zeroes_the_outputs_within_its_timeout():
+    timeout = 0.1
+    with hil_server(watchdog_ms=timeout * 1e3) as (_, port), client(port) as c:
+        sent = time.perf_counter()
+        c.write_registers(0, [3277, 3277, 1], device_id=UNIT)   # the last feed
+        fed = time.perf_counter()
+        c.write_coil(0, True, device_id=UNIT)
+        zeroed = None
+        while zeroed is None and time.perf_counter() - fed < 2.0:
+            hr = c.read_holding_registers(0, count=2, device_id=UNIT).registers
+            coil = c.read_coils(0, count=1, device_id=UNIT).bits[0]
+            done = time.perf_counter()
+            if hr == [0, 0] and not coil:
+                zeroed = done
+            else:   # a read answered before the earliest possible expiry must see them live
+                assert (hr == [3277, 3277] and coil) or done >= sent + timeout
+            time.sleep(0.002)
+        assert zeroed is not None and zeroed - fed <= timeout + 0.03
+        assert c.read_discrete_inputs(8, count=1, device_id=UNIT).bits[0]   # latched trip
+        refused = c.write_coil(0, True, device_id=UNIT)
+        assert refused.isError() and refused.exception_code == 4
+        assert not c.write_coil(0, False, device_id=UNIT).isError()       # acknowledge
+        assert not c.read_discrete_inputs(8, count=1, device_id=UNIT).bits[0]
+
+
+def test_a_program_through_the_server_matches_the_lockstep_twin(tmp_path):
+    ref = run(RunSpec(builtin="corner"), out_dir=tmp_path, run_id="lockstep")
+    with hil_server() as (_, port), realtime():
+        hil = run(RunSpec(builtin="corner", driver=_url(port)), out_dir=tmp_path, run_id="hil")
+    s, r = hil.summary, ref.summary
+    assert s["status"] == "FINISHED" and s["aborted"] is None, s.get("aborted")
+    # Contour errors within 10 % (the phase-locked module samples like the lock-step twin;
+    # what remains is timing: late or skipped ticks).
+    for key in ("max_contour_error_um", "rms_contour_error_um"):
+        assert s[key] == pytest.approx(r[key], rel=0.10), (key, s["ticks"])
+    ticks = s["ticks"]
+    assert ticks["paced"] and ticks["due"] == ticks["on_time"] + ticks["late"] + \
+        ticks["skipped"]
+    # every slot that ran recorded a row, but the last: it found the program done
+    assert len(hil.record["t"]) == ticks["due"] - ticks["skipped"] - 1
+    assert json.loads((tmp_path / "hil.json").read_text())["ticks"] == ticks
+    # The recording has every channel of a simulated run's but the twin's truth.
+    lockstep, paced = _entities(r["recording"]), _entities(s["recording"])
+    assert paced == lockstep - TRUTH_ONLY and TRUTH_ONLY <= lockstep
+
+
+class _Timed:
+    """A driver proxy that notes when each read/write started and ended and how."""
+
+    def __init__(self, driver):
+        self.driver, self.calls = driver, []
+
+    def _call(self, name, *args):
+        start = time.perf_counter()
+        try:
+            out = getattr(self.driver, name)(*args)
+        except Exception:
+            self.calls.append((start, time.perf_counter(), False))
+            raise
+        self.calls.append((start, time.perf_counter(), True))
+        return out
+
+    def read(self):
+        return self._call("read")
+
+    def write(self, outputs):
+        return self._call("write", outputs)
+
+    def close(self):
+        self.driver.close()
+
+
+def test_killing_the_server_mid_run_stops_within_a_period_and_keeps_the_record(tmp_path):
+    spec = RunSpec(builtin="corner")
+    with hil_server() as (proc, port):
+        spec = RunSpec(builtin="corner", driver=_url(port))
+        p = prepare(spec)
+        p.driver = timed = _Timed(p.driver)
+        dead: list[float] = []
+
+        def kill():
+            proc.kill()
+            proc.wait()
+            dead.append(time.perf_counter())
+
+        killer = threading.Timer(1.0, kill)
+        killer.start()
+        with realtime():
+            result = run(spec, out_dir=tmp_path, run_id="killed", prepared=p)
+        killer.join()
+    s = json.loads((tmp_path / "killed.json").read_text())
+    assert s["aborted"].startswith(f"driver fault: {_url(port)}: connection lost during ")
+    period = p.cfg.controller.period
+    failed = [c for c in timed.calls if not c[2]]
+    assert len(failed) == 1 and timed.calls[-1] is failed[0]
+    assert not [c for c in timed.calls if c[2] and c[0] > dead[0]]   # nothing ran after
+    assert failed[0][1] - dead[0] <= period + 0.02                  # stopped within a period
+    assert 0.5 < s["sim_time_s"] < 2.0
+    assert len(result.record["t"]) == s["ticks"]["due"] - s["ticks"]["skipped"] - 1
+    assert "/axes/x/position/actual" in _entities(s["recording"])
+    assert not list(tmp_path.glob("*.partial"))
+
+
+def test_a_limit_switch_during_a_run_disables_the_drive_and_keeps_the_record(tmp_path):
+    program = tmp_path / "x_to_40mm.nc"
+    program.write_text("G90 G21\nG1 X40 F600\nM2\n", encoding="utf-8")   # from X = 10 mm
+    # The module's X end switch sits at 20 mm, inside the controller's work zone: a switch
+    # that actuates during the run.
+    with hil_server("--set", "axes.x.switches.limit_max=0.02") as (_, port):
+        with realtime():
+            result = run(RunSpec(program=str(program), driver=_url(port)), out_dir=tmp_path,
+                         run_id="limit")
+        with client(port) as c:
+            coil = c.read_coils(0, count=1, device_id=UNIT).bits[0]
+            limit = c.read_discrete_inputs(1, count=1, device_id=UNIT).bits[0]
+    s = json.loads((tmp_path / "limit.json").read_text())
+    assert s["status"] == "LIMIT_TRIP" and s["aborted"] is None
+    assert coil is False and limit is True
+    rec = result.record
+    assert rec["enable"][-1] == 0                        # the controller disabled the drive
+    assert 19.9 < rec["position"][-1][0] * 1e3 < 21.0    # stopped at the switch
+    assert len(rec["t"]) == s["ticks"]["due"] - s["ticks"]["skipped"] - 1
+    assert "/axes/x/position/actual" in _entities(s["recording"])
