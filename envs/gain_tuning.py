@@ -49,11 +49,14 @@ class Tuning:
         Cost of a failed run (1).
     max_time_factor : float
         A run may take this many times the baseline's simulated time (plus 5 s).
+    baseline : RunOutcome, optional
+        The analytic baseline's outcome if already known (a worker process need not run
+        it again); it must come from the same machine and program.
     """
 
     def __init__(self, cfg: MachineConfig, program: str = "compact", *,
                  weights: Weights | None = None, penalty: float = 50.0,
-                 max_time_factor: float = 3.0):
+                 max_time_factor: float = 3.0, baseline: RunOutcome | None = None):
         if program not in PROGRAMS:
             raise ConfigError("program", f"unknown tuning program {program!r}; valid: "
                               f"{', '.join(PROGRAMS)}")
@@ -65,8 +68,9 @@ class Tuning:
         self.penalty = float(penalty)
         self.models = axis_models(cfg)
         self.space = TuningSpace.from_machine(cfg, self.models)
-        self.baseline = tuning_run(cfg, self.space.decode(np.zeros(self.space.dim)),
-                                   models=self.models, program=program)
+        self.baseline = baseline or tuning_run(
+            cfg, self.space.decode(np.zeros(self.space.dim)), models=self.models,
+            program=program)
         if self.baseline.failed:
             raise SimulationError(f"the analytic baseline fails on {cfg.name}: "
                                   f"{self.baseline.status} ({self.baseline.message})")
@@ -216,7 +220,10 @@ class GainTuningEnv(gym.Env):
             cfg = load_machine(cfg)
         program = options.get("program") or self._programs[
             int(self.np_random.integers(len(self._programs)))]
-        self.tuning = Tuning(cfg, program, weights=self._weights, penalty=self._penalty)
+        reuse = self.tuning is not None and self.tuning.cfg is cfg \
+            and self.tuning.program == program
+        if not reuse:   # a run is deterministic: the same machine keeps its baseline
+            self.tuning = Tuning(cfg, program, weights=self._weights, penalty=self._penalty)
         base = self.tuning.baseline
         self._best = self.tuning.relative(base)
         self._best_cost = self.tuning.baseline_cost

@@ -38,7 +38,7 @@ from twin.errors import ConfigError
 
 __all__ = ["ALPHA_SPAN", "KI_DECADES", "TuningSettings", "TuningSpace"]
 
-ALPHA_SPAN = (0.1, 0.5, 1.0)
+ALPHA_SPAN = (0.02, 0.2, 0.5)
 """Relative half-range of α1, α2, α3 around the analytic values (1)."""
 KI_DECADES = 3.0
 """Decades of ``ki`` below ``kp0·K_v`` the positive half of the ki coordinate spans."""
