@@ -36,7 +36,7 @@ def test_reward_is_minus_the_sum_of_the_terms():
     env = GainTuningEnv(**KW, weights={"overshoot": 2.0})
     _, info0 = env.reset(seed=0)
     for action in (np.zeros(11), np.full(11, 0.3), np.linspace(-1, 1, 11)):
-        _, reward, terminated, truncated, info = env.step(action.astype(np.float32))
+        _, reward, _terminated, truncated, info = env.step(action.astype(np.float32))
         assert set(info["terms"]) == {*METRICS, "failure"}
         assert reward == pytest.approx(-sum(info["terms"].values()), rel=1e-12)
         assert not truncated
@@ -67,7 +67,7 @@ def test_deterministic_under_a_seed_with_randomised_machines():
     ob, ib = b.reset(seed=11)
     np.testing.assert_array_equal(oa, ob)
     assert ia["baseline_metrics"] == ib["baseline_metrics"]
-    oc, ic = a.reset(seed=12)
+    _oc, ic = a.reset(seed=12)
     assert ic["baseline_metrics"] != ia["baseline_metrics"]   # another machine
     act = np.full(11, 0.2, dtype=np.float32)
     b.reset(seed=12)

@@ -108,7 +108,7 @@ def test_subproc_vec_env():
     try:
         obs = vec.reset()
         assert obs.shape == (2, 10)
-        obs, rewards, dones, infos = vec.step(np.zeros((2, 2), dtype=np.float32))
+        obs, rewards, dones, _infos = vec.step(np.zeros((2, 2), dtype=np.float32))
         assert rewards[0] == pytest.approx(rewards[1]) and not dones.any()
     finally:
         vec.close()
