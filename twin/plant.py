@@ -35,6 +35,7 @@ from typing import Any
 import mujoco
 import numpy as np
 
+from twin import plant_loop
 from twin.config import AXES, MachineConfig, SwitchConfig
 from twin.drive import Drives
 from twin.drive.kernel import S_ADC, S_FAULT, S_I, S_V
@@ -277,6 +278,8 @@ class Plant:
         self._mask = self._counter_mask.tolist()
         self._offset = [0, 0]
         self._ratio_f = self._ratio.tolist()
+        self._compiled = plant_loop.available()
+        """Run drive intervals in the compiled loop (``twin.plant_loop``)."""
         self._u = np.zeros(2)
         self.reset()
 
@@ -369,13 +372,22 @@ class Plant:
             self._samples = np.empty((n, 2))
         samples = self._samples[:n]
         m, d, k, u, x = self.model, self.data, self._substeps, self._u, self._table_pos
-        drive_step, torque, omega, mj_step = self.drives.step_into, self._torque, \
-            self._rotor_vel, mujoco.mj_step
+        torque, omega, drives = self._torque, self._rotor_vel, self.drives
         t0 = d.time
-        for i in range(n):
-            drive_step(u, omega, torque)
-            mj_step(m, d, k)
-            samples[i] = x
+        if self._compiled and not drives.noisy:
+            params, state, noise = drives.kernel_arrays()
+            done, status = plant_loop.step_intervals(
+                m, d, n, k, params, state, u, omega, noise, drives.n_step, drives.dt,
+                drives.enabled, torque, x, samples)
+            drives.advance(done)
+            if status:
+                drives.step(u, omega)  # the checked path raises the error naming the input
+        else:
+            drive_step, mj_step = drives.step_into, mujoco.mj_step
+            for i in range(n):
+                drive_step(u, omega, torque)
+                mj_step(m, d, k)
+                samples[i] = x
         warnings = () if self._warning_count.tobytes() == self._warnings_seen \
             else self._new_warnings()
         xs, ys = samples.T.tolist()

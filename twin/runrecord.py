@@ -75,9 +75,10 @@ def run_summary(rec: Mapping[str, np.ndarray], path: list) -> dict[str, Any]:
     velocity = rec.get("table_velocity")
     if velocity is None:
         velocity = np.gradient(rec["position"], rec["t"], axis=0)
-    segment = np.clip(rec["block"], 0, len(path) - 1)
+    # No active-block hint: a table lagging several short blocks behind its reference would
+    # be measured against the wrong ones. The exact search over the whole path is cheap.
     m = summarize(rec["t"], rec["ref_position"], rec["ref_velocity"], rec["position"],
-                  velocity, path, segment=segment)
+                  velocity, path)
     r = m.to_report()
     return {
         "cycle_time_s": r["cycle_time_s"],

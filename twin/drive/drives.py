@@ -238,6 +238,26 @@ class Drives:
             self.step(u_ref, omega)  # the checked path raises the named error
         self._n_step += 1
 
+    def kernel_arrays(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """(params, state, noise): the live arrays ``kernel.drive_step`` works on, for a
+        caller that runs the kernel itself in a compiled loop (``twin.plant_loop``). Such a
+        caller must count the intervals it ran with :meth:`advance`."""
+        return self._params, self._state, self._noise
+
+    def advance(self, intervals: int) -> None:
+        """Count ``intervals`` updates run outside :meth:`step` (by the compiled loop)."""
+        self._n_step += intervals
+
+    @property
+    def n_step(self) -> int:
+        """Updates so far (the next one starts at ``n_step · dt``)."""
+        return self._n_step
+
+    @property
+    def noisy(self) -> bool:
+        """Tacho noise is on (needs the random generator between kernel calls)."""
+        return self._noisy
+
     # ------------------------------------------------------------------ readouts
     def snapshot(self) -> list[list[float]]:
         """The whole state as nested lists (axis, column ``kernel.S_*``): one cheap copy for

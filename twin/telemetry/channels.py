@@ -96,8 +96,11 @@ class TelemetryWriter:
                 cols[f"{base}/drive/converter_voltage"] = tr["converter_voltage"][:, k]
                 cols[f"{base}/screw_deflection_um"] = tr["screw_deflection"][:, k] * 1e6
         if self.path:
+            # Live view: search 3 blocks either side of the active one (exact unless the
+            # table lags further behind; the run summary searches the whole path).
             hint = np.clip(c["block"], 0, len(self.path) - 1)
-            cols["errors/contour_um"] = contour_error(self.path, c["position"], hint=hint) * 1e6
+            cols["errors/contour_um"] = contour_error(self.path, c["position"], hint=hint,
+                                                      window=3) * 1e6
         self.sink.scalars(t, cols)
         self.sink.points(t, {"path/actual": c["position"], "path/reference": c["ref_position"]})
         self._events(t, c, status_names or {})
