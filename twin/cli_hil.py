@@ -7,10 +7,17 @@ in real time in this process.
 
 from __future__ import annotations
 
+import contextlib
 import json
 import os
+import selectors
+import subprocess
 import sys
+import tempfile
+from collections.abc import Iterator
+from dataclasses import dataclass
 from pathlib import Path
+from typing import IO, Any
 
 import typer
 from rich.console import Console
@@ -18,7 +25,8 @@ from rich.table import Table
 
 from twin.errors import ConfigError, TwinError
 
-__all__ = ["hil_server", "register"]
+__all__ = ["HilProcess", "fifo_priority", "hil_server", "register", "set_fifo_priority",
+           "spawn_hil_server"]
 
 err = Console(stderr=True)
 
@@ -76,12 +84,9 @@ def hil_server(
     except TwinError as exc:
         _fail(exc)
 
-    if rt_priority:
-        try:
-            os.sched_setscheduler(0, os.SCHED_FIFO, os.sched_param(rt_priority))
-        except (AttributeError, OSError) as exc:
-            err.print(f"[yellow]warning:[/] no real-time priority ({exc}); serving with "
-                      "normal scheduling", highlight=False)
+    if rt_priority and not set_fifo_priority(rt_priority):
+        err.print("[yellow]warning:[/] SCHED_FIFO not permitted here; serving with normal "
+                  "scheduling", highlight=False)
 
     def ready(bound_host: str, bound_port: int) -> None:
         info = {"host": bound_host, "port": bound_port, "machine": cfg.name,
@@ -108,6 +113,94 @@ def hil_server(
               f"{stats.wall_time:.3f} s; most drive intervals caught up at once: "
               f"{stats.max_catch_up}; watchdog trips: {stats.watchdog_trips}"
               + (f"; fault: {stats.fault}" if stats.fault else ""), highlight=False)
+
+
+def set_fifo_priority(priority: int) -> bool:
+    """Schedule the calling thread under SCHED_FIFO at ``priority`` (1 … 99; Linux, needs
+    CAP_SYS_NICE), as a real-time controller would; 0 restores normal scheduling. Returns
+    whether the system granted it."""
+    try:
+        if priority:
+            os.sched_setscheduler(0, os.SCHED_FIFO, os.sched_param(priority))
+        else:
+            os.sched_setscheduler(0, os.SCHED_OTHER, os.sched_param(0))
+    except (AttributeError, OSError):
+        return False
+    return True
+
+
+@contextlib.contextmanager
+def fifo_priority(priority: int = 10) -> Iterator[bool]:
+    """``set_fifo_priority`` while inside; yields whether it was granted."""
+    granted = set_fifo_priority(priority)
+    try:
+        yield granted
+    finally:
+        if granted:
+            set_fifo_priority(0)
+
+
+@dataclass(frozen=True)
+class HilProcess:
+    """A running ``twin hil-server`` subprocess (see ``spawn_hil_server``).
+
+    Attributes
+    ----------
+    process : subprocess.Popen
+    info : dict
+        Its ready line: host, port, machine, realtime, watchdog_ms, drive_interval_s, ...
+    """
+
+    process: subprocess.Popen
+    info: dict[str, Any]
+    _log: IO[str]
+
+    @property
+    def url(self) -> str:
+        """The driver URL of the server (``modbus://HOST:PORT``)."""
+        return f"modbus://{self.info['host']}:{self.info['port']}"
+
+    def log(self) -> str:
+        """What the server wrote on stderr so far (its statistics once it has stopped)."""
+        self._log.seek(0)
+        return self._log.read()
+
+
+@contextlib.contextmanager
+def spawn_hil_server(*args: str, ready_timeout: float = 60.0) -> Iterator[HilProcess]:
+    """Start ``twin hil-server --port 0 --json ARGS`` as a subprocess, yield it once it
+    listens, and always stop it (SIGTERM, then SIGKILL) and reap it.
+
+    Raises
+    ------
+    RuntimeError
+        If the server exits or does not listen within ``ready_timeout`` (s); the message
+        carries its stderr.
+    """
+    with tempfile.TemporaryFile("w+", encoding="utf-8") as log:
+        proc = subprocess.Popen([sys.executable, "-m", "twin.cli", "hil-server", "--port", "0",
+                                 "--json", *args], stdout=subprocess.PIPE, stderr=log,
+                                text=True, env={**os.environ, "RERUN_ANALYTICS": "0"})
+        try:
+            with selectors.DefaultSelector() as sel:
+                sel.register(proc.stdout, selectors.EVENT_READ)  # type: ignore[arg-type]
+                line = proc.stdout.readline() if sel.select(ready_timeout) else ""  # type: ignore[union-attr]
+            if not line:
+                proc.kill()
+                proc.wait()
+                log.seek(0)
+                raise RuntimeError(f"twin hil-server did not start (exit {proc.returncode})"
+                                   f": {log.read().strip()}")
+            yield HilProcess(proc, json.loads(line), log)
+        finally:
+            if proc.poll() is None:
+                proc.terminate()
+                try:
+                    proc.wait(timeout=10)
+                except subprocess.TimeoutExpired:
+                    proc.kill()
+                    proc.wait()
+            proc.stdout.close()  # type: ignore[union-attr]
 
 
 def register(app: typer.Typer) -> None:

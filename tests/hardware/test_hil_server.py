@@ -9,10 +9,6 @@ from __future__ import annotations
 
 import contextlib
 import json
-import os
-import selectors
-import subprocess
-import sys
 import threading
 import time
 from collections.abc import Iterator
@@ -22,55 +18,12 @@ import pytest
 import rerun.chunk as rc
 from pymodbus.client import ModbusTcpClient
 
+from twin.cli_hil import fifo_priority, spawn_hil_server
 from twin.run import RunSpec, prepare, run
 
-TWIN = [sys.executable, "-m", "twin.cli"]
-ENV = {**os.environ, "RERUN_ANALYTICS": "0"}
 UNIT = 1
 TRUTH_ONLY = {f"/axes/{a}/{n}" for a in "xy" for n in
               ("drive/armature_current", "drive/converter_voltage", "screw_deflection_um")}
-
-
-@contextlib.contextmanager
-def hil_server(*args: str, watchdog_ms: float = 100.0) -> Iterator[tuple[subprocess.Popen, int]]:
-    """A ``twin hil-server`` subprocess; yields (process, port). Always reaped."""
-    proc = subprocess.Popen([*TWIN, "hil-server", "--port", "0", "--json", "--rt-priority",
-                             "10", "--watchdog-ms", str(watchdog_ms), *args], env=ENV,
-                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
-    try:
-        with selectors.DefaultSelector() as sel:
-            sel.register(proc.stdout, selectors.EVENT_READ)
-            if not sel.select(timeout=60):
-                raise TimeoutError("hil-server did not report its port within 60 s")
-        line = proc.stdout.readline()
-        if not line:
-            raise RuntimeError(f"hil-server failed: {proc.stderr.read()}")
-        yield proc, json.loads(line)["port"]
-    finally:
-        if proc.poll() is None:
-            proc.terminate()
-            try:
-                proc.wait(timeout=10)
-            except subprocess.TimeoutExpired:
-                proc.kill()
-                proc.wait()
-        proc.stdout.close()
-        proc.stderr.close()
-
-
-@contextlib.contextmanager
-def realtime(priority: int = 10) -> Iterator[bool]:
-    """SCHED_FIFO for the calling thread while inside (if permitted)."""
-    try:
-        os.sched_setscheduler(0, os.SCHED_FIFO, os.sched_param(priority))
-        granted = True
-    except (AttributeError, OSError):
-        granted = False
-    try:
-        yield granted
-    finally:
-        if granted:
-            os.sched_setscheduler(0, os.SCHED_OTHER, os.sched_param(0))
 
 
 @contextlib.contextmanager
@@ -83,8 +36,8 @@ def client(port: int) -> Iterator[ModbusTcpClient]:
         c.close()
 
 
-def _url(port: int) -> str:
-    return f"modbus://127.0.0.1:{port}"
+def hil_server(*args: str, watchdog_ms: float = 100.0):
+    return spawn_hil_server("--rt-priority", "10", "--watchdog-ms", str(watchdog_ms), *args)
 
 
 def _int16(word: int) -> int:
@@ -96,7 +49,7 @@ def _entities(path: str) -> set[str]:
 
 
 def test_an_independent_client_reads_the_documented_registers():
-    with hil_server("--from", "50", "20") as (_, port), client(port) as c:
+    with hil_server("--from", "50", "20") as server, client(server.info["port"]) as c:
         # Documented: counters at input registers 0-3, X then Y, high word first; 5 counts
         # per µm on the Tomsk rig; tachos at 4, 5.
         ir = c.read_input_registers(0, count=6, device_id=UNIT).registers
@@ -122,7 +75,7 @@ def test_an_independent_client_reads_the_documented_registers():
 
 def test_watchdog_zeroes_the_outputs_within_its_timeout():
     timeout = 0.1
-    with hil_server(watchdog_ms=timeout * 1e3) as (_, port), client(port) as c:
+    with hil_server(watchdog_ms=timeout * 1e3) as server, client(server.info["port"]) as c:
         sent = time.perf_counter()
         c.write_registers(0, [3277, 3277, 1], device_id=UNIT)   # the last feed
         fed = time.perf_counter()
@@ -147,8 +100,8 @@ def test_watchdog_zeroes_the_outputs_within_its_timeout():
 
 def test_a_program_through_the_server_matches_the_lockstep_twin(tmp_path):
     ref = run(RunSpec(builtin="corner"), out_dir=tmp_path, run_id="lockstep")
-    with hil_server() as (_, port), realtime():
-        hil = run(RunSpec(builtin="corner", driver=_url(port)), out_dir=tmp_path, run_id="hil")
+    with hil_server() as server, fifo_priority():
+        hil = run(RunSpec(builtin="corner", driver=server.url), out_dir=tmp_path, run_id="hil")
     s, r = hil.summary, ref.summary
     assert s["status"] == "FINISHED" and s["aborted"] is None, s.get("aborted")
     # Contour errors within 10 % (the phase-locked module samples like the lock-step twin;
@@ -193,9 +146,9 @@ class _Timed:
 
 
 def test_killing_the_server_mid_run_stops_within_a_period_and_keeps_the_record(tmp_path):
-    spec = RunSpec(builtin="corner")
-    with hil_server() as (proc, port):
-        spec = RunSpec(builtin="corner", driver=_url(port))
+    with hil_server() as server:
+        proc, url = server.process, server.url
+        spec = RunSpec(builtin="corner", driver=url)
         p = prepare(spec)
         p.driver = timed = _Timed(p.driver)
         dead: list[float] = []
@@ -207,11 +160,11 @@ def test_killing_the_server_mid_run_stops_within_a_period_and_keeps_the_record(t
 
         killer = threading.Timer(1.0, kill)
         killer.start()
-        with realtime():
+        with fifo_priority():
             result = run(spec, out_dir=tmp_path, run_id="killed", prepared=p)
         killer.join()
     s = json.loads((tmp_path / "killed.json").read_text())
-    assert s["aborted"].startswith(f"driver fault: {_url(port)}: connection lost during ")
+    assert s["aborted"].startswith(f"driver fault: {url}: connection lost during ")
     period = p.cfg.controller.period
     failed = [c for c in timed.calls if not c[2]]
     assert len(failed) == 1 and timed.calls[-1] is failed[0]
@@ -228,11 +181,11 @@ def test_a_limit_switch_during_a_run_disables_the_drive_and_keeps_the_record(tmp
     program.write_text("G90 G21\nG1 X40 F600\nM2\n", encoding="utf-8")   # from X = 10 mm
     # The module's X end switch sits at 20 mm, inside the controller's work zone: a switch
     # that actuates during the run.
-    with hil_server("--set", "axes.x.switches.limit_max=0.02") as (_, port):
-        with realtime():
-            result = run(RunSpec(program=str(program), driver=_url(port)), out_dir=tmp_path,
+    with hil_server("--set", "axes.x.switches.limit_max=0.02") as server:
+        with fifo_priority():
+            result = run(RunSpec(program=str(program), driver=server.url), out_dir=tmp_path,
                          run_id="limit")
-        with client(port) as c:
+        with client(server.info["port"]) as c:
             coil = c.read_coils(0, count=1, device_id=UNIT).bits[0]
             limit = c.read_discrete_inputs(1, count=1, device_id=UNIT).bits[0]
     s = json.loads((tmp_path / "limit.json").read_text())
@@ -243,3 +196,15 @@ def test_a_limit_switch_during_a_run_disables_the_drive_and_keeps_the_record(tmp
     assert 19.9 < rec["position"][-1][0] * 1e3 < 21.0    # stopped at the switch
     assert len(rec["t"]) == s["ticks"]["due"] - s["ticks"]["skipped"] - 1
     assert "/axes/x/position/actual" in _entities(s["recording"])
+
+
+@pytest.mark.parametrize(("args", "words"), [
+    (("--machine", "no_such_machine"), "machine: no machine file"),
+    (("--from", "999", "5"), "--from: positions must be (2,) within the travel"),
+    (("--map", "missing.toml"), "register_map: no such file"),
+    (("--set", "axes.x.mechanics.carriage_mass=-1"), "axes.x.mechanics.carriage_mass"),
+])
+def test_bad_options_stop_the_server_naming_the_place(args, words):
+    with pytest.raises(RuntimeError) as info, spawn_hil_server(*args):
+        pass
+    assert "(exit 2): error:" in str(info.value) and words in str(info.value)
