@@ -288,13 +288,8 @@ def _shared_sink(path: Path, laws: Sequence[str], run_id: str) -> Sink:
     from twin.compare_report import overlay_blueprint
     from twin.telemetry.rerun_sink import RerunSink
 
-    class _OverlaySink(RerunSink):
-        def __init__(self) -> None:
-            super().__init__(path, recording_id=run_id, recording_name=run_id,
-                             blueprint=False)
-            self._rec.send_blueprint(overlay_blueprint(laws))
-
-    return _OverlaySink()
+    return RerunSink(path, recording_id=run_id, recording_name=run_id,
+                     blueprint=overlay_blueprint(laws))
 
 
 def compare(spec: RunSpec, laws: Sequence[str], *, out_dir: str | Path = "runs",

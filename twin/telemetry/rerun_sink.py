@@ -13,6 +13,7 @@ from pathlib import Path
 
 import numpy as np
 import rerun as rr
+import rerun.blueprint as rrb
 
 from twin.telemetry.blueprint import default_blueprint
 
@@ -39,13 +40,14 @@ class RerunSink:
         can share one file and are overlaid by the viewer.
     recording_name : str, optional
         Human-readable name shown in the viewer.
-    blueprint : bool
-        Send the default blueprint (path view + error plots).
+    blueprint : bool or rerun.blueprint.Blueprint
+        True: the default layout (path view + error plots); a Blueprint: that layout;
+        False: none.
     """
 
     def __init__(self, path: str | Path | None = None, *, live: str | None = None,
                  recording_id: str = "run", recording_name: str | None = None,
-                 blueprint: bool = True):
+                 blueprint: bool | rrb.Blueprint = True):
         if live not in (None, "spawn", "serve"):
             raise ValueError(f"live must be 'spawn', 'serve' or None, got {live!r}")
         if path is None and live is None:
@@ -67,8 +69,10 @@ class RerunSink:
             self.url = self._rec.serve_grpc()
         if recording_name:
             self._rec.send_recording_name(recording_name)
-        if blueprint:
+        if blueprint is True:
             self._rec.send_blueprint(default_blueprint())
+        elif blueprint:
+            self._rec.send_blueprint(blueprint)
         self._closed = False
 
     # -- Sink protocol ------------------------------------------------------------------
