@@ -8,6 +8,7 @@ in real time in this process.
 from __future__ import annotations
 
 import contextlib
+import dataclasses
 import json
 import os
 import selectors
@@ -109,10 +110,14 @@ def hil_server(
 
     stats = serve_hil(plant, rmap, host=host, port=port, watchdog=watchdog_ms * 1e-3,
                       sync_phase=None if no_sync else sync_phase, on_ready=ready)
+    if as_json:  # stdout carried the one ready object; the statistics go to stderr
+        sys.stderr.write(json.dumps({"hil_stats": dataclasses.asdict(stats)}) + "\n")
+        return
     err.print(f"served {stats.requests} requests; {stats.sim_time:.3f} s of physics in "
               f"{stats.wall_time:.3f} s; most drive intervals caught up at once: "
               f"{stats.max_catch_up}; watchdog trips: {stats.watchdog_trips}"
-              + (f"; fault: {stats.fault}" if stats.fault else ""), highlight=False)
+              + (f"; fault: {stats.fault}" if stats.fault else ""), highlight=False,
+              soft_wrap=True)
 
 
 def set_fifo_priority(priority: int) -> bool:
@@ -161,9 +166,20 @@ class HilProcess:
         return f"modbus://{self.info['host']}:{self.info['port']}"
 
     def log(self) -> str:
-        """What the server wrote on stderr so far (its statistics once it has stopped)."""
+        """What the server wrote on stderr so far."""
         self._log.seek(0)
         return self._log.read()
+
+    def stop(self) -> dict[str, Any] | None:
+        """Stop the server (SIGTERM) and return its statistics (``HilStats`` as a dict;
+        None if it died without reporting them)."""
+        if self.process.poll() is None:
+            self.process.terminate()
+            self.process.wait(timeout=10)
+        for line in reversed(self.log().splitlines()):
+            with contextlib.suppress(ValueError):
+                return json.loads(line)["hil_stats"]
+        return None
 
 
 @contextlib.contextmanager

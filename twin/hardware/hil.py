@@ -38,7 +38,7 @@ from pymodbus.simulator import DataType, SimData, SimDevice
 from twin.config import AXES, MachineConfig
 from twin.errors import SimulationError
 from twin.hardware.register_map import RegisterMap, counter_to_words, volts_to_word, word_to_volts
-from twin.plant import Plant
+from twin.plant import Plant, Reading
 
 __all__ = ["HilModule", "HilStats", "hil_plant", "serve_hil"]
 
@@ -115,6 +115,8 @@ class HilModule:
         self.fault: str | None = None
         self._last_feed = -math.inf
         self._steps = 0
+        self._sampled = -1
+        self._last_reading = plant.read()
         self._requests = self._trips = self._max_catch_up = 0
         plant.enable(False)
         self._t0 = clock()
@@ -190,7 +192,7 @@ class HilModule:
     # ------------------------------------------------------------------ process image
     def input_registers(self) -> dict[int, int]:
         """Counters and tachos now: {address: register value}."""
-        r = self.plant.read()
+        r = self._reading()
         words: dict[int, int] = {}
         for k, a in enumerate(AXES):
             ax = self.map.axes[a]
@@ -202,7 +204,7 @@ class HilModule:
 
     def discrete_inputs(self) -> dict[int, bool]:
         """Switches, drive ready and the watchdog trip now: {address: state}."""
-        r = self.plant.read()
+        r = self._reading()
         fault = self.plant.drives.fault
         bits: dict[int, bool] = {}
         for k, a in enumerate(AXES):
@@ -215,6 +217,13 @@ class HilModule:
         if self.map.module.watchdog_tripped is not None:
             bits[self.map.module.watchdog_tripped] = self.tripped
         return bits
+
+    def _reading(self) -> Reading:
+        """The plant's sensor reading, sampled once per drive interval (the counter and
+        switch reads of one tick share it)."""
+        if self._sampled != self._steps:
+            self._last_reading, self._sampled = self.plant.read(), self._steps
+        return self._last_reading
 
     def holding_registers(self) -> dict[int, int]:
         """DAC references and the watchdog register: {address: register value}."""
