@@ -1,0 +1,215 @@
+"""``tune(spec)``: one tuning job end to end — search, best settings, report files.
+
+Every method leaves the same files in ``spec.out_dir``:
+
+* ``best.toml`` — the best settings as a machine-override file (``tuning.report``);
+* ``convergence.png`` — cost and max coordinate error per run against the analytic design;
+* ``report.md`` — the table best vs analytic;
+* ``result.json`` — the summary (also what ``twin tune --json`` prints) with every trial.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import json
+import math
+import time
+from collections.abc import Callable
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+from envs.evaluation import Weights
+from envs.programs import PROGRAMS
+from tuning.cma_job import run_cma
+from tuning.evaluator import Evaluator, Trial
+from tuning.report import comparison, plot_convergence, table_markdown, write_overrides
+from twin.config import MachineConfig, load_machine
+from twin.errors import ConfigError
+
+__all__ = ["METHODS", "TuneResult", "TuneSpec", "tune"]
+
+METHODS = ("analytic", "cma", "optuna", "ppo", "sac")
+
+
+@dataclass(frozen=True)
+class TuneSpec:
+    """What a tuning job does.
+
+    Attributes
+    ----------
+    method : str
+        One of ``METHODS``.
+    machine : str
+        Preset name or TOML path.
+    program : str
+        Tuning program (``envs.programs.PROGRAMS``).
+    budget_s : float
+        Wall-time budget of the search or training (s).
+    out_dir : Path
+        Where the files go.
+    storage : str or None
+        Optuna storage URL; None: ``sqlite:///<out_dir>/optuna.db``.
+    study : str or None
+        Optuna study name; None: ``<machine>-<program>``.
+    workers : int
+        Worker processes (CMA/Optuna) or parallel environments (PPO/SAC).
+    seed : int
+    max_runs : int or None
+        Stop after this many tuning runs as well (CMA/Optuna).
+    policy : Path or None
+        PPO/SAC: apply this trained policy (trusted file) instead of training.
+    train_steps : int
+        PPO/SAC: tuning runs to train for.
+    policy_runs : int
+        Tuning runs a policy gets on the target machine.
+    weights : dict
+        Cost weights by metric (``envs.evaluation.Weights``).
+    """
+
+    method: str
+    machine: str = "tomsk_xy"
+    program: str = "default"
+    budget_s: float = 600.0
+    out_dir: Path = Path("runs/tune")
+    storage: str | None = None
+    study: str | None = None
+    workers: int = 2
+    seed: int = 0
+    max_runs: int | None = None
+    policy: Path | None = None
+    train_steps: int = 4096
+    policy_runs: int = 5
+    weights: dict[str, float] = field(default_factory=dict)
+
+    def __post_init__(self) -> None:
+        if self.method not in METHODS:
+            raise ConfigError("method", f"must be one of {', '.join(METHODS)}, got "
+                              f"{self.method!r}")
+        if self.program not in PROGRAMS:
+            raise ConfigError("program", f"unknown tuning program {self.program!r}; valid: "
+                              f"{', '.join(PROGRAMS)}")
+        if not (math.isfinite(self.budget_s) and self.budget_s > 0):
+            raise ConfigError("budget_s", f"must be a finite number > 0 (s), got "
+                              f"{self.budget_s!r}")
+        if isinstance(self.workers, bool) or not isinstance(self.workers, int) \
+                or self.workers < 1:
+            raise ConfigError("workers", f"must be an integer >= 1, got {self.workers!r}")
+        Weights.from_mapping(self.weights)
+
+
+@dataclass
+class TuneResult:
+    """What a job found.
+
+    Attributes
+    ----------
+    spec : TuneSpec
+    baseline, best : Trial
+        The analytic design and the best trial (cost-wise; the baseline if nothing beat it).
+    trials : list of Trial
+        Every run of the job, in order (for Optuna: the whole study's).
+    files : dict of str to Path
+        ``overrides``, ``plot``, ``report``, ``result`` (and ``policy`` after training).
+    wall_time : float
+        Duration of the job (s).
+    """
+
+    spec: TuneSpec
+    baseline: Trial
+    best: Trial
+    trials: list[Trial]
+    files: dict[str, Path]
+    wall_time: float
+
+    def summary(self) -> dict[str, Any]:
+        """JSON-ready summary (µm, s in the comparison; SI in the trials)."""
+        return {
+            "method": self.spec.method, "machine": self.spec.machine,
+            "program": self.spec.program, "runs": len(self.trials),
+            "wall_time_s": self.wall_time,
+            "baseline": self.baseline.to_dict(), "best": self.best.to_dict(),
+            "comparison": comparison(self.baseline, self.best),
+            "max_coordinate_error_reduction_pct": 100.0 * (
+                1.0 - self.best.metrics["max_coordinate_error"]
+                / self.baseline.metrics["max_coordinate_error"]),
+            "files": {k: str(v) for k, v in self.files.items()},
+            "spec": {k: (str(v) if isinstance(v, Path) else v)
+                     for k, v in dataclasses.asdict(self.spec).items()},
+        }
+
+
+def _search(spec: TuneSpec, ev: Evaluator, files: dict[str, Path],
+            progress: Callable[[int], None] | None) -> list[Trial]:
+    """Run the method; returns its trials."""
+    if spec.method == "analytic":
+        return []
+    if spec.method == "cma":
+        run_cma(ev, budget_s=spec.budget_s, max_evals=spec.max_runs, seed=spec.seed)
+        return ev.trials
+    if spec.method == "optuna":
+        from tuning.optuna_job import default_storage, run_optuna
+
+        return run_optuna(ev, storage=spec.storage or default_storage(spec.out_dir),
+                          study_name=spec.study or f"{ev.tuning.cfg.name}-{spec.program}",
+                          budget_s=spec.budget_s, max_trials=spec.max_runs, seed=spec.seed)
+    from tuning.sb3_job import apply_policy, train
+
+    policy = spec.policy
+    if policy is None:
+        policy = train(spec.method, machine=ev.tuning.cfg, program=spec.program,
+                       out_dir=spec.out_dir / "checkpoints", total_steps=spec.train_steps,
+                       budget_s=spec.budget_s, n_envs=spec.workers, seed=spec.seed,
+                       weights=ev.tuning.weights, progress=progress)
+        files["policy"] = policy
+    trials, _ = apply_policy(policy, ev.tuning.cfg, program=spec.program,
+                             runs=spec.policy_runs, weights=ev.tuning.weights,
+                             on_trial=ev.on_trial)
+    return trials
+
+
+def tune(spec: TuneSpec, *, on_trial: Callable[[Trial], None] | None = None,
+         progress: Callable[[int], None] | None = None) -> TuneResult:
+    """Run the job ``spec``; write the override TOML, plot, table and JSON.
+
+    Parameters
+    ----------
+    spec : TuneSpec
+    on_trial : callable(Trial), optional
+        Called after every tuning run of this process.
+    progress : callable(int), optional
+        PPO/SAC: called with the number of training steps done.
+    """
+    start = time.perf_counter()
+    cfg: MachineConfig = load_machine(spec.machine)
+    out = Path(spec.out_dir)
+    out.mkdir(parents=True, exist_ok=True)
+    files: dict[str, Path] = {}
+    with Evaluator.create(cfg, spec.program, weights=Weights.from_mapping(spec.weights),
+                          workers=spec.workers if spec.method in ("cma", "optuna") else 1,
+                          on_trial=on_trial) as ev:
+        trials = _search(spec, ev, files, progress)
+        baseline = ev.baseline
+    best = min([baseline, *trials], key=lambda t: t.cost)
+    header = (f"twin tune --method {spec.method}: best settings for {cfg.name}, program "
+              f"{spec.program}", f"cost {best.cost:.4g} (analytic {baseline.cost:.4g}); "
+              f"max coordinate error {best.metrics['max_coordinate_error'] * 1e6:.3g} µm "
+              f"(analytic {baseline.metrics['max_coordinate_error'] * 1e6:.3g} µm)",
+              "apply with: twin run --set-file THIS_FILE")
+    files["overrides"] = write_overrides(out / "best.toml", best.settings, header=header)
+    files["plot"] = plot_convergence(out / "convergence.png", trials, baseline,
+                                     title=f"{spec.method} on {cfg.name} ({spec.program})")
+    rows = comparison(baseline, best)
+    report = out / "report.md"
+    report.write_text(f"# {spec.method} tuning of {cfg.name} ({spec.program})\n\n"
+                      f"{len(trials)} tuning runs, {time.perf_counter() - start:.0f} s.\n\n"
+                      + table_markdown(rows), encoding="utf-8")
+    files["report"] = report
+    files["result"] = out / "result.json"
+    result = TuneResult(spec, baseline, best, list(trials), files,
+                        time.perf_counter() - start)
+    doc = {**result.summary(), "trials": [t.to_dict() for t in trials]}
+    tmp = files["result"].with_name("result.json.partial")
+    tmp.write_text(json.dumps(doc, indent=1, default=str) + "\n", encoding="utf-8")
+    tmp.replace(files["result"])
+    return result

@@ -1,0 +1,144 @@
+"""Optuna (TPE) over the normalised tuning space, in an RDB storage that jobs share.
+
+The study lives in a database: a SQLite file by default, or any SQLAlchemy URL
+(``postgresql://user@host/db``) so that any number of ``twin tune --method optuna`` workers
+on any number of hosts join the same study (same ``--storage``, machine and program). The
+storage runs a heartbeat: a worker that dies leaves its trial RUNNING only until the grace
+period has passed; the next worker to start a trial marks it FAILED and re-enqueues its
+parameters (``RetryFailedTrialCallback``), so a killed job loses at most the trial in
+flight. Every finished trial keeps its cost terms, metrics and settings as user
+attributes, so a report can be rebuilt from the database alone.
+"""
+
+from __future__ import annotations
+
+import math
+import multiprocessing
+import time
+from collections.abc import Callable
+from pathlib import Path
+from typing import Any
+
+import optuna
+from optuna.storages import RDBStorage, RetryFailedTrialCallback
+
+from envs.evaluation import RunOutcome, Weights
+from envs.gain_tuning import Tuning
+from tuning.evaluator import Evaluator, Trial
+from twin.config import MachineConfig
+from twin.errors import ConfigError
+
+__all__ = ["default_storage", "open_study", "run_optuna", "study_trials"]
+
+HEARTBEAT_S = 5
+"""Heartbeat interval of a running trial (s)."""
+GRACE_S = 20
+"""A RUNNING trial whose heartbeat is older than this is declared dead (s)."""
+
+
+def default_storage(out_dir: Path) -> str:
+    """The default storage URL: ``sqlite:///<out_dir>/optuna.db``."""
+    return f"sqlite:///{(Path(out_dir) / 'optuna.db').resolve()}"
+
+
+def open_study(url: str, name: str, names: tuple[str, ...], *, seed: int = 0,
+               heartbeat_s: int = HEARTBEAT_S, grace_s: int = GRACE_S) -> optuna.Study:
+    """Create or load study ``name`` in ``url`` (minimisation, multivariate TPE)."""
+    optuna.logging.set_verbosity(optuna.logging.WARNING)
+    storage = RDBStorage(url, heartbeat_interval=heartbeat_s, grace_period=grace_s,
+                         heartbeat_stale_trial_callback=RetryFailedTrialCallback(max_retry=2))
+    sampler = optuna.samplers.TPESampler(seed=seed, multivariate=True, n_startup_trials=10)
+    study = optuna.create_study(storage=storage, study_name=name, direction="minimize",
+                                sampler=sampler, load_if_exists=True)
+    study.set_user_attr("coordinates", list(names))
+    return study
+
+
+def _params(x: Any, names: tuple[str, ...]) -> dict[str, float]:
+    return {n: float(v) for n, v in zip(names, x, strict=True)}
+
+
+def _seed_baseline(study: optuna.Study, baseline: Trial, names: tuple[str, ...]) -> None:
+    """Give a new study the analytic design as its first (already known) trial."""
+    if study.trials:
+        return
+    dist = {n: optuna.distributions.FloatDistribution(-1.0, 1.0) for n in names}
+    trial = optuna.trial.create_trial(params=_params(baseline.x, names), distributions=dist,
+                                      value=baseline.cost,
+                                      user_attrs=_attrs(baseline))
+    study.add_trial(trial)
+
+
+def _attrs(trial: Trial) -> dict[str, Any]:
+    d = trial.to_dict()
+    return {"terms": d["terms"], "metrics": d["metrics"], "status": d["status"],
+            "settings": d["settings"], "wall_time_s": d["wall_time_s"],
+            "sim_time_s": d["sim_time_s"]}
+
+
+def _objective(evaluator: Evaluator, names: tuple[str, ...]
+               ) -> Callable[[optuna.Trial], float]:
+    def objective(trial: optuna.Trial) -> float:
+        x = [trial.suggest_float(n, -1.0, 1.0) for n in names]
+        result = evaluator.evaluate([x])[0]
+        for key, value in _attrs(result).items():
+            trial.set_user_attr(key, value)
+        return result.cost
+
+    return objective
+
+
+def study_trials(study: optuna.Study) -> list[Trial]:
+    """The study's finished trials as ``Trial``s, in trial-number order."""
+    names = tuple(study.user_attrs.get("coordinates", ()))
+    out = []
+    for t in study.get_trials(deepcopy=False,
+                              states=(optuna.trial.TrialState.COMPLETE,)):
+        a = t.user_attrs
+        metrics = {k: (math.nan if v is None else v) for k, v in a.get("metrics", {}).items()}
+        out.append(Trial(tuple(t.params[n] for n in names), float(t.value), a.get("terms", {}),
+                         metrics, a.get("status", ""), a.get("settings", {}),
+                         a.get("wall_time_s", 0.0), a.get("sim_time_s", 0.0)))
+    return out
+
+
+def _worker(url: str, name: str, cfg: MachineConfig, program: str, weights: Weights,
+            penalty: float, baseline: RunOutcome, budget_s: float, seed: int) -> None:
+    tuning = Tuning(cfg, program, weights=weights, penalty=penalty, baseline=baseline)
+    names = tuning.space.names
+    study = open_study(url, name, names, seed=seed)
+    study.optimize(_objective(Evaluator(tuning), names), timeout=budget_s)
+
+
+def run_optuna(evaluator: Evaluator, *, storage: str, study_name: str, budget_s: float,
+               max_trials: int | None = None, seed: int = 0) -> list[Trial]:
+    """Optimise in ``storage`` for ``budget_s`` seconds; returns all the study's finished
+    trials (this job's and earlier or concurrent ones'), the analytic baseline first.
+
+    With ``evaluator.workers`` = N > 1, N - 1 extra processes join the study on this host
+    (the evaluator's own pool is not used: each worker runs its trials itself).
+    """
+    if not (math.isfinite(budget_s) and budget_s > 0.0):
+        raise ConfigError("budget_s", f"must be a finite number > 0 (s), got {budget_s!r}")
+    names = evaluator.tuning.space.names
+    study = open_study(storage, study_name, names, seed=seed)
+    _seed_baseline(study, evaluator.baseline, names)
+    t = evaluator.tuning
+    ctx = multiprocessing.get_context("spawn")
+    extra = [ctx.Process(target=_worker, daemon=True,
+                         args=(storage, study_name, t.cfg, t.program, t.weights, t.penalty,
+                               t.baseline, budget_s, seed + 1 + i))
+             for i in range(evaluator.workers - 1)]
+    for p in extra:
+        p.start()
+    local = Evaluator(t, 1, evaluator.on_trial)
+    start = time.perf_counter()
+    try:
+        study.optimize(_objective(local, names), timeout=budget_s, n_trials=max_trials)
+    finally:
+        for p in extra:
+            p.join(timeout=max(1.0, budget_s - (time.perf_counter() - start)) + 60.0)
+            if p.is_alive():
+                p.terminate()
+    evaluator.trials.extend(local.trials)
+    return study_trials(study)

@@ -1,0 +1,140 @@
+"""``twin tune``: automated gain tuning (analytic, CMA-ES, Optuna, PPO, SAC).
+
+Also ``set_file_overrides``: the dotted overrides of a machine-override TOML (what ``twin
+tune`` writes as ``best.toml``), for ``twin run --set-file FILE``.
+"""
+
+from __future__ import annotations
+
+import json
+import sys
+import time
+import tomllib
+from pathlib import Path
+from typing import Any
+
+import typer
+from rich.console import Console
+from rich.progress import BarColumn, Progress, TextColumn, TimeElapsedColumn
+
+from twin.errors import ConfigError, TwinError
+
+__all__ = ["register", "set_file_overrides"]
+
+err = Console(stderr=True)
+
+
+def _fail(exc: BaseException) -> None:
+    err.print(f"[bold red]error:[/] {exc}", highlight=False)
+    raise typer.Exit(2)
+
+
+def set_file_overrides(path: str | Path) -> dict[str, Any]:
+    """The dotted overrides of a machine-override TOML file.
+
+    Tables are flattened to dotted keys (``[controller.regulator] kp = 1`` →
+    ``{"controller.regulator.kp": 1}``); arrays stay values. The result goes through
+    ``MachineConfig.with_overrides`` like ``--set`` values.
+
+    Raises
+    ------
+    ConfigError
+        Missing file or invalid TOML (naming the file).
+    """
+    p = Path(path)
+    if not p.is_file():
+        raise ConfigError("set_file", f"no such file: {path}")
+    try:
+        doc = tomllib.loads(p.read_text(encoding="utf-8"))
+    except tomllib.TOMLDecodeError as exc:
+        raise ConfigError(str(p), f"invalid TOML: {exc}") from None
+    out: dict[str, Any] = {}
+
+    def walk(node: dict[str, Any], prefix: str) -> None:
+        for key, value in node.items():
+            if isinstance(value, dict) and not key == "stiffness":
+                walk(value, f"{prefix}{key}.")
+            else:
+                out[f"{prefix}{key}"] = value
+
+    walk(doc, "")
+    return out
+
+
+def tune(
+    method: str = typer.Option(..., "--method", help="analytic, cma, optuna, ppo or sac."),
+    machine: str = typer.Option("tomsk_xy", "--machine", "-m",
+                                help="Machine preset name or TOML file."),
+    program: str = typer.Option("default", "--program", help="Tuning program: default, "
+                                "compact (default shrunk to 5 %), tiny, corner, spline_line."),
+    budget_s: float = typer.Option(600.0, "--budget-s", help="Wall-time budget (s)."),
+    storage: str | None = typer.Option(None, "--storage", help="Optuna storage URL "
+                                       "(default sqlite:///OUT/optuna.db; postgresql://… "
+                                       "lets workers on several hosts share a study)."),
+    study: str | None = typer.Option(None, "--study", help="Optuna study name."),
+    workers: int = typer.Option(2, "--workers", min=1, help="Worker processes (CMA, "
+                                "Optuna) or parallel environments (PPO, SAC)."),
+    seed: int = typer.Option(0, "--seed"),
+    max_runs: int | None = typer.Option(None, "--max-runs", min=1,
+                                        help="Stop after this many tuning runs as well."),
+    policy: Path | None = typer.Option(None, "--policy", help="PPO/SAC: apply this trained "
+                                       "policy instead of training. It is a pickle-based "
+                                       "SB3 .zip: load only files from a trusted source."),
+    train_steps: int = typer.Option(4096, "--train-steps", min=1,
+                                    help="PPO/SAC: tuning runs to train for."),
+    out: Path = typer.Option(Path("runs/tune"), "--out", help="Output directory."),
+    as_json: bool = typer.Option(False, "--json", help="Print exactly one JSON object."),
+) -> None:
+    """Tune the regulator gains, DCU coefficients and jerk limit of a machine."""
+    from tuning.jobs import TuneSpec
+    from tuning.jobs import tune as run_job
+
+    try:
+        spec = TuneSpec(method=method, machine=machine, program=program, budget_s=budget_s,
+                        out_dir=out, storage=storage, study=study, workers=workers,
+                        seed=seed, max_runs=max_runs, policy=policy, train_steps=train_steps)
+        training = method in ("ppo", "sac") and policy is None
+        with Progress(TextColumn(f"[bold]{method}"), BarColumn(),
+                      TextColumn("{task.description}"), TimeElapsedColumn(), console=err,
+                      transient=True) as bar:
+            task = bar.add_task("starting", total=train_steps if training else budget_s)
+            start = time.perf_counter()
+            state = {"runs": 0, "best": float("inf")}
+
+            def on_trial(trial: Any) -> None:
+                state["runs"] += 1
+                state["best"] = min(state["best"], trial.cost)
+                if not training:
+                    bar.update(task, completed=min(time.perf_counter() - start, budget_s))
+                bar.update(task, description=f"{state['runs']} runs, best cost "
+                                             f"{state['best']:.4g}")
+
+            def on_steps(steps: int) -> None:
+                bar.update(task, completed=steps, description=f"training: {steps} runs")
+
+            result = run_job(spec, on_trial=on_trial, progress=on_steps)
+    except TwinError as exc:
+        _fail(exc)
+    summary = result.summary()
+    if as_json:
+        sys.stdout.write(json.dumps(summary, default=str) + "\n")
+        return
+    from rich.table import Table
+
+    table = Table(title=f"{method} on {machine} ({program}): {summary['runs']} runs, "
+                        f"{summary['wall_time_s']:.0f} s")
+    for col in ("metric", "unit", "analytic", "best", "change"):
+        table.add_column(col, justify="left" if col in ("metric", "unit") else "right")
+    for row in summary["comparison"]:
+        change = "" if row["change_pct"] is None else f"{row['change_pct']:+.1f} %"
+        table.add_row(row["metric"], row["unit"], f"{row['analytic']:.4g}",
+                      f"{row['best']:.4g}", change)
+    console = Console()
+    console.print(table)
+    for key, path in summary["files"].items():
+        console.print(f"{key}: {path}", highlight=False)
+
+
+def register(app: typer.Typer) -> None:
+    """Add ``twin tune`` to the ``twin`` app."""
+    app.command("tune")(tune)
