@@ -219,11 +219,12 @@ def machines(as_json: bool = JsonOpt) -> None:
 
 def _register_more() -> None:
     """Commands that live in their own modules (imported lazily by their functions)."""
-    from twin import cli_compare, cli_hil, cli_manual
+    from twin import cli_compare, cli_hil, cli_manual, cli_tune
 
     cli_manual.register(app)
     cli_hil.register(app)
     cli_compare.register(app)
+    cli_tune.register(app)
 
 
 _register_more()
