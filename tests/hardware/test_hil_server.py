@@ -96,6 +96,8 @@ def test_watchdog_zeroes_the_outputs_within_its_timeout():
         assert refused.isError() and refused.exception_code == 4
         assert not c.write_coil(0, False, device_id=UNIT).isError()       # acknowledge
         assert not c.read_discrete_inputs(8, count=1, device_id=UNIT).bits[0]
+        stats = server.stop()
+    assert stats["watchdog_trips"] == 1 and stats["fault"] is None
 
 
 def test_a_program_through_the_server_matches_the_lockstep_twin(tmp_path):

@@ -9,6 +9,17 @@ old), and an output written at t drives the plant from that boundary on. Between
 a background task keeps advancing, so the table moves (and the watchdog runs) whether or not
 anybody asks.
 
+Phase lock: like a fieldbus module whose inputs are latched on a clock synchronised to the
+master's cycle, the module steers its drive-interval grid so that the client's counter
+reads arrive a quarter interval (``sync_phase``) after a boundary: each read nudges the
+grid a fifth (``sync_gain``) of the way. A controller that reads, computes and writes
+within the rest of that interval then sees exactly what the lock-step twin shows it (the
+sample at k·T, the new reference applied from k·T on); jitter below a quarter interval
+changes nothing. With a free-running grid (``sync_phase=None``) the read lands anywhere in
+an interval and the write often in the next one: about one drive interval of extra delay
+(1 ms on the Tomsk rig, a fifth of its 5 ms period), which moved the contour errors of the
+corner program by 14 %.
+
 Watchdog: writing the watchdog holding register with a new value restarts the timer. When
 it expires while the outputs are live (enable set or a DAC register non-zero), the module
 zeroes the DAC registers, clears the enable coil, disables the drives and sets the
@@ -86,8 +97,22 @@ class HilModule:
     register_map : RegisterMap
     watchdog : float
         Watchdog timeout (s).
+    sync_phase : float or None
+        Where in a drive interval the client's counter reads are steered (fraction of an
+        interval, 0 … 1); None: a free-running grid.
+    sync_gain : float
+        Fraction of the phase error corrected at each counter read (0 … 1].
     clock : callable
         Wall clock (s); injected for tests.
+
+    Attributes
+    ----------
+    dt : float
+        Drive interval of the plant (s): the grain of the physics and of the outputs.
+    enabled, tripped : bool
+        The enable coil; the latched watchdog trip.
+    fault : str or None
+        Set when the plant diverged; every access then answers Modbus exception 4.
     """
 
     def __init__(self, plant: Plant, register_map: RegisterMap, *, watchdog: float = 0.1,
@@ -134,8 +159,9 @@ class HilModule:
         return self._clock() - self._t0
 
     def advance(self, now: float | None = None) -> int:
-        """Catch the plant up with the clock (whole drive intervals) and run the watchdog.
-        Returns the intervals advanced. A diverged plant sets ``fault``."""
+        """Catch the plant up with module time ``now`` (s; default: the clock) in whole
+        drive intervals and run the watchdog. Returns the intervals advanced. A diverged
+        plant sets ``fault``."""
         if self.fault is not None:
             return 0
         now = self.now if now is None else now
