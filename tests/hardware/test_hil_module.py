@@ -12,7 +12,7 @@ import pytest
 from pymodbus.constants import ExcCodes
 
 from twin.config import load_machine
-from twin.errors import SimulationError
+from twin.errors import ConfigError, SimulationError
 from twin.hardware.hil import HilModule, hil_plant
 from twin.hardware.register_map import (
     load_register_map,
@@ -223,3 +223,13 @@ def test_pymodbus_glue_fills_reads_applies_writes_and_reports_faults(rig, monkey
     clock.now = 2.0
     assert act(4, 0, 0, [0] * 7) == ExcCodes.DEVICE_FAILURE
     assert module.stats().fault == "the plant state diverged"
+
+
+@pytest.mark.parametrize(("option", "value"), [
+    ("watchdog", 0.0), ("watchdog", float("inf")), ("sync_phase", 1.0), ("sync_phase", -0.1),
+    ("sync_gain", 0.0), ("sync_gain", 1.5),
+])
+def test_module_options_out_of_range_name_the_option(plants, option, value):
+    with pytest.raises(ConfigError) as info:
+        HilModule(plants[0], RMAP, **{option: value})
+    assert info.value.field == option

@@ -305,3 +305,13 @@ def test_a_garbled_answer_mid_run_stops_safely_with_the_record_intact(tmp_path):
     assert rrd.exists() and not list(tmp_path.glob("*.partial"))
     entities = {c.entity_path for c in rc.RrdReader(rrd).stream().to_chunks()}
     assert "/axes/x/position/actual" in entities
+
+
+@pytest.mark.parametrize(("option", "value"), [
+    ("timeout", 0.0), ("timeout", float("nan")), ("connect_timeout", -1.0),
+    ("retries", -1), ("reconnects", -2),
+])
+def test_driver_options_out_of_range_name_the_option(option, value):
+    with pytest.raises(ConfigError) as info:
+        ModbusDriver("127.0.0.1", 1, **{option: value})
+    assert info.value.field == option

@@ -47,7 +47,7 @@ from pymodbus.server import ModbusTcpServer
 from pymodbus.simulator import DataType, SimData, SimDevice
 
 from twin.config import AXES, MachineConfig
-from twin.errors import SimulationError
+from twin.errors import ConfigError, SimulationError
 from twin.hardware.register_map import RegisterMap, counter_to_words, volts_to_word, word_to_volts
 from twin.plant import Plant, Reading
 
@@ -119,11 +119,11 @@ class HilModule:
                  sync_phase: float | None = 0.25, sync_gain: float = 0.2,
                  clock: Callable[[], float] = time.perf_counter):
         if not (math.isfinite(watchdog) and watchdog > 0):
-            raise ValueError(f"watchdog must be > 0 s, got {watchdog}")
+            raise ConfigError("watchdog", f"must be > 0 s, got {watchdog}")
         if sync_phase is not None and not 0.0 <= sync_phase < 1.0:
-            raise ValueError(f"sync_phase must be in [0, 1), got {sync_phase}")
+            raise ConfigError("sync_phase", f"must be in [0, 1), got {sync_phase}")
         if not 0.0 < sync_gain <= 1.0:
-            raise ValueError(f"sync_gain must be in (0, 1], got {sync_gain}")
+            raise ConfigError("sync_gain", f"must be in (0, 1], got {sync_gain}")
         self.plant, self.map, self.watchdog = plant, register_map, watchdog
         self.sync_phase, self.sync_gain = sync_phase, sync_gain
         self.dt = plant.drive_dt

@@ -44,7 +44,7 @@ from pymodbus.exceptions import ConnectionException, ModbusException, ModbusIOEx
 
 from twin.config import AXES
 from twin.controller.io import Inputs, Outputs
-from twin.errors import DriverError
+from twin.errors import ConfigError, DriverError
 from twin.hardware.register_map import (
     RegisterMap,
     load_register_map,
@@ -95,10 +95,25 @@ class ModbusDriver:
 
     Attributes
     ----------
+    map : RegisterMap
+    timeout : float
+        Answer timeout (s).
+    reconnects : int
     requests : int
         Modbus requests sent so far (a tick of the default map costs three).
     url : str
         ``modbus://host:port``, for messages.
+
+    Raises
+    ------
+    ConfigError
+        An option out of range (naming it).
+    DriverError
+        The module cannot be reached within ``connect_timeout`` or refuses the safe state.
+
+    Notes
+    -----
+    ``Inputs.time`` is this driver's clock: seconds since it connected.
     """
 
     def __init__(self, host: str, port: int = 502, *, register_map: RegisterMap | None = None,
@@ -106,10 +121,10 @@ class ModbusDriver:
                  connect_timeout: float = 2.0):
         for name, value in (("timeout", timeout), ("connect_timeout", connect_timeout)):
             if not (math.isfinite(value) and value > 0):
-                raise ValueError(f"{name} must be > 0 s, got {value}")
+                raise ConfigError(name, f"must be > 0 s, got {value}")
         for name, count in (("retries", retries), ("reconnects", reconnects)):
             if count < 0:
-                raise ValueError(f"{name} must be >= 0, got {count}")
+                raise ConfigError(name, f"must be >= 0, got {count}")
         self.url = f"modbus://{host}:{port}"
         self.map = register_map or load_register_map()
         self.timeout = timeout
