@@ -61,7 +61,7 @@ def run_cma(evaluator: Evaluator, *, budget_s: float, max_evals: int | None = No
             break
         xs = es.ask()
         if max_evals is not None:
-            xs = xs[: max(max_evals - evals, 2)]
+            xs = xs[: max_evals - evals]
         t0 = time.perf_counter()
         trials = evaluator.evaluate(xs)
         last = time.perf_counter() - t0

@@ -15,6 +15,7 @@ from __future__ import annotations
 import math
 import multiprocessing
 import time
+import warnings
 from collections.abc import Callable
 from pathlib import Path
 from typing import Any
@@ -45,8 +46,11 @@ def open_study(url: str, name: str, names: tuple[str, ...], *, seed: int = 0,
                heartbeat_s: int = HEARTBEAT_S, grace_s: int = GRACE_S) -> optuna.Study:
     """Create or load study ``name`` in ``url`` (minimisation, multivariate TPE)."""
     optuna.logging.set_verbosity(optuna.logging.WARNING)
-    storage = RDBStorage(url, heartbeat_interval=heartbeat_s, grace_period=grace_s,
-                         heartbeat_stale_trial_callback=RetryFailedTrialCallback(max_retry=2))
+    with warnings.catch_warnings():   # the heartbeat is "experimental" in optuna 5
+        warnings.simplefilter("ignore", optuna.exceptions.ExperimentalWarning)
+        storage = RDBStorage(url, heartbeat_interval=heartbeat_s, grace_period=grace_s,
+                             heartbeat_stale_trial_callback=RetryFailedTrialCallback(
+                                 max_retry=2))
     sampler = optuna.samplers.TPESampler(seed=seed, multivariate=True, n_startup_trials=10)
     study = optuna.create_study(storage=storage, study_name=name, direction="minimize",
                                 sampler=sampler, load_if_exists=True)
@@ -111,7 +115,8 @@ def _worker(url: str, name: str, cfg: MachineConfig, program: str, weights: Weig
 
 
 def run_optuna(evaluator: Evaluator, *, storage: str, study_name: str, budget_s: float,
-               max_trials: int | None = None, seed: int = 0) -> list[Trial]:
+               max_trials: int | None = None, seed: int = 0, heartbeat_s: int = HEARTBEAT_S,
+               grace_s: int = GRACE_S) -> list[Trial]:
     """Optimise in ``storage`` for ``budget_s`` seconds; returns all the study's finished
     trials (this job's and earlier or concurrent ones'), the analytic baseline first.
 
@@ -121,7 +126,8 @@ def run_optuna(evaluator: Evaluator, *, storage: str, study_name: str, budget_s:
     if not (math.isfinite(budget_s) and budget_s > 0.0):
         raise ConfigError("budget_s", f"must be a finite number > 0 (s), got {budget_s!r}")
     names = evaluator.tuning.space.names
-    study = open_study(storage, study_name, names, seed=seed)
+    study = open_study(storage, study_name, names, seed=seed, heartbeat_s=heartbeat_s,
+                       grace_s=grace_s)
     _seed_baseline(study, evaluator.baseline, names)
     t = evaluator.tuning
     ctx = multiprocessing.get_context("spawn")

@@ -80,8 +80,9 @@ def _callbacks(directory: Path, every: int, n_envs: int, budget_s: float,
 
 def train(method: str, *, machine: str | MachineConfig, program: str = "compact",
           out_dir: Path, total_steps: int, budget_s: float = math.inf, n_envs: int = 2,
-          seed: int = 0, checkpoint_steps: int = 200, weights: Weights | None = None,
-          progress: Callable[[int], None] | None = None) -> Path:
+          seed: int = 0, checkpoint_steps: int = 200, rollout: int = 64,
+          weights: Weights | None = None, progress: Callable[[int], None] | None = None
+          ) -> Path:
     """Train (or resume training) a tuning policy; returns the saved ``policy.zip``.
 
     Parameters
@@ -102,6 +103,8 @@ def train(method: str, *, machine: str | MachineConfig, program: str = "compact"
     seed : int
     checkpoint_steps : int
         Checkpoint every this many tuning runs.
+    rollout : int
+        PPO: tuning runs per policy update (over all environments).
     """
     from stable_baselines3.common.vec_env import DummyVecEnv, SubprocVecEnv
 
@@ -121,7 +124,8 @@ def train(method: str, *, machine: str | MachineConfig, program: str = "compact"
             if method == "sac" and buffer.is_file():
                 model.load_replay_buffer(buffer)
         else:
-            model = algo("MlpPolicy", vec, seed=seed, verbose=0, **_hyper(method, n_envs))
+            model = algo("MlpPolicy", vec, seed=seed, verbose=0,
+                         **_hyper(method, n_envs, rollout))
         left = total_steps - int(model.num_timesteps)
         if left > 0:
             model.learn(left, callback=_callbacks(out, checkpoint_steps, n_envs, budget_s,
@@ -145,14 +149,15 @@ def _make_env(kwargs: dict[str, Any], seed: int) -> gym.Env:
     return env
 
 
-def _hyper(method: str, n_envs: int) -> dict[str, Any]:
+def _hyper(method: str, n_envs: int, rollout: int) -> dict[str, Any]:
     """Small-sample settings: every step is a whole simulated program run."""
     if method == "ppo":
-        n_steps = max(8, 64 // n_envs)
-        return {"n_steps": n_steps, "batch_size": n_steps * n_envs // 2, "n_epochs": 10,
+        n_steps = max(2, rollout // n_envs)
+        return {"n_steps": n_steps, "batch_size": max(2, n_steps * n_envs // 2),
+                "n_epochs": 10,
                 "learning_rate": 1e-3, "gamma": 0.9, "gae_lambda": 0.9, "ent_coef": 0.0,
                 "policy_kwargs": {"net_arch": [64, 64], "log_std_init": -1.0}}
-    return {"learning_starts": 64, "batch_size": 64, "buffer_size": 100_000,
+    return {"learning_starts": min(64, rollout), "batch_size": 64, "buffer_size": 100_000,
             "learning_rate": 1e-3, "gamma": 0.9, "train_freq": 1,
             "policy_kwargs": {"net_arch": [64, 64]}}
 

@@ -1,0 +1,129 @@
+"""Tuning jobs: the evaluator, CMA-ES, the files a job writes, and the acceptance figure
+(black-box tuning beats the analytic DCU design by ≥ 20 % without more overshoot)."""
+
+import math
+import os
+
+import numpy as np
+import pytest
+
+from envs.evaluation import tuning_run
+from tuning.cma_job import run_cma
+from tuning.evaluator import Evaluator
+from tuning.jobs import TuneSpec, tune
+from tuning.report import read_overrides, write_overrides
+from twin.cli_tune import set_file_overrides
+from twin.errors import ConfigError
+
+CI = os.environ.get("CI") == "true"
+
+
+@pytest.fixture(scope="module")
+def tiny():
+    with Evaluator.create("tomsk_xy", "tiny") as ev:
+        yield ev
+
+
+def test_parallel_workers_give_the_same_trials(tiny):
+    xs = [np.linspace(-0.3, 0.3, 11), np.full(11, -0.5), np.zeros(11)]
+    with Evaluator(tiny.tuning, workers=2) as par:
+        parallel = par.evaluate(xs)
+    serial = Evaluator(tiny.tuning).evaluate(xs)
+    for a, b in zip(parallel, serial, strict=True):
+        assert a.cost == b.cost and a.metrics == b.metrics and a.x == b.x
+    assert serial[2].cost == pytest.approx(tiny.baseline.cost, rel=1e-12)
+
+
+def test_cma_improves_on_the_analytic_design_and_is_seeded(tiny):
+    a = Evaluator(tiny.tuning)
+    best = run_cma(a, budget_s=120.0, max_evals=24, seed=3)
+    assert len(a.trials) == 24
+    assert best.cost < tiny.baseline.cost
+    assert best is min(a.trials, key=lambda t: t.cost)
+    b = Evaluator(tiny.tuning)
+    run_cma(b, budget_s=120.0, max_evals=12, seed=3)
+    assert [t.x for t in b.trials] == [t.x for t in a.trials[:12]]
+
+
+def test_cma_respects_the_time_budget(tiny):
+    ev = Evaluator(tiny.tuning)
+    run_cma(ev, budget_s=0.5, seed=0)
+    assert 1 <= len(ev.trials) <= 2 * 11   # one or two generations at most
+
+
+@pytest.mark.parametrize("bad, field", [({"budget_s": 0.0}, "budget_s"),
+                                        ({"budget_s": 1.0, "sigma0": 2.0}, "sigma0")])
+def test_cma_arguments(tiny, bad, field):
+    with pytest.raises(ConfigError) as info:
+        run_cma(Evaluator(tiny.tuning), **bad)
+    assert info.value.field == field
+
+
+def test_job_files_and_the_override_round_trip(tmp_path):
+    result = tune(TuneSpec(method="cma", program="tiny", budget_s=60.0, max_runs=12,
+                           workers=1, out_dir=tmp_path))
+    for key in ("overrides", "plot", "report", "result"):
+        assert result.files[key].is_file() and result.files[key].stat().st_size > 0
+    assert result.files["plot"].read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+    assert "| max_coordinate_error | µm |" in result.files["report"].read_text()
+    # the TOML reproduces the best run exactly
+    ev_space = Evaluator.create("tomsk_xy", "tiny").tuning
+    settings = read_overrides(result.files["overrides"], ev_space.space.analytic)
+    assert settings.to_dict() == result.best.settings   # repr floats round-trip exactly
+    again = tuning_run(ev_space.cfg, settings, models=ev_space.models, program="tiny")
+    assert again.metrics == result.best.metrics
+    flat = set_file_overrides(result.files["overrides"])
+    assert set(flat) == {"controller.limits.max_jerk", "controller.regulator.kp",
+                         "controller.regulator.ki", "controller.regulator.dcu_alpha"}
+    assert flat["controller.regulator.kp"] == list(result.best.settings["kp"])
+
+
+def test_analytic_job_is_the_baseline(tmp_path):
+    result = tune(TuneSpec(method="analytic", program="tiny", out_dir=tmp_path))
+    assert result.trials == [] and result.best == result.baseline
+    assert result.summary()["max_coordinate_error_reduction_pct"] == 0.0
+
+
+def test_override_file_errors(tmp_path):
+    bad = tmp_path / "bad.toml"
+    bad.write_text("[controller]\nx = 1\n")
+    base = Evaluator.create("tomsk_xy", "tiny").tuning.space.analytic
+    with pytest.raises(ConfigError, match="not a tuning override file"):
+        read_overrides(bad, base)
+    bad.write_text("[controller\n")
+    with pytest.raises(ConfigError, match="invalid TOML"):
+        read_overrides(bad, base)
+    with pytest.raises(ConfigError, match="no such file"):
+        set_file_overrides(tmp_path / "missing.toml")
+    ok = write_overrides(tmp_path / "ok.toml", {"kp": [1.0, 2.0], "ki": [0.0, 0.0],
+                                                "dcu_alpha": [[1, 2, 3], [4, 5, 6]],
+                                                "max_jerk": 3.0})
+    assert set_file_overrides(ok)["controller.regulator.dcu_alpha"] == [[1, 2, 3], [4, 5, 6]]
+
+
+@pytest.mark.parametrize("bad, field", [({"method": "grid"}, "method"),
+                                        ({"program": "nope"}, "program"),
+                                        ({"budget_s": -1.0}, "budget_s"),
+                                        ({"workers": 0}, "workers"),
+                                        ({"weights": {"speed": 1.0}}, "weights.speed")])
+def test_spec_validation(bad, field):
+    with pytest.raises(ConfigError) as info:
+        TuneSpec(**{"method": "cma", **bad})
+    assert info.value.field == field
+
+
+@pytest.mark.slow
+def test_black_box_tuning_beats_the_analytic_dcu(tmp_path):
+    """The acceptance figure. Full: the default program, 9 minutes, 2 workers. CI: the
+    compact program (the default program shrunk to 5 %, same feeds and jerk phases) for
+    200 runs."""
+    spec = TuneSpec(method="cma", program="compact", budget_s=120.0, max_runs=200,
+                    workers=2, out_dir=tmp_path) if CI else \
+        TuneSpec(method="cma", program="default", budget_s=540.0, workers=2,
+                 out_dir=tmp_path)
+    result = tune(spec)
+    base, best = result.baseline.metrics, result.best.metrics
+    assert best["max_coordinate_error"] <= 0.8 * base["max_coordinate_error"]
+    assert best["overshoot"] <= base["overshoot"]
+    assert math.isfinite(result.best.cost) and result.best.cost < result.baseline.cost
+    assert result.wall_time < 600.0

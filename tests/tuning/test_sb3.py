@@ -1,0 +1,84 @@
+"""Learned tuning plumbing: PPO/SAC train on vectorised randomised envs, checkpoint, resume,
+and a saved policy tunes a machine it has not seen in at most 5 runs. (The training here is
+tiny: it checks the plumbing, not the policy's quality; see the report for the full run.)"""
+
+import pytest
+
+from tuning.compare import compare_policy_to_cma, held_out_machines
+from tuning.jobs import TuneSpec, tune
+from tuning.sb3_job import apply_policy, latest_checkpoint, train
+from twin.errors import ConfigError
+
+
+@pytest.fixture(scope="module")
+def ppo(tmp_path_factory):
+    out = tmp_path_factory.mktemp("ppo")
+    path = train("ppo", machine="tomsk_xy", program="tiny", out_dir=out, total_steps=32,
+                 n_envs=2, checkpoint_steps=16, rollout=16)
+    return out, path
+
+
+def test_training_writes_checkpoints_and_a_policy(ppo):
+    out, path = ppo
+    assert path.is_file() and path.name == "policy.zip"
+    assert latest_checkpoint(out).name == "policy_32_steps.zip"
+
+
+def test_training_resumes_from_the_newest_checkpoint(ppo, tmp_path):
+    out, _ = ppo
+    from stable_baselines3 import PPO
+
+    resumed = tmp_path / "resume"
+    resumed.mkdir()
+    (resumed / "policy_32_steps.zip").write_bytes(latest_checkpoint(out).read_bytes())
+    path = train("ppo", machine="tomsk_xy", program="tiny", out_dir=resumed,
+                 total_steps=48, n_envs=1, checkpoint_steps=16, rollout=16)
+    assert PPO.load(path).num_timesteps == 48     # 32 resumed + 16 new, not 48 new
+    assert latest_checkpoint(resumed).name == "policy_48_steps.zip"
+
+
+def test_policy_tunes_an_unseen_machine_in_five_runs(ppo):
+    _, path = ppo
+    machine = held_out_machines("tomsk_xy", 1)[0]
+    trials, baseline = apply_policy(path, machine, program="tiny", runs=5)
+    assert 1 <= len(trials) <= 5
+    assert baseline.x == (0.0,) * 11
+    assert all(len(t.x) == 11 and all(-1 <= v <= 1 for v in t.x) for t in trials)
+    assert trials[0].cost == pytest.approx(sum(trials[0].terms.values()), rel=1e-12)
+
+
+def test_compare_plumbing(ppo):
+    _, path = ppo
+    rows = compare_policy_to_cma(path, held_out_machines("tomsk_xy", 1), program="tiny",
+                                 cma_max_runs=8, workers=1)
+    (row,) = rows
+    assert row["cma_runs"] == 8 and row["policy_runs"] <= 5
+    assert row["ratio"] == pytest.approx(row["policy_cost"] / row["cma_cost"])
+    assert row["cma_cost"] <= row["analytic_cost"] and row["policy_cost"] <= row["analytic_cost"]
+
+
+def test_sac_trains_and_applies(tmp_path):
+    path = train("sac", machine="tomsk_xy", program="tiny", out_dir=tmp_path, total_steps=12,
+                 n_envs=1, checkpoint_steps=6, rollout=8)
+    assert (tmp_path / "policy_replay_buffer_12_steps.pkl").is_file()
+    trials, _ = apply_policy(path, "tomsk_xy", program="tiny", runs=2)
+    assert len(trials) == 2
+
+
+def test_ppo_job_with_a_given_policy(ppo, tmp_path):
+    _, path = ppo
+    result = tune(TuneSpec(method="ppo", program="tiny", policy=path, out_dir=tmp_path,
+                           policy_runs=3))
+    assert len(result.trials) == 3 and result.files["overrides"].is_file()
+    assert "policy" not in result.files   # nothing was trained
+
+
+def test_policy_errors(tmp_path):
+    with pytest.raises(ConfigError, match="no such file"):
+        apply_policy(tmp_path / "none.zip", "tomsk_xy")
+    junk = tmp_path / "junk.zip"
+    junk.write_bytes(b"not a zip")
+    with pytest.raises(ConfigError, match="not a PPO or SAC policy"):
+        apply_policy(junk, "tomsk_xy")
+    with pytest.raises(ConfigError, match="method"):
+        train("a2c", machine="tomsk_xy", out_dir=tmp_path, total_steps=1)
