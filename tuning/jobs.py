@@ -96,6 +96,8 @@ class TuneSpec:
                 or self.workers < 1:
             raise ConfigError("workers", f"must be an integer >= 1, got {self.workers!r}")
         Weights.from_mapping(self.weights)
+        if self.policy is not None and not Path(self.policy).is_file():
+            raise ConfigError("policy", f"no such file: {self.policy}")
 
 
 @dataclass
