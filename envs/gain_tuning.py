@@ -19,7 +19,7 @@ from envs.evaluation import (
 )
 from envs.programs import PROGRAMS
 from envs.randomize import MachineRandomizer
-from envs.space import TuningSettings, TuningSpace, check_action
+from envs.space import DIM, TuningSettings, TuningSpace, check_action
 from twin.config import MachineConfig, load_machine
 from twin.errors import ConfigError, SimulationError
 from twin.run import axis_models
@@ -200,10 +200,9 @@ class GainTuningEnv(gym.Env):
         self._weights = weights if isinstance(weights, Weights) else \
             Weights.from_mapping(weights)
         self._penalty = float(penalty)
-        dim = 11
-        self.action_space = gym.spaces.Box(-1.0, 1.0, (dim,), dtype=np.float32)
+        self.action_space = gym.spaces.Box(-1.0, 1.0, (DIM,), dtype=np.float32)
         n = len(METRICS)
-        self.observation_space = gym.spaces.Box(-_ABS_CLIP, _ABS_CLIP, (3 * n + dim,),
+        self.observation_space = gym.spaces.Box(-_ABS_CLIP, _ABS_CLIP, (3 * n + DIM,),
                                                 dtype=np.float32)
         self.tuning: Tuning | None = None
         self._best = np.zeros(n)

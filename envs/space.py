@@ -36,13 +36,15 @@ from twin.controller.linear import LinearAxisModel
 from twin.controller.regulator import RegulatorGains, default_gains
 from twin.errors import ConfigError
 
-__all__ = ["ALPHA_SPAN", "KI_DECADES", "TuningSettings", "TuningSpace"]
+__all__ = ["ALPHA_SPAN", "DIM", "KI_DECADES", "TuningSettings", "TuningSpace"]
 
 ALPHA_SPAN = (0.02, 0.2, 0.5)
 """Relative half-range of α1, α2, α3 around the analytic values (1)."""
 KI_DECADES = 3.0
 """Decades of ``ki`` below ``kp0·K_v`` the positive half of the ki coordinate spans."""
 _PER_AXIS = ("kp", "ki", "a1", "a2", "a3")
+DIM = len(AXES) * len(_PER_AXIS) + 1
+"""Length of a tuning vector: five coordinates per axis and the jerk limit (11)."""
 
 
 @dataclass(frozen=True)
@@ -131,8 +133,8 @@ class TuningSpace:
 
     @property
     def dim(self) -> int:
-        """Number of coordinates (11)."""
-        return len(self.names)
+        """Number of coordinates (``DIM``)."""
+        return DIM
 
     def _ki_scale(self, k: int) -> float:
         kp0 = _pair(self.analytic.kp)[k]
