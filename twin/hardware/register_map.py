@@ -233,11 +233,12 @@ class RegisterMap:
     def describe(self) -> list[tuple[str, str, str, str]]:
         """The map as a table: (Modbus table, address(es), signal, encoding) rows."""
         m = self.module
-        enc = {"encoder": f"uint32 counts, {m.word_order.replace('_', ' ')}",
+        enc = {"encoder": f"uint32 counts, {m.word_order.replace('_', ' word ')}",
                "tacho": f"int16, ±{INT16_FULL} = ±{m.tacho_full_scale:g} V",
                "dac": f"int16, ±{INT16_FULL} = ±{m.dac_full_scale:g} V",
                "watchdog": "uint16, a new value every tick",
-               "enable": "1 = drives enabled", "watchdog_tripped": "1 = outputs zeroed"}
+               "enable": "1 = drives enabled", "watchdog_tripped": "1 = outputs zeroed",
+               "drive_ready": "1 = no drive fault"}
         rows = []
         for table, entries in zip(_TABLES, self.signals(), strict=True):
             for name, address, width in sorted(entries, key=lambda s: s[1]):
