@@ -15,6 +15,8 @@ The twin itself (``"sim"``) is not opened here: ``twin.run.prepare`` builds it i
 from __future__ import annotations
 
 import math
+from dataclasses import dataclass, field
+from typing import Any
 from urllib.parse import parse_qsl, urlsplit
 
 from twin.config import AXES, MachineConfig
@@ -30,6 +32,7 @@ _FLOATS = ("timeout", "connect_timeout")
 _INTS = ("retries", "reconnects")
 
 
+@dataclass(frozen=True)
 class DriverUrl:
     """A parsed driver URL.
 
@@ -44,13 +47,10 @@ class DriverUrl:
         (int); only those given.
     """
 
-    __slots__ = ("host", "options", "port", "scheme")
-
-    def __init__(self, scheme: str, host: str, port: int, options: dict[str, object]):
-        self.scheme, self.host, self.port, self.options = scheme, host, port, options
-
-    def __repr__(self) -> str:
-        return f"DriverUrl({self.scheme}://{self.host}:{self.port}, {self.options})"
+    scheme: str
+    host: str
+    port: int
+    options: dict[str, Any] = field(default_factory=dict)
 
 
 def parse_driver_url(url: str) -> DriverUrl:
@@ -65,7 +65,7 @@ def parse_driver_url(url: str) -> DriverUrl:
         port = -1
     if not parts.hostname or port is None or not 0 < port < 65536:
         raise ConfigError("driver", f"{url!r} needs a host and a port 1 … 65535: {_USAGE}")
-    options: dict[str, object] = {}
+    options: dict[str, Any] = {}
     for key, value in parse_qsl(parts.query, keep_blank_values=True):
         field = f"driver.{key}"
         if key == "map":
@@ -109,4 +109,4 @@ def open_driver(url: str, cfg: MachineConfig) -> MachineIO:
     path = opts.pop("map", None)
     rmap = load_register_map(str(path) if path else None)
     opts.setdefault("timeout", max(4.0 * cfg.controller.period, 0.01))
-    return ModbusDriver(spec.host, spec.port, register_map=rmap, **opts)  # type: ignore[arg-type]
+    return ModbusDriver(spec.host, spec.port, register_map=rmap, **opts)
