@@ -67,7 +67,7 @@ def parse_driver_url(url: str) -> DriverUrl:
         raise ConfigError("driver", f"{url!r} needs a host and a port 1 … 65535: {_USAGE}")
     options: dict[str, Any] = {}
     for key, value in parse_qsl(parts.query, keep_blank_values=True):
-        field = f"driver.{key}"
+        name = f"driver.{key}"
         if key == "map":
             options[key] = value
         elif key in _FLOATS:
@@ -76,14 +76,14 @@ def parse_driver_url(url: str) -> DriverUrl:
             except ValueError:
                 number = math.nan
             if not (math.isfinite(number) and number > 0):
-                raise ConfigError(field, f"must be a number of seconds > 0, got {value!r}")
+                raise ConfigError(name, f"must be a number of seconds > 0, got {value!r}")
             options[key] = number
         elif key in _INTS:
             if not value.isdigit():
-                raise ConfigError(field, f"must be a whole number >= 0, got {value!r}")
+                raise ConfigError(name, f"must be a whole number >= 0, got {value!r}")
             options[key] = int(value)
         else:
-            raise ConfigError(field, f"unknown option; valid: map, {', '.join(_FLOATS)}, "
+            raise ConfigError(name, f"unknown option; valid: map, {', '.join(_FLOATS)}, "
                               f"{', '.join(_INTS)}")
     return DriverUrl(parts.scheme, parts.hostname, port, options)
 
