@@ -35,7 +35,7 @@ import logging
 import math
 import time
 from collections.abc import Callable, Iterator
-from typing import Any
+from typing import Any, NoReturn
 
 import numpy as np
 from pymodbus.client import ModbusTcpClient
@@ -276,7 +276,10 @@ class ModbusDriver:
             break
         if resp.isError():
             code = getattr(resp, "exception_code", 0)
-            name = ExcCodes(code).name if code in ExcCodes._value2member_map_ else "?"
+            try:
+                name = ExcCodes(code).name
+            except ValueError:
+                name = "unknown code"
             self._fail(f"the module refused {what}: Modbus exception {code} ({name})")
         if resp.function_code != function_code:
             self._fail(f"garbled response to {what}: function code {resp.function_code}, "
@@ -289,7 +292,7 @@ class ModbusDriver:
         self._rx = b"" if sending else data
         return data
 
-    def _fail(self, message: str) -> None:
+    def _fail(self, message: str) -> NoReturn:
         self._failed = message
         raise DriverError(f"{self.url}: {message}")
 
