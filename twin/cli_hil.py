@@ -136,8 +136,9 @@ def set_fifo_priority(priority: int) -> bool:
 
 @contextlib.contextmanager
 def fifo_priority(priority: int = 10) -> Iterator[bool]:
-    """``set_fifo_priority`` while inside; yields whether it was granted."""
-    granted = set_fifo_priority(priority)
+    """``set_fifo_priority`` while inside; yields whether it was granted (priority 0: no
+    change, yields False)."""
+    granted = priority > 0 and set_fifo_priority(priority)
     try:
         yield granted
     finally:
