@@ -87,7 +87,8 @@ def _summary_table(summary: dict[str, Any], title: str) -> Table:
 
 def _run(program: Path | None, machine: str, profile: str | None, planner: str | None,
          dcu_order: int | None, period: float | None, sets: list[str], rerun: str,
-         out: Path, as_json: bool, dry_run: bool = False, builtin: str = "default") -> None:
+         out: Path, as_json: bool, dry_run: bool = False, builtin: str = "default",
+         driver: str = "sim", rt_priority: int = 0) -> None:
     from twin.overrides import parse_sets
     from twin.run import RunSpec, run
 
@@ -95,7 +96,7 @@ def _run(program: Path | None, machine: str, profile: str | None, planner: str |
         spec = RunSpec(machine=machine, program=str(program) if program else None,
                        builtin=builtin, profile=profile, planner=planner,
                        dcu_order=dcu_order, period=period, overrides=parse_sets(sets),
-                       dry_run=dry_run)
+                       dry_run=dry_run, driver=driver, rt_priority=rt_priority)
         with _progress() as bar:
             task = bar.add_task("0.0 s", total=None)
 
@@ -111,6 +112,13 @@ def _run(program: Path | None, machine: str, profile: str | None, planner: str |
     else:
         console = Console()
         console.print(_summary_table(summary, f"run {summary['run_id']}"))
+        t = summary["ticks"]
+        if t["paced"]:
+            console.print(f"deadlines: {t['due']} due, {t['on_time']} on time "
+                          f"({100 * t['on_time_ratio']:.2f} %), {t['late']} late, "
+                          f"{t['skipped']} skipped; start jitter p50/p99/max "
+                          f"{t['jitter_p50_us']:.0f}/{t['jitter_p99_us']:.0f}/"
+                          f"{t['jitter_max_us']:.0f} µs", highlight=False)
         console.print(f"record: {out / (summary['run_id'] + '.json')}", highlight=False)
     if summary.get("aborted") or summary["status"] not in ("FINISHED",):
         raise typer.Exit(1)
@@ -136,12 +144,18 @@ def run_cmd(
                                  help="Run the controller without driving the motors."),
     builtin: str = typer.Option("default", "--builtin",
                                 help="Built-in program when no PROGRAM is given."),
+    driver: str = typer.Option("sim", "--driver", help="sim (the twin, lock-step) or "
+                               "modbus://HOST:PORT[?map=FILE&timeout=S] (real I/O, paced "
+                               "in real time)."),
+    rt_priority: int = typer.Option(0, "--rt-priority", min=0, max=99, help="With real "
+                                    "I/O: SCHED_FIFO priority of the loop (best effort)."),
 ) -> None:
-    """Run a program through the full controller on the twin; write .rrd and .json."""
+    """Run a program through the full controller on the twin (or real I/O); write .rrd and
+    .json."""
     if profile is not None:
         profile = profile.replace("_", "-")
     _run(program, machine, profile, planner, dcu_order, period, sets, rerun, out, as_json,
-         dry_run, builtin)
+         dry_run, builtin, driver, rt_priority)
 
 
 @app.command()

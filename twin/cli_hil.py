@@ -25,6 +25,7 @@ from rich.console import Console
 from rich.table import Table
 
 from twin.errors import ConfigError, TwinError
+from twin.hardware.realtime import fifo_priority, set_fifo_priority
 
 __all__ = ["HilProcess", "fifo_priority", "hil_server", "register", "set_fifo_priority",
            "spawn_hil_server"]
@@ -118,32 +119,6 @@ def hil_server(
               f"{stats.max_catch_up}; watchdog trips: {stats.watchdog_trips}"
               + (f"; fault: {stats.fault}" if stats.fault else ""), highlight=False,
               soft_wrap=True)
-
-
-def set_fifo_priority(priority: int) -> bool:
-    """Schedule the calling thread under SCHED_FIFO at ``priority`` (1 … 99; Linux, needs
-    CAP_SYS_NICE), as a real-time controller would; 0 restores normal scheduling. Returns
-    whether the system granted it."""
-    try:
-        if priority:
-            os.sched_setscheduler(0, os.SCHED_FIFO, os.sched_param(priority))
-        else:
-            os.sched_setscheduler(0, os.SCHED_OTHER, os.sched_param(0))
-    except (AttributeError, OSError):
-        return False
-    return True
-
-
-@contextlib.contextmanager
-def fifo_priority(priority: int = 10) -> Iterator[bool]:
-    """``set_fifo_priority`` while inside; yields whether it was granted (priority 0: no
-    change, yields False)."""
-    granted = priority > 0 and set_fifo_priority(priority)
-    try:
-        yield granted
-    finally:
-        if granted:
-            set_fifo_priority(0)
 
 
 @dataclass(frozen=True)

@@ -31,7 +31,7 @@ from twin.controller.linear import LinearAxisModel
 from twin.controller.record import Record
 from twin.drive.linear import axis_transfer_function
 from twin.errors import ConfigError, DriverError
-from twin.hardware.realtime import RealTimeLoop, TickStats
+from twin.hardware.realtime import RealTimeLoop, TickStats, fifo_priority
 from twin.hardware.sim import SimDriver
 from twin.plant import TRUTH_FIELDS, Plant
 from twin.runrecord import (
@@ -83,6 +83,9 @@ class RunSpec:
         ``"sim"``: the twin in lock-step; or a URL of real I/O such as
         ``modbus://127.0.0.1:5020`` (``twin.hardware.drivers.open_driver``), paced in real
         time by ``RealTimeLoop``.
+    rt_priority : int
+        With real I/O: run the loop under SCHED_FIFO at this priority (1 … 99; Linux, needs
+        CAP_SYS_NICE; best effort, the summary says whether it was granted). 0: normal.
     """
 
     machine: str = "tomsk_xy"
@@ -99,6 +102,7 @@ class RunSpec:
     start: tuple[float, float] | None = None
     commands: tuple[str, ...] = ()
     driver: str = "sim"
+    rt_priority: int = 0
 
     def machine_config(self) -> MachineConfig:
         """The machine with this run's overrides applied (validated)."""
@@ -249,7 +253,7 @@ def run(spec: RunSpec, *, out_dir: str | Path = "runs", rerun: str = "file",
     recording = None
     if sink is None:
         sink, recording = make_sink(rerun, out, run_id)
-    loop = _Loop(p, sink, spec.max_time, pending, progress)
+    loop = _Loop(p, sink, spec.max_time, pending, progress, spec.rt_priority)
     aborted = None
     t_wall = time.perf_counter()
     try:
@@ -273,8 +277,10 @@ class _Loop:
 
     def __init__(self, p: Prepared, sink: Sink, max_time: float,
                  pending: list[Callable[[Controller], None]],
-                 progress: Callable[[float, float], None] | None):
+                 progress: Callable[[float, float], None] | None, rt_priority: int = 0):
         self.p, self.sink, self.pending, self.progress = p, sink, pending, progress
+        self.rt_priority = rt_priority
+        self.rt_granted = False
         self.period = p.cfg.controller.period
         self.max_time = max_time
         self.limit = round(max_time / self.period)
@@ -297,14 +303,16 @@ class _Loop:
         self.pending.pop(0)(ctrl)
         return True
 
-    def _batch(self) -> None:
+    def _batch(self) -> bool:
+        """Send a telemetry batch if BATCH_WALL has passed since the last; True if sent."""
         now = time.perf_counter()
         if now < self._next_batch:
-            return
+            return False
         self._next_batch = now + BATCH_WALL
         self.writer.flush(self.p.controller.record, status_names=self.names)
         if self.progress is not None:
             self.progress(self.ticks * self.period, self.max_time)
+        return True
 
     def run_lockstep(self) -> None:
         """The twin: as fast as the machine allows (the hot loop: locals only)."""
@@ -322,21 +330,28 @@ class _Loop:
                 self._batch()
 
     def run_paced(self) -> None:
-        """Real I/O: one tick per period of wall time, absolute deadlines."""
-        ctrl, drv = self.p.controller, self.p.driver
+        """Real I/O: one tick per period of wall time, absolute deadlines. Telemetry goes out
+        only in a tick's slack: when the time left before the next deadline exceeds 1.5× the
+        last batch's cost (a batch is postponed, never allowed to make a tick late)."""
+        ctrl, drv, clock = self.p.controller, self.p.driver, time.perf_counter
         loop = RealTimeLoop(self.period)
+        cost = [2e-3]  # the last batch's wall time (s): a first guess
 
-        def step(_k: int, _t: float) -> bool:
+        def step(_k: int, t: float) -> bool:
             if ctrl.done and not self._next_command():
                 return False
             drv.write(ctrl.tick(drv.read()))
             self.ticks += 1
             if self.ticks % self.every == 0:
-                self._batch()
+                t0 = clock()
+                if loop.start + t + self.period - t0 > 1.5 * cost[0] and self._batch():
+                    cost[0] = clock() - t0
             return True
 
         try:
-            self.stats = loop.run(step, max_ticks=self.limit)
+            with fifo_priority(self.rt_priority) as granted:
+                self.rt_granted = granted
+                self.stats = loop.run(step, max_ticks=self.limit)
         finally:
             self.stats = self.stats or loop.last_stats()
 
@@ -365,7 +380,7 @@ class _Loop:
             "real_time_factor": sim_time / wall if wall > 0 else math.inf,
             "telemetry_wall_s": self.writer.wall,
             "recording": recording,
-            "ticks": ticks_dict(stats),
+            "ticks": {**ticks_dict(stats), "rt_priority_granted": self.rt_granted},
             "spec": spec.to_dict(),
             "config": dataclasses.asdict(p.cfg),
         })

@@ -63,10 +63,10 @@ def test_overrun_skips_slots_and_counts_them_due():
     assert stats.due == stats.on_time + stats.late + stats.skipped
 
 
-def test_tick_returning_false_stops():
+def test_tick_returning_false_stops_and_is_not_counted():
     loop, _ = _fake_loop(1e-3, lambda k: 0.0)
     stats = loop.run(lambda k, t: k < 4)
-    assert stats.due == 5
+    assert stats.due == 4
 
 
 def test_report_percentiles_match_numpy():
@@ -93,3 +93,16 @@ def test_real_clock_loop_runs_and_accounts_every_tick(period):
 def test_bad_period():
     with pytest.raises(ValueError, match="period"):
         RealTimeLoop(0.0)
+
+
+def test_a_tick_that_raises_is_counted_and_the_error_propagates():
+    loop, _ = _fake_loop(1e-3, lambda k: 0.0)
+
+    def tick(k, t):
+        if k == 3:
+            raise RuntimeError("I/O failed")
+        return True
+
+    with pytest.raises(RuntimeError, match="I/O failed"):
+        loop.run(tick)
+    assert loop.last_stats().due == 4

@@ -11,14 +11,16 @@ controller must never run two periods back to back on stale inputs.
 
 from __future__ import annotations
 
+import contextlib
 import math
+import os
 import time
-from collections.abc import Callable
+from collections.abc import Callable, Iterator
 from dataclasses import asdict, dataclass
 
 import numpy as np
 
-__all__ = ["RealTimeLoop", "TickStats"]
+__all__ = ["RealTimeLoop", "TickStats", "fifo_priority", "set_fifo_priority"]
 
 
 @dataclass(frozen=True)
@@ -116,6 +118,8 @@ class RealTimeLoop:
         self._stop = False
         self._lateness: list[float] = []
         self._skipped = 0
+        self.start = 0.0
+        """float: clock reading of tick 0's deadline in the latest ``run`` (s)."""
 
     def stop(self) -> None:
         """Ask the loop to end after the current tick (safe from another thread)."""
@@ -125,8 +129,8 @@ class RealTimeLoop:
             duration: float | None = None) -> TickStats:
         """Pace ``tick`` until it returns False, ``max_ticks`` ran, or ``duration`` passed.
 
-        ``tick(k, t)`` gets the tick index and its deadline relative to the start (s).
-        Returns the deadline report.
+        ``tick(k, t)`` gets the tick index and its deadline relative to ``start`` (s); a tick
+        that returns False ends the loop and is not counted. Returns the deadline report.
         """
         period, clock = self.period, self._clock
         lateness: list[float] = []
@@ -134,7 +138,7 @@ class RealTimeLoop:
         self._skipped = skipped = 0
         k = 0
         self._stop = False
-        t0 = clock()
+        t0 = self.start = clock()
         while not self._stop:
             if max_ticks is not None and len(lateness) >= max_ticks:
                 break
@@ -142,11 +146,15 @@ class RealTimeLoop:
             if duration is not None and deadline - t0 >= duration:
                 break
             self._wait_until(deadline)
-            now = clock()
-            late = now - deadline
+            late = clock() - deadline
+            try:
+                more = tick(k, deadline - t0)
+            except BaseException:
+                lateness.append(late)  # it ran (and failed): a due tick
+                raise
+            if not more:
+                break  # the slot that found nothing more to do is not a tick
             lateness.append(late)
-            if not tick(k, deadline - t0):
-                break
             # Next slot: the next deadline still in the future (skip overrun slots).
             k += 1
             behind = int((clock() - t0) / period) - k
@@ -168,3 +176,29 @@ class RealTimeLoop:
             self._sleep(remaining - self.spin)
         while clock() < deadline:
             pass
+
+
+def set_fifo_priority(priority: int) -> bool:
+    """Schedule the calling thread under SCHED_FIFO at ``priority`` (1 … 99; Linux, needs
+    CAP_SYS_NICE), as a real-time controller would; 0 restores normal scheduling. Returns
+    whether the system granted it."""
+    try:
+        if priority:
+            os.sched_setscheduler(0, os.SCHED_FIFO, os.sched_param(priority))
+        else:
+            os.sched_setscheduler(0, os.SCHED_OTHER, os.sched_param(0))
+    except (AttributeError, OSError):
+        return False
+    return True
+
+
+@contextlib.contextmanager
+def fifo_priority(priority: int = 10) -> Iterator[bool]:
+    """``set_fifo_priority`` while inside; yields whether it was granted (priority 0: no
+    change, yields False)."""
+    granted = priority > 0 and set_fifo_priority(priority)
+    try:
+        yield granted
+    finally:
+        if granted:
+            set_fifo_priority(0)
