@@ -394,10 +394,12 @@ class Plant:
         if not math.isfinite(xs[-1] + ys[-1]) or any(w in _BAD_STATE for w in warnings):
             raise SimulationError(f"the plant state diverged (not finite) by t = {d.time:.6f} s"
                                   f" (MuJoCo warnings: {', '.join(warnings) or 'none'})")
+        fault_x, fault_y = self.drives.fault_flags()
         hit_x, end_x = self._monitors[0].update(xs, t0, self.drive_dt)
         hit_y, end_y = self._monitors[1].update(ys, t0, self.drive_dt)
         return StepStatus(saturated=saturated, limit_hit=_FLAGS[2 * hit_x + hit_y],
-                          end_stop=_FLAGS[2 * end_x + end_y], drive_fault=self.drives.fault,
+                          end_stop=_FLAGS[2 * end_x + end_y],
+                          drive_fault=_FLAGS[2 * fault_x + fault_y],
                           warnings=warnings, time=d.time)
 
     # ------------------------------------------------------------------ sensing
