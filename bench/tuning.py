@@ -15,14 +15,19 @@ from __future__ import annotations
 import argparse
 import json
 import os
+import sys
 import time
+
+# This file is bench/tuning.py: run as a script, its folder would shadow the tuning package.
+_HERE = os.path.dirname(os.path.abspath(__file__))
+sys.path[:] = [p for p in sys.path if os.path.abspath(p or os.curdir) != _HERE]
 
 os.environ.setdefault("RERUN_ANALYTICS", "0")
 os.environ.setdefault("NUMBA_CACHE_DIR", os.path.join(os.getcwd(), ".cache", "numba"))
 
-import numpy as np
+import numpy as np  # noqa: E402
 
-from tuning.evaluator import Evaluator
+from tuning.evaluator import Evaluator  # noqa: E402
 
 
 def _measure(ev: Evaluator, xs: list[np.ndarray]) -> dict[str, float]:
