@@ -20,6 +20,7 @@ from rich.console import Console
 from rich.progress import BarColumn, Progress, TextColumn, TimeElapsedColumn
 from rich.table import Table
 
+from twin.cli_common import err, fail
 from twin.config import available_machines, load_machine
 from twin.errors import TwinError
 
@@ -27,7 +28,6 @@ __all__ = ["app"]
 
 app = typer.Typer(help="xy-twin: a digital twin of a two-axis CNC cross table.",
                   no_args_is_help=True, add_completion=False)
-err = Console(stderr=True)
 
 MachineOpt = typer.Option("tomsk_xy", "--machine", "-m",
                           help="Machine preset name or TOML file.")
@@ -38,11 +38,6 @@ JsonOpt = typer.Option(False, "--json", help="Print exactly one JSON object on s
 @app.callback()
 def main() -> None:
     """xy-twin: a digital twin of a two-axis CNC cross table."""
-
-
-def _fail(exc: BaseException) -> None:
-    err.print(f"[bold red]error:[/] {exc}", highlight=False)
-    raise typer.Exit(2)
 
 
 def _emit(obj: dict[str, Any], as_json: bool) -> None:
@@ -105,7 +100,7 @@ def _run(program: Path | None, machine: str, profile: str | None, planner: str |
 
             result = run(spec, out_dir=out, rerun=rerun, progress=progress)
     except TwinError as exc:
-        _fail(exc)
+        fail(exc)
     summary = result.summary
     if as_json:
         _emit({k: v for k, v in summary.items() if k not in ("config", "spec")}, True)
@@ -173,7 +168,7 @@ def demo(machine: str = MachineOpt, out: Path = OutOpt, as_json: bool = JsonOpt)
                              progress=lambda t, _m, task=task, bar=bar, o=order:
                              bar.update(task, description=f"DCU {o}: {t:.1f} s"))
         except TwinError as exc:
-            _fail(exc)
+            fail(exc)
         rows[order] = result.summary
         if not as_json:
             Console().print(_summary_table(result.summary, f"default program, {machine}, "
@@ -208,7 +203,7 @@ def machines(as_json: bool = JsonOpt) -> None:
         try:
             cfg = load_machine(name)
         except TwinError as exc:
-            _fail(exc)
+            fail(exc)
         ax = cfg.axes["x"]
         rows.append({
             "name": name,

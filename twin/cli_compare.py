@@ -11,11 +11,11 @@ import typer
 from rich.console import Console
 from rich.table import Table
 
+from twin.cli_common import err, fail
 from twin.errors import ConfigError, TwinError
 
 __all__ = ["ROWS", "register"]
 
-err = Console(stderr=True)
 
 ROWS = (
     ("cycle time", "cycle_time_s", "s"),
@@ -31,11 +31,6 @@ ROWS = (
     ("residual vibration", "residual_vibration_um", "µm"),
 )
 """Rows of the comparison table: label, summary key (or (key, axis)), unit."""
-
-
-def _fail(exc: BaseException) -> None:
-    err.print(f"[bold red]error:[/] {exc}", highlight=False)
-    raise typer.Exit(2)
 
 
 def _value(summary: dict[str, Any], key: Any) -> Any:
@@ -114,7 +109,7 @@ def compare_cmd(
             result = {"profiles": comparison.summaries(), "report": str(report),
                       "recording": comparison.recording}
     except TwinError as exc:
-        _fail(exc)
+        fail(exc)
     if as_json:
         sys.stdout.write(json.dumps(result, default=str) + "\n")
         return

@@ -21,21 +21,15 @@ from pathlib import Path
 from typing import IO, Any
 
 import typer
-from rich.console import Console
 from rich.table import Table
 
+from twin.cli_common import err, fail
 from twin.errors import ConfigError, TwinError
 from twin.hardware.realtime import fifo_priority, set_fifo_priority
 
 __all__ = ["HilProcess", "fifo_priority", "hil_server", "register", "set_fifo_priority",
            "spawn_hil_server"]
 
-err = Console(stderr=True)
-
-
-def _fail(exc: BaseException) -> None:
-    err.print(f"[bold red]error:[/] {exc}", highlight=False)
-    raise typer.Exit(2)
 
 
 def hil_server(
@@ -84,7 +78,7 @@ def hil_server(
         except ValueError as exc:
             raise ConfigError("--from", str(exc)) from None
     except TwinError as exc:
-        _fail(exc)
+        fail(exc)
 
     if rt_priority and not set_fifo_priority(rt_priority):
         err.print("[yellow]warning:[/] SCHED_FIFO not permitted here; serving with normal "

@@ -11,16 +11,11 @@ import typer
 from rich.console import Console
 from rich.table import Table
 
+from twin.cli_common import err, fail
 from twin.errors import ConfigError, TwinError
 
 __all__ = ["register"]
 
-err = Console(stderr=True)
-
-
-def _fail(exc: BaseException) -> None:
-    err.print(f"[bold red]error:[/] {exc}", highlight=False)
-    raise typer.Exit(2)
 
 
 def experiment(
@@ -53,7 +48,7 @@ def experiment(
         result, _ = run_experiment(cfg, kind=kind, axis=axis, amplitude=amplitude * scale,
                                    duration=duration, open_loop=open_loop, sink=sink)
     except TwinError as exc:
-        _fail(exc)
+        fail(exc)
     finally:
         if sink is not None:
             sink.close()
@@ -88,7 +83,7 @@ def _manual(commands: list[str], machine: str, out: Path, as_json: bool,
                        start=start, dry_run=dry_run, overrides=sets)
         result = run(spec, out_dir=out)
     except TwinError as exc:
-        _fail(exc)
+        fail(exc)
     s = result.summary
     pos = result.record["position"][-1] if len(result.record["t"]) else [math.nan] * 2
     s["final_position_mm"] = {"x": pos[0] * 1e3, "y": pos[1] * 1e3}
@@ -133,7 +128,7 @@ def home(
         if not axes or any(a not in "xy" for a in axes):
             raise ConfigError("--axes", f"must be x, y or xy, got {axes!r}")
     except TwinError as exc:
-        _fail(exc)
+        fail(exc)
     _manual([f"home {a}" for a in axes], machine, out, as_json, pos, False, False)
 
 
@@ -152,11 +147,11 @@ def jog(
 ) -> None:
     """Jog one axis by a distance, within the soft limits of the work zone."""
     if axis not in ("x", "y"):
-        _fail(ConfigError("--axis", f"must be x or y, got {axis!r}"))
+        fail(ConfigError("--axis", f"must be x or y, got {axis!r}"))
     try:
         pos = _start(start)
     except TwinError as exc:
-        _fail(exc)
+        fail(exc)
     _manual([f"jog {axis} {distance * 1e-3!r}"], machine, out, as_json, pos, dry_run,
             ignore_soft_limits)
 
