@@ -116,8 +116,8 @@ def test_spec_validation(bad, field):
 def test_black_box_tuning_beats_the_analytic_dcu(tmp_path):
     """The acceptance figure. Full: the default program, 9 minutes, 2 workers. CI: the
     compact program (the default program shrunk to 5 %, same feeds and jerk phases) for
-    200 runs."""
-    spec = TuneSpec(method="cma", program="compact", budget_s=120.0, max_runs=200,
+    120 runs (the search is seeded and the runs deterministic)."""
+    spec = TuneSpec(method="cma", program="compact", budget_s=120.0, max_runs=120,
                     workers=2, out_dir=tmp_path) if CI else \
         TuneSpec(method="cma", program="default", budget_s=540.0, workers=2,
                  out_dir=tmp_path)

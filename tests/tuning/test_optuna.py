@@ -59,10 +59,12 @@ def test_killed_job_resumes_losing_at_most_the_trial_in_flight(tmp_path):
     for number, params in done_before.items():        # nothing finished was lost
         assert after[number].state == optuna.trial.TrialState.COMPLETE
         assert after[number].params == params
-    for t in running:                                  # the one in flight failed ...
+    for t in running:                   # the one in flight failed and was re-enqueued
         assert after[t.number].state == optuna.trial.TrialState.FAIL
         retried = [u for u in after if u.system_attrs.get("failed_trial") == t.number]
-        assert retried and retried[0].params == t.params   # ... and was tried again
+        assert retried
+        if t.params:        # killed after its parameters were drawn: the retry reuses them
+            assert retried[0].params == t.params
     assert len(trials) == len(done_before) + 3
     assert all(u.state != optuna.trial.TrialState.RUNNING for u in after)
 
@@ -83,7 +85,7 @@ def test_study_keeps_the_report_data(tmp_path):
 def test_two_workers_share_one_study(tmp_path):
     url = f"sqlite:///{tmp_path / 'study.db'}"
     with Evaluator.create("tomsk_xy", "tiny", workers=2) as ev:
-        trials = run_optuna(ev, storage=url, study_name="w", budget_s=8.0)
+        trials = run_optuna(ev, storage=url, study_name="w", budget_s=5.0)
         local = len(ev.trials)
     # the extra worker process added trials of its own to the same study
     assert len(trials) > local + 1
