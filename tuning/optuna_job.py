@@ -5,7 +5,7 @@ The study lives in a database: a SQLite file by default, or any SQLAlchemy URL
 on any number of hosts join the same study (same ``--storage``, machine and program). The
 storage runs a heartbeat: a worker that dies leaves its trial RUNNING only until the grace
 period has passed; the next worker to start a trial marks it FAILED and re-enqueues its
-parameters (``RetryFailedTrialCallback``), so a killed job loses at most the trial in
+parameters (``RetryHeartbeatStaleTrialCallback``), so a killed job loses at most the trial in
 flight. Every finished trial keeps its cost terms, metrics and settings as user
 attributes, so a report can be rebuilt from the database alone.
 """
@@ -21,7 +21,7 @@ from pathlib import Path
 from typing import Any
 
 import optuna
-from optuna.storages import RDBStorage, RetryFailedTrialCallback
+from optuna.storages import RDBStorage, RetryHeartbeatStaleTrialCallback
 
 from envs.evaluation import RunOutcome, Weights
 from envs.gain_tuning import Tuning
@@ -49,7 +49,7 @@ def open_study(url: str, name: str, names: tuple[str, ...], *, seed: int = 0,
     with warnings.catch_warnings():   # the heartbeat is "experimental" in optuna 5
         warnings.simplefilter("ignore", optuna.exceptions.ExperimentalWarning)
         storage = RDBStorage(url, heartbeat_interval=heartbeat_s, grace_period=grace_s,
-                             heartbeat_stale_trial_callback=RetryFailedTrialCallback(
+                             heartbeat_stale_trial_callback=RetryHeartbeatStaleTrialCallback(
                                  max_retry=2))
     sampler = optuna.samplers.TPESampler(seed=seed, multivariate=True, n_startup_trials=10)
     study = optuna.create_study(storage=storage, study_name=name, direction="minimize",
