@@ -21,7 +21,12 @@ from pathlib import Path
 from typing import Any
 
 import optuna
-from optuna.storages import RDBStorage, RetryHeartbeatStaleTrialCallback
+from optuna.storages import RDBStorage
+
+try:
+    from optuna.storages import RetryHeartbeatStaleTrialCallback
+except ImportError:  # optuna < 4.9 (pyproject allows >= 4.0)
+    from optuna.storages import RetryFailedTrialCallback as RetryHeartbeatStaleTrialCallback
 
 from envs.evaluation import RunOutcome, Weights
 from envs.gain_tuning import Tuning
