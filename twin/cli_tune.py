@@ -17,16 +17,10 @@ import typer
 from rich.console import Console
 from rich.progress import BarColumn, Progress, TextColumn, TimeElapsedColumn
 
+from twin.cli_common import err, fail
 from twin.errors import ConfigError, TwinError
 
 __all__ = ["register", "set_file_overrides"]
-
-err = Console(stderr=True)
-
-
-def _fail(exc: BaseException) -> None:
-    err.print(f"[bold red]error:[/] {exc}", highlight=False)
-    raise typer.Exit(2)
 
 
 def set_file_overrides(path: str | Path) -> dict[str, Any]:
@@ -114,7 +108,7 @@ def tune(
 
             result = run_job(spec, on_trial=on_trial, progress=on_steps)
     except TwinError as exc:
-        _fail(exc)
+        fail(exc)
     summary = result.summary()
     if as_json:
         sys.stdout.write(json.dumps(summary, default=str) + "\n")
