@@ -83,14 +83,16 @@ def _summary_table(summary: dict[str, Any], title: str) -> Table:
 def _run(program: Path | None, machine: str, profile: str | None, planner: str | None,
          dcu_order: int | None, period: float | None, sets: list[str], rerun: str,
          out: Path, as_json: bool, dry_run: bool = False, builtin: str = "default",
-         driver: str = "sim", rt_priority: int = 0) -> None:
-    from twin.overrides import parse_sets
+         driver: str = "sim", rt_priority: int = 0, set_file: Path | None = None) -> None:
+    from twin.overrides import parse_sets, set_file_overrides
     from twin.run import RunSpec, run
 
     try:
         spec = RunSpec(machine=machine, program=str(program) if program else None,
                        builtin=builtin, profile=profile, planner=planner,
-                       dcu_order=dcu_order, period=period, overrides=parse_sets(sets),
+                       dcu_order=dcu_order, period=period, overrides={
+                           **(set_file_overrides(set_file) if set_file else {}),
+                           **parse_sets(sets)},
                        dry_run=dry_run, driver=driver, rt_priority=rt_priority)
         with _progress() as bar:
             task = bar.add_task("0.0 s", total=None)
@@ -144,13 +146,16 @@ def run_cmd(
                                "in real time)."),
     rt_priority: int = typer.Option(0, "--rt-priority", min=0, max=99, help="With real "
                                     "I/O: SCHED_FIFO priority of the loop (best effort)."),
+    set_file: Path | None = typer.Option(None, "--set-file", help="Overrides as a TOML "
+                                         "file (e.g. the best.toml of twin tune); --set "
+                                         "values win."),
 ) -> None:
     """Run a program through the full controller on the twin (or real I/O); write .rrd and
     .json."""
     if profile is not None:
         profile = profile.replace("_", "-")
     _run(program, machine, profile, planner, dcu_order, period, sets, rerun, out, as_json,
-         dry_run, builtin, driver, rt_priority)
+         dry_run, builtin, driver, rt_priority, set_file)
 
 
 @app.command()

@@ -1,7 +1,5 @@
-"""``twin tune``: automated gain tuning (analytic, CMA-ES, Optuna, PPO, SAC).
-
-Also ``set_file_overrides``: the dotted overrides of a machine-override TOML (what ``twin
-tune`` writes as ``best.toml``), for ``twin run --set-file FILE``.
+"""``twin tune``: automated gain tuning (analytic, CMA-ES, Optuna, PPO, SAC). The best
+settings are written as ``best.toml``, which ``twin run --set-file best.toml`` accepts.
 """
 
 from __future__ import annotations
@@ -9,7 +7,6 @@ from __future__ import annotations
 import json
 import sys
 import time
-import tomllib
 from pathlib import Path
 from typing import Any
 
@@ -18,41 +15,9 @@ from rich.console import Console
 from rich.progress import BarColumn, Progress, TextColumn, TimeElapsedColumn
 
 from twin.cli_common import err, fail
-from twin.errors import ConfigError, TwinError
+from twin.errors import TwinError
 
-__all__ = ["register", "set_file_overrides"]
-
-
-def set_file_overrides(path: str | Path) -> dict[str, Any]:
-    """The dotted overrides of a machine-override TOML file.
-
-    Tables are flattened to dotted keys (``[controller.regulator] kp = 1`` →
-    ``{"controller.regulator.kp": 1}``); arrays stay values. The result goes through
-    ``MachineConfig.with_overrides`` like ``--set`` values.
-
-    Raises
-    ------
-    ConfigError
-        Missing file or invalid TOML (naming the file).
-    """
-    p = Path(path)
-    if not p.is_file():
-        raise ConfigError("set_file", f"no such file: {path}")
-    try:
-        doc = tomllib.loads(p.read_text(encoding="utf-8"))
-    except tomllib.TOMLDecodeError as exc:
-        raise ConfigError(str(p), f"invalid TOML: {exc}") from None
-    out: dict[str, Any] = {}
-
-    def walk(node: dict[str, Any], prefix: str) -> None:
-        for key, value in node.items():
-            if isinstance(value, dict) and not key == "stiffness":
-                walk(value, f"{prefix}{key}.")
-            else:
-                out[f"{prefix}{key}"] = value
-
-    walk(doc, "")
-    return out
+__all__ = ["register"]
 
 
 def tune(

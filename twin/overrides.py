@@ -3,17 +3,20 @@
 A key is a dotted path of the machine configuration (``axes.x.mechanics.carriage_mass``,
 ``axes.*.transmission.damping_ratio`` for both axes) or one of the short names below.
 Values are TOML literals (``2.5e3``, ``true``, ``"cosine"``); anything else is a string.
+``--set-file FILE.toml`` gives the same overrides as TOML tables (what ``twin tune`` writes);
+``--set`` values win over the file's.
 """
 
 from __future__ import annotations
 
 import tomllib
 from collections.abc import Iterable
+from pathlib import Path
 from typing import Any
 
 from twin.errors import ConfigError
 
-__all__ = ["SHORT_KEYS", "parse_sets", "resolve_key"]
+__all__ = ["SHORT_KEYS", "parse_sets", "resolve_key", "set_file_overrides"]
 
 SHORT_KEYS = {
     **{k: f"controller.regulator.{k}" for k in
@@ -62,4 +65,36 @@ def parse_sets(items: Iterable[str]) -> dict[str, Any]:
         if not sep or not key.strip():
             raise ConfigError(item, "--set needs key=value")
         out[resolve_key(key)] = _value(text.strip())
+    return out
+
+
+def set_file_overrides(path: str | Path) -> dict[str, Any]:
+    """The dotted overrides of a machine-override TOML file.
+
+    Tables are flattened to dotted keys (``[controller.regulator] kp = 1`` →
+    ``{"controller.regulator.kp": 1}``); arrays stay values. The result goes through
+    ``MachineConfig.with_overrides`` like ``--set`` values.
+
+    Raises
+    ------
+    ConfigError
+        Missing file or invalid TOML (naming the file).
+    """
+    p = Path(path)
+    if not p.is_file():
+        raise ConfigError("set_file", f"no such file: {path}")
+    try:
+        doc = tomllib.loads(p.read_text(encoding="utf-8"))
+    except tomllib.TOMLDecodeError as exc:
+        raise ConfigError(str(p), f"invalid TOML: {exc}") from None
+    out: dict[str, Any] = {}
+
+    def walk(node: dict[str, Any], prefix: str) -> None:
+        for key, value in node.items():
+            if isinstance(value, dict) and not key == "stiffness":
+                walk(value, f"{prefix}{key}.")
+            else:
+                out[f"{prefix}{key}"] = value
+
+    walk(doc, "")
     return out

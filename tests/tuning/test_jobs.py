@@ -12,8 +12,10 @@ from tuning.cma_job import run_cma
 from tuning.evaluator import Evaluator
 from tuning.jobs import TuneSpec, tune
 from tuning.report import read_overrides, write_overrides
-from twin.cli_tune import set_file_overrides
+from twin.controller.controller import Controller
 from twin.errors import ConfigError
+from twin.overrides import set_file_overrides
+from twin.run import axis_models
 
 CI = os.environ.get("CI") == "true"
 
@@ -76,6 +78,13 @@ def test_job_files_and_the_override_round_trip(tmp_path):
     assert set(flat) == {"controller.limits.max_jerk", "controller.regulator.kp",
                          "controller.regulator.ki", "controller.regulator.dcu_alpha"}
     assert flat["controller.regulator.kp"] == list(result.best.settings["kp"])
+    # ... and the machine accepts it: the controller runs with exactly the tuned settings
+    cfg = ev_space.cfg.with_overrides(flat)
+    ctrl = Controller.from_machine(cfg, None, axis_models=axis_models(cfg))
+    np.testing.assert_array_equal(np.broadcast_to(ctrl.gains.kp, 2), settings.gains.kp)
+    np.testing.assert_array_equal(np.broadcast_to(ctrl.gains.dcu_alpha, (2, 3)),
+                                  np.broadcast_to(settings.gains.dcu_alpha, (2, 3)))
+    assert cfg.controller.limits.max_jerk == settings.max_jerk
 
 
 def test_analytic_job_is_the_baseline(tmp_path):

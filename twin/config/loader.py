@@ -71,7 +71,13 @@ def _coerce(tp: Any, value: Any, path: str) -> Any:
         args = [a for a in typing.get_args(tp) if a is not type(None)]
         if value is None:
             return None
-        return _coerce(args[0], value, path)
+        errors = []
+        for arg in args:  # the first member the value fits
+            try:
+                return _coerce(arg, value, path)
+            except ConfigError as exc:
+                errors.append(exc.message)
+        raise ConfigError(path, " or ".join(dict.fromkeys(errors)))
     if dataclasses.is_dataclass(tp):
         if not isinstance(value, dict):
             raise ConfigError(path, f"must be a table, got {type(value).__name__}")

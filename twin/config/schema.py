@@ -286,15 +286,24 @@ class AxisConfig(_Validated):
 # --------------------------------------------------------------------------- controller
 @dataclass(frozen=True, kw_only=True)
 class RegulatorSettings(_Validated):
-    """Position regulator of both axes. ``None`` means: derive from the drive model."""
+    """Position regulator of both axes. ``None`` means: derive from the drive model.
 
-    kp: float | None = _num(None, "V/m", ge=0)
-    ki: float | None = _num(None, "V/(m·s)", ge=0)
-    kd: float | None = _num(None, "V·s/m", ge=0)
-    ff1: float | None = _num(None, "V·s/m", ge=0, doc="velocity feed-forward")
-    ff2: float | None = _num(None, "V·s²/m", ge=0, doc="acceleration feed-forward")
-    ff3: float | None = _num(None, "V·s³/m", ge=0, doc="jerk feed-forward")
+    Each gain is one number for both axes or an ``[x, y]`` pair. ``dcu_alpha`` (``[[α1, α2,
+    α3], [α1, α2, α3]]``, V/m, x then y) replaces the DCU that ``dcu_order`` would derive —
+    what a tuning job writes (``twin tune`` → ``twin run --set-file``).
+    """
+
+    kp: float | tuple[float, float] | None = _num(None, "V/m", ge=0)
+    ki: float | tuple[float, float] | None = _num(None, "V/(m·s)", ge=0)
+    kd: float | tuple[float, float] | None = _num(None, "V·s/m", ge=0)
+    ff1: float | tuple[float, float] | None = _num(None, "V·s/m", ge=0,
+                                                   doc="velocity feed-forward")
+    ff2: float | tuple[float, float] | None = _num(None, "V·s²/m", ge=0,
+                                                   doc="acceleration feed-forward")
+    ff3: float | tuple[float, float] | None = _num(None, "V·s³/m", ge=0,
+                                                   doc="jerk feed-forward")
     dcu_order: int = _num(0, "1", ge=0, le=3)
+    dcu_alpha: tuple[tuple[float, float, float], tuple[float, float, float]] | None = None
     following_error_limit: float = _num(2e-3, "m", gt=0)
 
 

@@ -66,4 +66,6 @@ def loop_gains(settings: ControllerSettings, axes: Sequence[AxisConfig],
     given = {name: getattr(reg, name) for name in ("kp", "ki", "kd", "ff1", "ff2", "ff3")
              if getattr(reg, name) is not None}
     dac = axes[0].dac
+    if reg.dcu_alpha is not None:  # explicit coefficients (a tuning job's) win
+        given["dcu_alpha"] = reg.dcu_alpha
     return dataclasses.replace(base, output_limit=dac.full_scale, dac_bits=dac.bits, **given)
