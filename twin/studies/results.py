@@ -265,11 +265,11 @@ def _laser(r: Mapping[str, Any]) -> str:
         "loop: where an axis reverses on a circle, the Coulomb force of its slide flips and "
         "the belt's stretch with it (2 × 5 N / 10⁵ N/m = 100 µm on y), which the motor "
         "encoder does not see. Only friction compensation or a table-side encoder removes "
-        "it; the planner's tolerance governs the corners (the run summary's figure, "
-        "measured on the encoder near the active block, is "
-        f"{_f(runs['stop']['summary_max_contour_error_um'], 2)} µm for the stop run; for "
-        "the look-ahead runs it is inflated because the table lags the reference by more "
-        "than one 1.4 mm chord of the cam polylines).",
+        "it; the planner's tolerance governs the corners. The run summary's figure, "
+        "measured on the motor encoders as the controller sees the table, is "
+        f"{_f(runs['stop']['summary_max_contour_error_um'], 2)} µm for the stop run and "
+        f"{_f(runs['lookahead']['summary_max_contour_error_um'], 2)} µm with look-ahead: "
+        "the rest of the true error is the belt stretch that the encoders do not see.",
     ]
     return "\n".join(lines)
 

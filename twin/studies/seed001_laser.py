@@ -16,8 +16,8 @@ same contour tolerance (the machine's 50 µm):
 
 The cycle time is the program time (first to last commanded motion), the seed's "cutting
 time"; the contour error is the largest distance of the table's true path from the program
-(``twin.compare.true_contour_error``: the whole program searched; the run summary's figure,
-measured near the active block only, is kept as ``summary_max_contour_error_um``).
+(``twin.compare.true_contour_error``); the run summary's figure, measured on the motor
+encoders as the controller sees the table, is kept as ``summary_max_contour_error_um``.
 """
 
 from __future__ import annotations
