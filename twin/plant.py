@@ -30,7 +30,7 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any
+from typing import Any, NamedTuple
 
 import mujoco
 import numpy as np
@@ -64,9 +64,9 @@ _FLAGS = tuple(_frozen((a, b)) for a in (False, True) for b in (False, True))
 every step picks from them instead of allocating arrays on the per-period path."""
 
 
-@dataclass(frozen=True, slots=True)
-class StepStatus:
-    """What happened during one :meth:`Plant.step` (arrays indexed by axis x, y).
+class StepStatus(NamedTuple):
+    """What happened during one :meth:`Plant.step` (arrays indexed by axis x, y). An
+    immutable tuple: one is made every period, and a tuple is the cheapest record.
 
     Attributes
     ----------
@@ -278,6 +278,8 @@ class Plant:
         self._mask = self._counter_mask.tolist()
         self._offset = [0, 0]
         self._ratio_f = self._ratio.tolist()
+        self._snap: list[list[float]] = []
+        self._snap_at = -1
         self._compiled = plant_loop.available()
         """Run drive intervals in the compiled loop (``twin.plant_loop``)."""
         self._u = np.zeros(2)
@@ -415,7 +417,7 @@ class Plant:
             for k in (0, 1):
                 c = math.floor(theta[k] * self._cpr[k]) + self._offset[k]
                 inputs.encoder_counts[k] = c & self._mask[k]
-        st = self.drives.snapshot()
+        st = self._snapshot()
         tacho, counts_ok = inputs.tacho_volts, True
         for k, mon in enumerate(self._monitors):
             tacho[k] = st[k][S_ADC]
@@ -437,11 +439,19 @@ class Plant:
                        limit_max=states[:, 1], home=states[:, 2],
                        drive_ready=not self.drives.fault.any(), time=self.time)
 
+    def _snapshot(self) -> list[list[float]]:
+        """The drives' state as lists, taken once per drive update and shared by the
+        per-period readers (``read_into``, ``truth_row``)."""
+        n = self.drives.n_step
+        if self._snap_at != n:
+            self._snap, self._snap_at = self.drives.snapshot(), n
+        return self._snap
+
     def truth_row(self) -> tuple[float, ...]:
         """The ``TRUTH_FIELDS`` of now as one flat row of floats (cheap: for per-tick
         recording)."""
         x, v, th = self._table_pos.tolist(), self._table_vel.tolist(), self._rotor_pos.tolist()
-        r, st = self._ratio_f, self.drives.snapshot()
+        r, st = self._ratio_f, self._snapshot()
         return (x[0], x[1], v[0], v[1], r[0] * th[0] - x[0], r[1] * th[1] - x[1],
                 st[0][S_I], st[1][S_I], st[0][S_V], st[1][S_V])
 

@@ -43,7 +43,7 @@ class PathDistance:
     """
 
     def __init__(self, path: Sequence, *, sagitta: float = 1e-8, max_chord: float = 2e-4,
-                 k: int = 16, max_vertices: int = 500_000):
+                 k: int = 8, max_vertices: int = 500_000):
         from scipy.spatial import cKDTree
 
         grid = np.linspace(0.0, 1.0, 257)
@@ -137,6 +137,7 @@ class TelemetryWriter:
                           color=(120, 120, 120))
                     style(f"axes/{ax}/{q}/actual", name=f"{ax} {q} actual",
                           color=(230, 80, 30))
+                style(f"axes/{ax}/regulator", name=[f"{ax} {t}" for t in TERMS])
         self.wall += time.perf_counter() - t0
 
     def flush(self, record: Record, *, status_names: Mapping[int, str] | None = None) -> None:
@@ -157,8 +158,7 @@ class TelemetryWriter:
             cols[f"{base}/following_error_um"] = c["following_error"][:, k] * 1e6
             cols[f"{base}/drive/dac_volts"] = c["dac_volts"][:, k]
             cols[f"{base}/drive/tacho_volts"] = c["tacho_volts"][:, k]
-            for j, term in enumerate(TERMS):
-                cols[f"{base}/regulator/{term}"] = c["terms"][:, k, j]
+            cols[f"{base}/regulator"] = c["terms"][:, k, :]   # one series per term
             if tr:
                 cols[f"{base}/velocity/actual"] = tr["table_velocity"][:, k]
                 cols[f"{base}/drive/armature_current"] = tr["armature_current"][:, k]

@@ -83,7 +83,8 @@ class RerunSink:
         self._rec.log(entity, rr.LineStrips2D([pts], colors=[color]), static=True)
 
     def scalars(self, t: np.ndarray, columns: Mapping[str, np.ndarray]) -> None:
-        """Send scalar columns (float64, exact) for samples at times ``t`` (s)."""
+        """Send scalar columns (float64, exact) for samples at times ``t`` (s); a value
+        array of shape (n, k) sends k series on one entity."""
         index = [rr.TimeColumn(TIMELINE, duration=np.asarray(t, dtype=np.float64))]
         for entity, values in columns.items():
             self._rec.send_columns(entity, indexes=index,
@@ -103,9 +104,11 @@ class RerunSink:
         self._rec.set_time(TIMELINE, duration=float(t))
         self._rec.log("events", rr.TextLog(text, level=_LEVELS.get(level.upper(), "INFO")))
 
-    def style(self, entity: str, *, name: str, color: tuple[int, int, int] | None = None) -> None:
-        """Name (and colour) a scalar series in the viewer's legend."""
-        kwargs = {"names": [name]}
+    def style(self, entity: str, *, name: str | list[str],
+              color: tuple[int, int, int] | None = None) -> None:
+        """Name (and colour) the scalar series of an entity in the viewer's legend (a list of
+        names for an entity that carries several series)."""
+        kwargs = {"names": [name] if isinstance(name, str) else list(name)}
         if color is not None:
             kwargs["colors"] = [color]
         self._rec.log(entity, rr.SeriesLines(**kwargs), static=True)

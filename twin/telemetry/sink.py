@@ -27,7 +27,7 @@ class Sink(Protocol):
         ...
 
     def scalars(self, t: np.ndarray, columns: Mapping[str, np.ndarray]) -> None:
-        """Scalar series: each value array has shape (n,)."""
+        """Scalar series: each value array has shape (n,), or (n, k) for k series."""
         ...
 
     def points(self, t: np.ndarray, columns: Mapping[str, np.ndarray]) -> None:
