@@ -8,8 +8,9 @@ the whole drive model. Here the alternation runs inside one numba function that 
 the Python bindings own (their addresses), so the state is the same memory and the result is
 bit-identical to the Python loop (``tests/plant/test_fast_paths.py``).
 
-If the shared library cannot be found (an unusual MuJoCo install), ``available()`` is False
-and the plant keeps its Python loop.
+If the shared library cannot be found, or the bindings do not expose the structs' addresses
+(``_address``, present in MuJoCo 3 and 4), ``available()`` is False and the plant keeps its
+Python loop.
 """
 
 from __future__ import annotations
@@ -28,6 +29,8 @@ __all__ = ["available", "step_intervals"]
 
 
 def _load_mj_step():
+    if not (hasattr(mujoco.MjModel, "_address") and hasattr(mujoco.MjData, "_address")):
+        return None  # bindings that do not expose the struct addresses: keep the Python loop
     base = os.path.dirname(mujoco.__file__)
     names = ("libmujoco.so*", "libmujoco*.dylib", "mujoco.dll")
     paths = sorted(p for n in names for p in glob.glob(os.path.join(base, n)))
