@@ -28,190 +28,24 @@ Sensors and switches
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
 from pathlib import Path
-from typing import Any, NamedTuple
+from typing import Any
 
 import mujoco
 import numpy as np
 
 from twin import plant_loop
-from twin.config import AXES, MachineConfig, SwitchConfig
+from twin.config import AXES, MachineConfig
 from twin.drive import Drives
 from twin.drive.kernel import S_ADC, S_FAULT, S_I, S_V
 from twin.errors import SimulationError
 from twin.model import load_model, resolve_machine
+from twin.plant_records import FLAGS, TRUTH_FIELDS, AxisMonitor, Reading, StepStatus, Truth
 
 __all__ = ["TRUTH_FIELDS", "Plant", "Reading", "StepStatus", "Truth"]
 
-TRUTH_FIELDS = (("table_position", 2), ("table_velocity", 2), ("screw_deflection", 2),
-                ("armature_current", 2), ("converter_voltage", 2))
-"""The twin's truth channels of :meth:`Plant.truth_row`, for a per-tick record (m, m/s, m, A,
-V; x then y)."""
-
 _BAD_STATE = ("mjWARN_BADQPOS", "mjWARN_BADQVEL", "mjWARN_BADQACC")
 _WARNING_NAMES = tuple(mujoco.mjtWarning(i).name for i in range(mujoco.mjtWarning.mjNWARNING))
-
-
-def _frozen(pair: tuple[bool, bool]) -> np.ndarray:
-    flags = np.array(pair)
-    flags.setflags(write=False)
-    return flags
-
-
-_FLAGS = tuple(_frozen((a, b)) for a in (False, True) for b in (False, True))
-"""The four per-axis flag pairs, read-only and shared: ``_FLAGS[2·x + y]``. The status of
-every step picks from them instead of allocating arrays on the per-period path."""
-
-
-class StepStatus(NamedTuple):
-    """What happened during one :meth:`Plant.step` (arrays indexed by axis x, y). An
-    immutable tuple: one is made every period, and a tuple is the cheapest record.
-
-    Attributes
-    ----------
-    saturated : ndarray, shape (2,), bool
-        The DAC command was outside its range and was clipped. (The flag arrays are
-        read-only and shared between statuses.)
-    limit_hit : ndarray, shape (2,), bool
-        An end limit switch (min or max, debounced) was closed during the step.
-    end_stop : ndarray, shape (2,), bool
-        The table reached the mechanical end of its travel during the step.
-    drive_fault : ndarray, shape (2,), bool
-        The drive's latched overload trip at the end of the step.
-    warnings : tuple of str
-        MuJoCo warnings raised during the step (``mjWARN_*`` names).
-    time : float
-        Plant time at the end of the step (s).
-    """
-
-    saturated: np.ndarray
-    limit_hit: np.ndarray
-    end_stop: np.ndarray
-    drive_fault: np.ndarray
-    warnings: tuple[str, ...]
-    time: float
-
-    @property
-    def ok(self) -> bool:
-        """Nothing to report: no saturation, limit, end stop, fault or warning."""
-        return not (self.saturated.any() or self.limit_hit.any() or self.end_stop.any()
-                    or self.drive_fault.any() or self.warnings)
-
-
-@dataclass(frozen=True, slots=True)
-class Reading:
-    """What the machine's I/O hardware delivers (arrays indexed by axis x, y).
-
-    Attributes
-    ----------
-    encoder_counts : ndarray, shape (2,), int64
-        Hardware counters (counts), wrapped to 0 … 2^bits − 1.
-    tacho_volts : ndarray, shape (2,)
-        Tachogenerator voltage at the ADC (V).
-    limit_min, limit_max, home : ndarray, shape (2,), bool
-        Debounced switch states, True = closed.
-    drive_ready : bool
-        No drive reports a fault.
-    time : float
-        Plant time of the sample (s).
-    """
-
-    encoder_counts: np.ndarray
-    tacho_volts: np.ndarray
-    limit_min: np.ndarray
-    limit_max: np.ndarray
-    home: np.ndarray
-    drive_ready: bool
-    time: float
-
-
-@dataclass(frozen=True, slots=True)
-class Truth:
-    """The twin's full state (arrays shape (2,), indexed by axis x, y).
-
-    Attributes
-    ----------
-    table_position, table_velocity : ndarray
-        Carriage position (m) and velocity (m/s).
-    rotor_angle, rotor_speed : ndarray
-        Motor shaft angle (rad) and speed (rad/s).
-    screw_deflection : ndarray
-        r·θ − x (m): positive when the screw pushes the table forward.
-    armature_current, converter_voltage, speed_reference : ndarray
-        Motor current (A), converter mean output voltage (V), filtered speed reference (V).
-    firing_angle, bridge : ndarray
-        Thyristor firing angle (rad; NaN for PWM or blocked pulses); conducting converter
-        (int64: +1 forward, −1 reverse, 0 blocked).
-    time : float
-        Plant time (s).
-    """
-
-    table_position: np.ndarray
-    table_velocity: np.ndarray
-    rotor_angle: np.ndarray
-    rotor_speed: np.ndarray
-    screw_deflection: np.ndarray
-    armature_current: np.ndarray
-    converter_voltage: np.ndarray
-    firing_angle: np.ndarray
-    bridge: np.ndarray
-    speed_reference: np.ndarray
-    time: float
-
-
-class _AxisMonitor:
-    """Switches and end stops of one axis, from the table position sampled at the end of
-    every drive interval.
-
-    Switch channels 0, 1, 2 = limit_min, limit_max, home. A raw change must persist for
-    ``debounce`` seconds of samples before the output follows it.
-    """
-
-    __slots__ = ("bounds", "debounce", "home", "limit_max", "limit_min", "pending", "quiet",
-                 "state", "travel", "width")
-
-    def __init__(self, sw: SwitchConfig, travel: tuple[float, float]):
-        self.limit_min, self.limit_max = sw.limit_min, sw.limit_max
-        self.home, self.width = sw.home, sw.home_width / 2.0
-        self.bounds = (sw.limit_min, sw.limit_max, sw.home - self.width, sw.home + self.width)
-        self.debounce = sw.debounce - 1e-12  # absorb the float error of sample times
-        self.travel = travel
-        self.settle(math.inf)
-
-    def raw(self, x: float) -> list[bool]:
-        return [x <= self.limit_min, x >= self.limit_max, abs(x - self.home) <= self.width]
-
-    def settle(self, x: float) -> None:
-        """Outputs equal to the raw states at ``x``, nothing pending (after a reset)."""
-        self.state = self.raw(x)
-        self.pending = [math.nan, math.nan, math.nan]
-        self.quiet = True  # nothing pending
-
-    def update(self, x: list[float], t0: float, dt: float) -> tuple[bool, bool]:
-        """Feed samples ``x`` taken at t0 + dt·(1..n). Returns (an end limit switch was
-        closed at the start or at any sample, the table reached an end of its travel)."""
-        hit = self.state[0] or self.state[1]
-        lo, hi = min(x), max(x)
-        end_stop = lo <= self.travel[0] or hi >= self.travel[1]
-        b0, b1, b2, b3 = self.bounds
-        if (self.quiet and not (lo <= b0 <= hi or lo <= b1 <= hi or lo <= b2 <= hi
-                                or lo <= b3 <= hi) and self.raw(lo) == self.state):
-            return hit, end_stop  # the common case: no switch changes, nothing pending
-        for i, xi in enumerate(x):
-            t = t0 + dt * (i + 1)
-            for ch, value in enumerate(self.raw(xi)):
-                since = self.pending[ch]
-                if value == self.state[ch]:
-                    since = math.nan
-                elif math.isnan(since):
-                    since = t
-                if not math.isnan(since) and t - since >= self.debounce:
-                    self.state[ch], since = value, math.nan
-                self.pending[ch] = since
-            hit = hit or self.state[0] or self.state[1]
-        self.quiet = all(math.isnan(p) for p in self.pending)
-        return hit, end_stop
 
 
 class Plant:
@@ -270,7 +104,7 @@ class Plant:
                                        else -1 for ax in axes], dtype=np.int64)
         self._encoder_noise = np.array([ax.encoder.noise_counts for ax in axes])
         self._travel = [ax.mechanics.travel for ax in axes]
-        self._monitors = [_AxisMonitor(ax.switches, ax.mechanics.travel) for ax in axes]
+        self._monitors = [AxisMonitor(ax.switches, ax.mechanics.travel) for ax in axes]
         self._intervals: dict[float, int] = {}
         self._samples = np.empty((0, 2))
         self._encoder_offset = np.zeros(2, dtype=np.int64)
@@ -399,9 +233,9 @@ class Plant:
         fault_x, fault_y = self.drives.fault_flags()
         hit_x, end_x = self._monitors[0].update(xs, t0, self.drive_dt)
         hit_y, end_y = self._monitors[1].update(ys, t0, self.drive_dt)
-        return StepStatus(saturated=saturated, limit_hit=_FLAGS[2 * hit_x + hit_y],
-                          end_stop=_FLAGS[2 * end_x + end_y],
-                          drive_fault=_FLAGS[2 * fault_x + fault_y],
+        return StepStatus(saturated=saturated, limit_hit=FLAGS[2 * hit_x + hit_y],
+                          end_stop=FLAGS[2 * end_x + end_y],
+                          drive_fault=FLAGS[2 * fault_x + fault_y],
                           warnings=warnings, time=d.time)
 
     # ------------------------------------------------------------------ sensing
@@ -484,7 +318,7 @@ class Plant:
                 clipped[a] = True
                 code = min(max(code, lowest), highest)
             self._u[a] = code * lsb
-        return _FLAGS[2 * clipped[0] + clipped[1]]
+        return FLAGS[2 * clipped[0] + clipped[1]]
 
     def _count_intervals(self, duration: float) -> int:
         """Drive intervals in ``duration`` (cached), which must be a positive multiple."""
