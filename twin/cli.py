@@ -104,6 +104,8 @@ def _run(program: Path | None, machine: str, profile: str | None, planner: str |
     except TwinError as exc:
         fail(exc)
     summary = result.summary
+    if rerun == "serve":
+        _keep_serving()
     if as_json:
         _emit({k: v for k, v in summary.items() if k not in ("config", "spec")}, True)
     else:
@@ -119,6 +121,24 @@ def _run(program: Path | None, machine: str, profile: str | None, planner: str |
         console.print(f"record: {out / (summary['run_id'] + '.json')}", highlight=False)
     if summary.get("aborted") or summary["status"] not in ("FINISHED",):
         raise typer.Exit(1)
+
+
+def _keep_serving() -> None:
+    """After a ``--rerun serve`` run: serve the recording until Ctrl-C."""
+    from twin.telemetry.rerun_sink import running_rerun, stop_rerun
+
+    servers = running_rerun()
+    if not servers:
+        return
+    err.print("serving the run at rerun+http://127.0.0.1:9876/proxy (connect: rerun "
+              "--connect rerun+http://127.0.0.1:9876/proxy); Ctrl-C to stop", highlight=False)
+    try:
+        for proc in servers:
+            proc.wait()
+    except KeyboardInterrupt:
+        pass
+    finally:
+        stop_rerun()
 
 
 @app.command("run")

@@ -7,7 +7,13 @@ logged row by row in the cyclic path, so telemetry stays a small share of a run.
 
 from __future__ import annotations
 
+import atexit
 import os
+import shutil
+import socket
+import subprocess
+import sys
+import time
 from collections.abc import Mapping
 from pathlib import Path
 
@@ -17,7 +23,8 @@ import rerun.blueprint as rrb
 
 from twin.telemetry.blueprint import default_blueprint
 
-__all__ = ["APPLICATION_ID", "TIMELINE", "RerunSink"]
+__all__ = ["APPLICATION_ID", "TIMELINE", "RerunSink", "running_rerun", "start_rerun",
+           "stop_rerun"]
 
 APPLICATION_ID = "xy_twin"
 TIMELINE = "sim_time"
@@ -34,7 +41,11 @@ class RerunSink:
         Where to write the ``.rrd``. The file is written to ``<path>.partial`` and renamed
         on ``close()``, so a reader never sees a half-written recording under the final name.
     live : {"spawn", "serve", None}
-        Also stream to a spawned native viewer, or serve gRPC for a viewer to connect to.
+        Also stream to a spawned native viewer, or to a gRPC server for viewers to connect
+        to (``rerun --connect URL``, or the web viewer). Either is a ``rerun`` process bound
+        to ``host`` (loopback by default) and ``port``. A spawned viewer stays open; a
+        server outlives the run, so a viewer can still connect, and ends with this process
+        (or earlier: ``stop_rerun``).
     recording_id : str
         Identifies the run; several runs (e.g. one per acceleration law) with distinct ids
         can share one file and are overlaid by the viewer.
@@ -47,7 +58,8 @@ class RerunSink:
 
     def __init__(self, path: str | Path | None = None, *, live: str | None = None,
                  recording_id: str = "run", recording_name: str | None = None,
-                 blueprint: bool | rrb.Blueprint = True):
+                 blueprint: bool | rrb.Blueprint = True, host: str = "127.0.0.1",
+                 port: int = 9876):
         if live not in (None, "spawn", "serve"):
             raise ValueError(f"live must be 'spawn', 'serve' or None, got {live!r}")
         if path is None and live is None:
@@ -60,13 +72,13 @@ class RerunSink:
         if self._partial is not None:
             self._partial.parent.mkdir(parents=True, exist_ok=True)
             sinks.append(rr.FileSink(str(self._partial)))
-        if live == "spawn":
-            rr.spawn(connect=False)
-            sinks.append(rr.GrpcSink())
+        if live is not None:
+            # A rerun process of our own, bound to loopback: the SDK's serve_grpc and spawn
+            # listen on every interface.
+            self.url = start_rerun(live, host=host, port=port)
+            sinks.append(rr.GrpcSink(self.url))
         if sinks:
             self._rec.set_sinks(*sinks)
-        if live == "serve":
-            self.url = self._rec.serve_grpc()
         if recording_name:
             self._rec.send_recording_name(recording_name)
         if blueprint is True:
@@ -128,3 +140,52 @@ class RerunSink:
 
     def __exit__(self, *exc: object) -> None:
         self.close()
+
+
+_PROCESSES: list[subprocess.Popen] = []
+
+
+def start_rerun(kind: str, *, host: str = "127.0.0.1", port: int = 9876,
+                timeout: float = 20.0) -> str:
+    """Start ``rerun`` as a viewer (``kind="spawn"``) or a headless gRPC server
+    (``"serve"``) listening on ``host:port`` only; return its ``rerun+http`` URL once it
+    accepts connections."""
+    exe = shutil.which("rerun") or str(Path(sys.executable).with_name("rerun"))
+    args = [exe, "--bind", host, "--port", str(port)]
+    if kind == "serve":
+        args.append("--serve-grpc")
+    proc = subprocess.Popen(args, env={**os.environ, "RERUN_ANALYTICS": "0"},
+                            stdin=subprocess.DEVNULL, stdout=subprocess.DEVNULL,
+                            stderr=subprocess.DEVNULL, start_new_session=True)
+    if kind == "serve":  # a spawned viewer is the user's window: it stays open
+        _PROCESSES.append(proc)
+    deadline = time.monotonic() + timeout
+    while time.monotonic() < deadline:
+        if proc.poll() is not None:
+            raise RuntimeError(f"rerun exited with code {proc.returncode} (is port {port} "
+                               "in use?)")
+        try:
+            with socket.create_connection((host, port), timeout=0.2):
+                return f"rerun+http://{host}:{port}/proxy"
+        except OSError:
+            time.sleep(0.05)
+    stop_rerun()
+    raise RuntimeError(f"rerun did not listen on {host}:{port} within {timeout} s")
+
+
+def running_rerun() -> list[subprocess.Popen]:
+    """The rerun servers this process started that are still running."""
+    return [p for p in _PROCESSES if p.poll() is None]
+
+
+@atexit.register
+def stop_rerun() -> None:
+    """Stop the rerun servers this process started."""
+    for proc in _PROCESSES:
+        if proc.poll() is None:
+            proc.terminate()
+            try:
+                proc.wait(timeout=5)
+            except subprocess.TimeoutExpired:
+                proc.kill()
+    _PROCESSES.clear()
