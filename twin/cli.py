@@ -20,7 +20,7 @@ from rich.console import Console
 from rich.progress import BarColumn, Progress, TextColumn, TimeElapsedColumn
 from rich.table import Table
 
-from twin.cli_common import err, fail
+from twin.cli_common import RUN_ROWS, err, fail, summary_table
 from twin.config import available_machines, load_machine
 from twin.errors import TwinError
 
@@ -51,33 +51,8 @@ def _progress() -> Progress:
 
 
 # --------------------------------------------------------------------------- run
-SUMMARY_ROWS = (
-    ("status", "status", ""), ("cycle time", "cycle_time_s", "s"),
-    ("path length", "path_length_mm", "mm"),
-    ("max contour error", "max_contour_error_um", "µm"),
-    ("RMS contour error", "rms_contour_error_um", "µm"),
-    ("max coordinate error X", ("max_coordinate_error_um", "x"), "µm"),
-    ("max coordinate error Y", ("max_coordinate_error_um", "y"), "µm"),
-    ("max velocity error X", ("max_velocity_error_um_s", "x"), "µm/s"),
-    ("max velocity error Y", ("max_velocity_error_um_s", "y"), "µm/s"),
-    ("residual vibration", "residual_vibration_um", "µm"),
-    ("real-time factor", "real_time_factor", "×"),
-    ("recording", "recording", ""),
-)
-
-
 def _summary_table(summary: dict[str, Any], title: str) -> Table:
-    table = Table(title=title)
-    table.add_column("quantity")
-    table.add_column("value", justify="right")
-    table.add_column("unit")
-    for label, key, unit in SUMMARY_ROWS:
-        value = summary.get(key[0], {}).get(key[1]) if isinstance(key, tuple) else \
-            summary.get(key)
-        if value is None:
-            continue
-        table.add_row(label, f"{value:.4g}" if isinstance(value, float) else str(value), unit)
-    return table
+    return summary_table({"value": summary}, RUN_ROWS, title=title, skip_missing=True)
 
 
 def _run(program: Path | None, machine: str, profile: str | None, planner: str | None,

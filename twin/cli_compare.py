@@ -11,7 +11,7 @@ import typer
 from rich.console import Console
 from rich.table import Table
 
-from twin.cli_common import err, fail
+from twin.cli_common import METRIC_ROWS, err, fail, summary_table
 from twin.errors import ConfigError, TwinError
 
 __all__ = ["ROWS", "register"]
@@ -19,12 +19,7 @@ __all__ = ["ROWS", "register"]
 
 ROWS = (
     ("cycle time", "cycle_time_s", "s"),
-    ("max contour error", "max_contour_error_um", "µm"),
-    ("RMS contour error", "rms_contour_error_um", "µm"),
-    ("max coordinate error X", ("max_coordinate_error_um", "x"), "µm"),
-    ("max coordinate error Y", ("max_coordinate_error_um", "y"), "µm"),
-    ("max velocity error X", ("max_velocity_error_um_s", "x"), "µm/s"),
-    ("max velocity error Y", ("max_velocity_error_um_s", "y"), "µm/s"),
+    *METRIC_ROWS,
     ("peak reference jerk |Δa|/T", "peak_reference_jerk_m_per_s3", "m/s³"),
     ("speed jump at junctions", "junction_speed_jump_mm_per_s", "mm/s"),
     ("elastic oscillation", "elastic_oscillation_um", "µm"),
@@ -33,23 +28,8 @@ ROWS = (
 """Rows of the comparison table: label, summary key (or (key, axis)), unit."""
 
 
-def _value(summary: dict[str, Any], key: Any) -> Any:
-    return summary.get(key[0], {}).get(key[1]) if isinstance(key, tuple) else summary.get(key)
-
-
 def _table(summaries: dict[str, dict[str, Any]], title: str) -> Table:
-    table = Table(title=title)
-    table.add_column("quantity")
-    for law in summaries:
-        table.add_column(law, justify="right")
-    table.add_column("unit")
-    for label, key, unit in ROWS:
-        cells = []
-        for s in summaries.values():
-            v = _value(s, key)
-            cells.append("—" if v is None else f"{v:.4g}" if isinstance(v, float) else str(v))
-        table.add_row(label, *cells, unit)
-    return table
+    return summary_table(summaries, ROWS, title=title)
 
 
 def _parse_sweep(text: str) -> tuple[str, list[Any]]:

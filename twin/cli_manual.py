@@ -11,7 +11,7 @@ import typer
 from rich.console import Console
 from rich.table import Table
 
-from twin.cli_common import err, fail
+from twin.cli_common import RUN_ROWS, err, fail, summary_table
 from twin.errors import ConfigError, TwinError
 
 __all__ = ["register"]
@@ -74,7 +74,6 @@ def experiment(
 def _manual(commands: list[str], machine: str, out: Path, as_json: bool,
             start: tuple[float, float] | None, dry_run: bool,
             ignore_soft_limits: bool) -> None:
-    from twin.cli import _summary_table
     from twin.run import RunSpec, run
 
     sets = {"controller.soft_limits": False} if ignore_soft_limits else {}
@@ -91,7 +90,8 @@ def _manual(commands: list[str], machine: str, out: Path, as_json: bool,
         sys.stdout.write(json.dumps({k: v for k, v in s.items()
                                      if k not in ("config", "spec")}, default=str) + "\n")
     else:
-        Console().print(_summary_table(s, f"{' ; '.join(commands)}"))
+        Console().print(summary_table({"value": s}, RUN_ROWS, title=' ; '.join(commands),
+                                      skip_missing=True))
         Console().print(f"final position: X {pos[0] * 1e3:.4f} mm, Y {pos[1] * 1e3:.4f} mm")
     if s["status"] not in ("FINISHED", "IDLE"):
         err.print(f"[bold red]stopped:[/] {s['status']}")
