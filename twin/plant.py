@@ -116,6 +116,9 @@ class Plant:
         self._snap_at = -1
         self._compiled = plant_loop.available()
         """Run drive intervals in the compiled loop (``twin.plant_loop``)."""
+        if self._compiled:
+            self._addresses = plant_loop.addresses(self.model, self.data)
+        self._extent = np.zeros(4)  # lowest and highest table sample of each axis in a step
         self._u = np.zeros(2)
         self.reset()
 
@@ -208,13 +211,13 @@ class Plant:
             self._samples = np.empty((n, 2))
         samples = self._samples[:n]
         m, d, k, u, x = self.model, self.data, self._substeps, self._u, self._table_pos
-        torque, omega, drives = self._torque, self._rotor_vel, self.drives
+        torque, omega, drives, extent = self._torque, self._rotor_vel, self.drives, self._extent
         t0 = d.time
         if self._compiled and not drives.noisy:
             params, state, noise = drives.kernel_arrays()
             done, status = plant_loop.step_intervals(
-                m, d, n, k, params, state, u, omega, noise, drives.n_step, drives.dt,
-                drives.enabled, torque, x, samples)
+                *self._addresses, n, k, params, state, u, omega, noise, drives.n_step,
+                drives.dt, drives.enabled, torque, x, samples, extent)
             drives.advance(done)
             if status:
                 drives.step(u, omega)  # the checked path raises the error naming the input
@@ -224,19 +227,23 @@ class Plant:
                 drive_step(u, omega, torque)
                 mj_step(m, d, k)
                 samples[i] = x
+            extent[0::2], extent[1::2] = samples.min(axis=0), samples.max(axis=0)
         warnings = () if self._warning_count.tobytes() == self._warnings_seen \
             else self._new_warnings()
-        xs, ys = samples.T.tolist()
-        if not math.isfinite(xs[-1] + ys[-1]) or any(w in _BAD_STATE for w in warnings):
+        lo_x, hi_x, lo_y, hi_y = extent.tolist()
+        if not math.isfinite(lo_x + hi_x + lo_y + hi_y) or any(w in _BAD_STATE
+                                                              for w in warnings):
             raise SimulationError(f"the plant state diverged (not finite) by t = {d.time:.6f} s"
                                   f" (MuJoCo warnings: {', '.join(warnings) or 'none'})")
-        fault_x, fault_y = self.drives.fault_flags()
-        hit_x, end_x = self._monitors[0].update(xs, t0, self.drive_dt)
-        hit_y, end_y = self._monitors[1].update(ys, t0, self.drive_dt)
-        return StepStatus(saturated=saturated, limit_hit=FLAGS[2 * hit_x + hit_y],
-                          end_stop=FLAGS[2 * end_x + end_y],
-                          drive_fault=FLAGS[2 * fault_x + fault_y],
-                          warnings=warnings, time=d.time)
+        st = self._snapshot()  # shared with read_into and truth_row of this period
+        fault_x, fault_y = st[0][S_FAULT] != 0.0, st[1][S_FAULT] != 0.0
+        mon_x, mon_y = self._monitors
+        hit_x, end_x = mon_x.quick(lo_x, hi_x) or mon_x.update(samples[:, 0].tolist(), t0,
+                                                               self.drive_dt)
+        hit_y, end_y = mon_y.quick(lo_y, hi_y) or mon_y.update(samples[:, 1].tolist(), t0,
+                                                               self.drive_dt)
+        return StepStatus(saturated, FLAGS[2 * hit_x + hit_y], FLAGS[2 * end_x + end_y],
+                          FLAGS[2 * fault_x + fault_y], warnings, d.time)
 
     # ------------------------------------------------------------------ sensing
     def read_into(self, inputs: Any) -> None:

@@ -25,7 +25,7 @@ import numpy as np
 
 from twin.drive.kernel import drive_step
 
-__all__ = ["available", "step_intervals"]
+__all__ = ["addresses", "available", "step_intervals"]
 
 
 def _load_mj_step():
@@ -59,28 +59,45 @@ if _MJ_STEP is not None:
 
     @numba.njit
     def _intervals(m_addr, d_addr, n, substeps, params, state, u, omega, noise, n0, dt,
-                   enabled, torque, table, samples):
+                   enabled, torque, table, samples, extent):
         for i in range(n):
             status = drive_step(params, state, u, omega, noise, n0 + i, dt, enabled, torque)
             if status != 0:
                 return i, status
             for _ in range(substeps):
                 _c_mj_step(m_addr, d_addr)
-            samples[i, 0] = table[0]
-            samples[i, 1] = table[1]
+            for k in range(2):
+                x = table[k]
+                samples[i, k] = x
+                if i == 0:
+                    extent[2 * k] = extent[2 * k + 1] = x
+                else:  # a NaN sample makes both ends NaN, and they stay NaN
+                    if x < extent[2 * k] or x != x:
+                        extent[2 * k] = x
+                    if x > extent[2 * k + 1] or x != x:
+                        extent[2 * k + 1] = x
         return n, 0
 
 
-def step_intervals(model: mujoco.MjModel, data: mujoco.MjData, n: int, substeps: int,
+def addresses(model: mujoco.MjModel, data: mujoco.MjData) -> tuple[int, int]:
+    """The C addresses of the bindings' ``mjModel`` and ``mjData`` (fixed for their life):
+    what :func:`step_intervals` takes."""
+    return model._address, data._address
+
+
+def step_intervals(m_addr: int, d_addr: int, n: int, substeps: int,
                    params: np.ndarray, state: np.ndarray, u: np.ndarray, omega: np.ndarray,
                    noise: np.ndarray, n0: int, dt: float, enabled: bool, torque: np.ndarray,
-                   table: np.ndarray, samples: np.ndarray) -> tuple[int, int]:
+                   table: np.ndarray, samples: np.ndarray, extent: np.ndarray
+                   ) -> tuple[int, int]:
     """Run ``n`` drive intervals: drive kernel, then ``substeps`` × ``mj_step``, and the
-    table position into ``samples[i]`` after each.
+    table position into ``samples[i]`` after each; ``extent`` (4,) receives the lowest and
+    highest sample of each axis (x lo, x hi, y lo, y hi; NaN if a sample was NaN).
 
-    ``omega``, ``torque`` and ``table`` are views of ``data`` (rotor speeds, rotor applied
-    forces, table positions). Returns (intervals done, kernel status): a non-zero status
-    stops before the interval it refers to, with nothing of it applied.
+    ``m_addr``, ``d_addr`` are :func:`addresses`; ``omega``, ``torque`` and ``table`` are views
+    of the data (rotor speeds, rotor applied forces, table positions). Returns (intervals
+    done, kernel status): a non-zero status stops before the interval it refers to, with
+    nothing of it applied.
     """
-    return _intervals(model._address, data._address, n, substeps, params, state, u, omega,
-                      noise, n0, dt, enabled, torque, table, samples)
+    return _intervals(m_addr, d_addr, n, substeps, params, state, u, omega, noise, n0, dt,
+                      enabled, torque, table, samples, extent)

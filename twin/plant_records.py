@@ -135,8 +135,8 @@ class AxisMonitor:
     ``debounce`` seconds of samples before the output follows it.
     """
 
-    __slots__ = ("bounds", "debounce", "home", "limit_max", "limit_min", "pending", "quiet",
-                 "state", "travel", "width")
+    __slots__ = ("bounds", "debounce", "free", "hit", "home", "limit_max", "limit_min",
+                 "pending", "quiet", "state", "travel", "width")
 
     def __init__(self, sw: SwitchConfig, travel: tuple[float, float]):
         self.limit_min, self.limit_max = sw.limit_min, sw.limit_max
@@ -154,6 +154,27 @@ class AxisMonitor:
         self.state = self.raw(x)
         self.pending = [math.nan, math.nan, math.nan]
         self.quiet = True  # nothing pending
+        self._refresh(x)
+
+    def _refresh(self, x: float) -> None:
+        """Find ``free``: the open interval around ``x`` between two neighbouring edges
+        (switch bounds, ends of travel), where the raw states are constant, if nothing is
+        pending and the outputs equal those raw states (else an empty interval)."""
+        self.hit = self.state[0] or self.state[1]
+        if not self.quiet or self.raw(x) != self.state or x != x:
+            self.free = (math.inf, -math.inf)
+            return
+        edges = (*self.bounds, *self.travel)
+        self.free = (max((e for e in edges if e < x), default=-math.inf),
+                     min((e for e in edges if e > x), default=math.inf))
+
+    def quick(self, lo: float, hi: float) -> tuple[bool, bool] | None:
+        """``update``'s answer when every sample lies in [lo, hi] inside ``free`` (nothing
+        can change: no switch edge, no end of travel, nothing pending), else None."""
+        a, b = self.free
+        if a < lo and hi < b:
+            return self.hit, False
+        return None
 
     def update(self, x: list[float], t0: float, dt: float) -> tuple[bool, bool]:
         """Feed samples ``x`` taken at t0 + dt·(1..n). Returns (an end limit switch was
@@ -178,4 +199,5 @@ class AxisMonitor:
                 self.pending[ch] = since
             hit = hit or self.state[0] or self.state[1]
         self.quiet = all(math.isnan(p) for p in self.pending)
+        self._refresh(x[-1])
         return hit, end_stop

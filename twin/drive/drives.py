@@ -238,10 +238,6 @@ class Drives:
             self.step(u_ref, omega)  # the checked path raises the named error
         self._n_step += 1
 
-    def fault_flags(self) -> tuple[bool, ...]:
-        """``fault`` as a tuple of Python bools (cheap, for the per-period path)."""
-        return tuple(row[K.S_FAULT] != 0.0 for row in self._state.tolist())
-
     def kernel_arrays(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """(params, state, noise): the live arrays ``kernel.drive_step`` works on, for a
         caller that runs the kernel itself in a compiled loop (``twin.plant_loop``). Such a
