@@ -43,7 +43,7 @@ class PathDistance:
     """
 
     def __init__(self, path: Sequence, *, sagitta: float = 1e-8, max_chord: float = 2e-4,
-                 k: int = 8, max_vertices: int = 500_000):
+                 k: int = 6, max_vertices: int = 500_000):
         from scipy.spatial import cKDTree
 
         grid = np.linspace(0.0, 1.0, 257)
@@ -62,6 +62,12 @@ class PathDistance:
         self._tree = cKDTree(self.vertices)
         self._k = min(k, len(self.vertices))
         self._chord = chord
+        # chord j runs from vertex j to j + 1 (a lone vertex: one chord of zero length)
+        v = self.vertices
+        self._a = v[:-1] if len(v) > 1 else v
+        self._d = v[1:] - v[:-1] if len(v) > 1 else np.zeros_like(v)
+        den = np.einsum("ij,ij->i", self._d, self._d)
+        self._inv_len2 = np.divide(1.0, den, out=np.zeros_like(den), where=den > 0)
 
     def __call__(self, points: np.ndarray) -> np.ndarray:
         """Distances (m) of points (n, 2).
@@ -80,18 +86,16 @@ class PathDistance:
         return best
 
     def _to_chords(self, points: np.ndarray, idx: np.ndarray) -> np.ndarray:
-        v = self.vertices
-        top = max(len(v) - 2, 0)
-        best = np.full(len(points), np.inf)
-        for lo in (np.clip(idx - 1, 0, top), np.clip(idx, 0, top)):
-            a, b = v[lo], v[np.minimum(lo + 1, len(v) - 1)]
-            d = b - a
-            q = points[:, None, :] - a
-            den = np.einsum("nkj,nkj->nk", d, d)
-            t = np.clip(np.einsum("nkj,nkj->nk", q, d) / np.where(den > 0, den, 1.0), 0, 1)
-            gap = q - t[..., None] * d
-            best = np.minimum(best, np.sqrt(np.einsum("nkj,nkj->nk", gap, gap)).min(axis=1))
-        return best
+        """Distance of each point to the nearest of the chords that end at its vertices
+        ``idx`` (n, m): chords idx − 1 and idx, in one pass."""
+        j = np.concatenate((idx - 1, idx), axis=1)
+        np.clip(j, 0, len(self._a) - 1, out=j)
+        d = self._d[j]
+        q = points[:, None, :] - self._a[j]
+        t = np.einsum("nkj,nkj->nk", q, d) * self._inv_len2[j]
+        np.clip(t, 0.0, 1.0, out=t)
+        q -= t[..., None] * d
+        return np.sqrt(np.einsum("nkj,nkj->nk", q, q).min(axis=1))
 
 
 def programmed_polyline(path: Sequence, *, per_metre: float = 2e4, max_points: int = 400
