@@ -191,15 +191,15 @@ def test_one_tick_is_three_requests_and_the_image_decodes(module):
                           "(ILLEGAL_ADDRESS)"),
     ((4, 1, "wrong_fc"), "function code 3, expected 4"),
     ((4, 1, "close"), "connection lost during read_input_registers(0, count=6)"),
-    ((4, 1, "silent"), "no valid response to read_input_registers(0, count=6) within 50 ms"),
+    ((4, 1, "silent"), "no valid response to read_input_registers(0, count=6) within 250 ms"),
     ((16, 2, "bad_echo"), "garbled response to write_registers(0, 3 values): echoed "
                           "address 7"),
-    ((16, 2, "silent"), "no valid response to write_registers(0, 3 values) within 50 ms"),
+    ((16, 2, "silent"), "no valid response to write_registers(0, 3 values) within 250 ms"),
 ])
 def test_a_wrong_answer_is_a_driver_error_naming_it_and_close_leaves_it_safe(fault, words):
     module = FakeModule(fault)
     try:
-        drv = ModbusDriver("127.0.0.1", module.port, timeout=0.05)
+        drv = ModbusDriver("127.0.0.1", module.port, timeout=0.25)  # slack for a busy CI
         t = time.perf_counter()
         with pytest.raises(DriverError) as info:
             drv.read()
@@ -290,7 +290,7 @@ def test_a_garbled_answer_mid_run_stops_safely_with_the_record_intact(tmp_path):
     module.ir.update({1: 50_000, 3: 50_000})    # the table at (10, 10) mm, standing still
     try:
         spec = RunSpec(builtin="corner", max_time=2.0,
-                       driver=f"modbus://127.0.0.1:{module.port}?timeout=0.05")
+                       driver=f"modbus://127.0.0.1:{module.port}?timeout=0.5")
         result = run(spec, out_dir=tmp_path, run_id="garbled")
     finally:
         module.close()
