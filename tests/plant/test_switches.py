@@ -80,31 +80,11 @@ def test_limit_switch_then_end_stop_are_reported_in_the_status():
     assert plant.truth().table_position[0] == pytest.approx(0.0, abs=2e-4)
 
 
-def _reference_update(mon, x, t0, dt):
-    """The monitor's sample-by-sample rule, with no shortcut: the reference for ``quick``."""
-    import math
-    hit = mon.state[0] or mon.state[1]
-    end = min(x) <= mon.travel[0] or max(x) >= mon.travel[1]
-    for i, xi in enumerate(x):
-        t = t0 + dt * (i + 1)
-        for ch, value in enumerate(mon.raw(xi)):
-            since = mon.pending[ch]
-            if value == mon.state[ch]:
-                since = math.nan
-            elif math.isnan(since):
-                since = t
-            if not math.isnan(since) and t - since >= mon.debounce:
-                mon.state[ch], since = value, math.nan
-            mon.pending[ch] = since
-        hit = hit or mon.state[0] or mon.state[1]
-    mon.quiet = all(math.isnan(p) for p in mon.pending)
-    return hit, end
-
-
 def test_quick_path_agrees_with_the_sample_rule_over_random_walks():
     """The plant's per-period shortcut (``quick`` on the samples' range, ``update`` only when
     an edge or a pending change is near) gives the same outputs as applying the debounce
-    rule to every sample, on random walks that cross every switch edge and both ends."""
+    rule (``update``) to every period's samples, on random walks that cross every switch
+    edge and both ends of travel."""
     from twin.plant_records import AxisMonitor
 
     sw = load_machine("tomsk_xy").axes["x"].switches
@@ -120,6 +100,6 @@ def test_quick_path_agrees_with_the_sample_rule_over_random_walks():
             steps = rng.normal(0.0, rng.choice([2e-6, 2e-5, 2e-4]), size=5)
             xs = np.clip(x + np.cumsum(steps), 0.0, 0.3).tolist()
             got = fast.quick(min(xs), max(xs)) or fast.update(xs, t, dt)
-            want = _reference_update(ref, xs, t, dt)
+            want = ref.update(xs, t, dt)
             assert got == want and fast.state == ref.state, (walk, t)
             x, t = xs[-1], t + 5 * dt
