@@ -54,6 +54,9 @@ def hil_server(
                                      "fraction of a drive interval (phase lock)."),
     no_sync: bool = typer.Option(False, "--no-sync", help="Free-running drive-interval "
                                  "grid instead (no phase lock)."),
+    hold: int = typer.Option(1, "--hold", min=0, max=4, help="Output window: a DAC write "
+                             "arriving up to this many drive intervals late still takes "
+                             "effect from its counter read's interval."),
     noise: bool = typer.Option(False, "--noise", help="Sensor noise on."),
     rt_priority: int = typer.Option(0, "--rt-priority", min=0, max=99,
                                     help="Serve under SCHED_FIFO at this priority (Linux, "
@@ -104,13 +107,15 @@ def hil_server(
                   f"watchdog {watchdog_ms:g} ms; Ctrl-C stops", highlight=False)
 
     stats = serve_hil(plant, rmap, host=host, port=port, watchdog=watchdog_ms * 1e-3,
-                      sync_phase=None if no_sync else sync_phase, on_ready=ready)
+                      sync_phase=None if no_sync else sync_phase, hold=hold,
+                      on_ready=ready)
     if as_json:  # stdout carried the one ready object; the statistics go to stderr
         sys.stderr.write(json.dumps({"hil_stats": dataclasses.asdict(stats)}) + "\n")
         return
     err.print(f"served {stats.requests} requests; {stats.sim_time:.3f} s of physics in "
               f"{stats.wall_time:.3f} s; most drive intervals caught up at once: "
-              f"{stats.max_catch_up}; watchdog trips: {stats.watchdog_trips}"
+              f"{stats.max_catch_up}; watchdog trips: {stats.watchdog_trips}; DAC writes "
+              f"that missed their drive interval: {stats.late_writes} of {stats.dac_writes}"
               + (f"; fault: {stats.fault}" if stats.fault else ""), highlight=False,
               soft_wrap=True)
 

@@ -225,9 +225,40 @@ def test_pymodbus_glue_fills_reads_applies_writes_and_reports_faults(rig, monkey
     assert module.stats().fault == "the plant state diverged"
 
 
+@pytest.mark.parametrize(("hold", "from_interval", "late"), [(1, 3, 0), (0, 4, 1)])
+def test_a_write_in_the_output_window_acts_from_its_reads_interval(plants, hold,
+                                                                    from_interval, late):
+    """Counter read at 3.25 intervals, reference and enable written at 4.6: with a window of
+    one interval they act from the read's boundary (3), as in the lock-step twin; without
+    one, from the boundary before the write (4), counted as a late write."""
+    plant, ref = plants
+    for p in plants:
+        p.reset()
+    clock = Clock()
+    module = HilModule(plant, RMAP, watchdog=1.0, sync_phase=None, hold=hold, clock=clock)
+    dt, u = module.dt, [2.0, -1.5]
+    words = [volts_to_word(v, 10.0) for v in u]
+
+    def act(fc, values=None):
+        return asyncio.run(module._action(fc, 0, 0, 1, [0] * 7, values))
+
+    clock.now = 3.25 * dt
+    assert act(4) is None and plant.time == pytest.approx(3 * dt)
+    clock.now = 4.6 * dt
+    assert act(16, [*words, 1]) is None and act(5, [True]) is None
+    clock.now = 10.25 * dt
+    assert act(4) is None and plant.time == pytest.approx(10 * dt)
+    ref.enable(False)
+    ref.step(np.zeros(2), from_interval * dt)
+    ref.enable(True)
+    ref.step(np.array([word_to_volts(w, 10.0) for w in words]), (10 - from_interval) * dt)
+    assert plant.truth().table_position.tolist() == ref.truth().table_position.tolist()
+    assert (module.stats().dac_writes, module.stats().late_writes) == (1, late)
+
+
 @pytest.mark.parametrize(("option", "value"), [
     ("watchdog", 0.0), ("watchdog", float("inf")), ("sync_phase", 1.0), ("sync_phase", -0.1),
-    ("sync_gain", 0.0), ("sync_gain", 1.5),
+    ("sync_gain", 0.0), ("sync_gain", 1.5), ("hold", -1), ("hold", 5), ("hold", 1.5),
 ])
 def test_module_options_out_of_range_name_the_option(plants, option, value):
     with pytest.raises(ConfigError) as info:

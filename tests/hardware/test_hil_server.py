@@ -105,12 +105,14 @@ def test_a_program_through_the_server_matches_the_lockstep_twin(tmp_path):
     ref = run(RunSpec(builtin="corner"), out_dir=tmp_path, run_id="lockstep")
     with hil_server() as server, fifo_priority():
         hil = run(RunSpec(builtin="corner", driver=server.url), out_dir=tmp_path, run_id="hil")
+        module = server.stop()
     s, r = hil.summary, ref.summary
     assert s["status"] == "FINISHED" and s["aborted"] is None, s.get("aborted")
-    # Contour errors within 10 % (the phase-locked module samples like the lock-step twin;
-    # what remains is timing: late or skipped ticks).
+    # Contour errors within 10 % (the phase-locked module samples like the lock-step twin and
+    # applies a write from its read's interval; what remains is timing: late or skipped
+    # ticks, writes that missed the output window). On an idle machine they agree to 0.5 %.
     for key in ("max_contour_error_um", "rms_contour_error_um"):
-        assert s[key] == pytest.approx(r[key], rel=0.10), (key, s["ticks"])
+        assert s[key] == pytest.approx(r[key], rel=0.10), (key, s["ticks"], module)
     ticks = s["ticks"]
     assert ticks["paced"] and ticks["due"] == ticks["on_time"] + ticks["late"] + \
         ticks["skipped"]

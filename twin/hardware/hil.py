@@ -12,13 +12,21 @@ anybody asks.
 Phase lock: like a fieldbus module whose inputs are latched on a clock synchronised to the
 master's cycle, the module steers its drive-interval grid so that the client's counter
 reads arrive a quarter interval (``sync_phase``) after a boundary: each read nudges the
-grid a fifth (``sync_gain``) of the way. A controller that reads, computes and writes
-within the rest of that interval then sees exactly what the lock-step twin shows it (the
-sample at k·T, the new reference applied from k·T on); jitter below a quarter interval
-changes nothing. With a free-running grid (``sync_phase=None``) the read lands anywhere in
-an interval and the write often in the next one: about one drive interval of extra delay
-(1 ms on the Tomsk rig, a fifth of its 5 ms period), which moved the contour errors of the
-corner program by 14 %.
+grid a fifth (``sync_gain``) of the way. A controller then sees exactly what the lock-step
+twin shows it: the sample at k·T, and the new reference applied from k·T on, as long as its
+write arrives within the output window. With a free-running grid (``sync_phase=None``) the
+read lands anywhere in an interval: about one drive interval of extra delay (1 ms on the
+Tomsk rig, a fifth of its 5 ms period), which moved the contour errors of the corner
+program by 14 %.
+
+Output window: a counter read catches the plant up with the clock; between reads the
+physics runs ``hold`` intervals behind it (as a synchronous fieldbus applies outputs at a
+fixed point of the cycle, not whenever they arrive). A DAC write that arrives within
+``hold`` intervals after the end of its read's interval therefore still takes effect from
+the read's boundary, like the lock-step twin's. Over pymodbus on loopback a tick's read,
+compute and write take about a millisecond, one Tomsk drive interval: with ``hold`` 0 half
+the writes landed an interval late and the corner program's contour error moved by up to
+14 % from run to run. ``HilStats.late_writes`` counts the writes that missed the window.
 
 Watchdog: writing the watchdog holding register with a new value restarts the timer. When
 it expires while the outputs are live (enable set or a DAC register non-zero), the module
@@ -76,6 +84,12 @@ class HilStats:
         Plant time and wall time since the start (s).
     fault : str or None
         Why the module stopped answering (the plant diverged), if it did.
+    dac_writes : int
+        DAC reference writes received.
+    late_writes : int
+        Of those, the ones that arrived in a later drive interval than the counter read
+        before them: the reference took effect one or more intervals later than the
+        lock-step twin applies it (the client's read-compute-write took too long).
     """
 
     requests: int
@@ -85,6 +99,8 @@ class HilStats:
     sim_time: float
     wall_time: float
     fault: str | None = None
+    dac_writes: int = 0
+    late_writes: int = 0
 
 
 class HilModule:
@@ -102,6 +118,9 @@ class HilModule:
         interval, 0 … 1); None: a free-running grid.
     sync_gain : float
         Fraction of the phase error corrected at each counter read (0 … 1].
+    hold : int
+        Output window: drive intervals the physics stays behind the clock between counter
+        reads (0 … 4; see the module docstring).
     clock : callable
         Wall clock (s); injected for tests.
 
@@ -116,7 +135,7 @@ class HilModule:
     """
 
     def __init__(self, plant: Plant, register_map: RegisterMap, *, watchdog: float = 0.1,
-                 sync_phase: float | None = 0.25, sync_gain: float = 0.2,
+                 sync_phase: float | None = 0.25, sync_gain: float = 0.2, hold: int = 1,
                  clock: Callable[[], float] = time.perf_counter):
         if not (math.isfinite(watchdog) and watchdog > 0):
             raise ConfigError("watchdog", f"must be > 0 s, got {watchdog}")
@@ -124,6 +143,10 @@ class HilModule:
             raise ConfigError("sync_phase", f"must be in [0, 1), got {sync_phase}")
         if not 0.0 < sync_gain <= 1.0:
             raise ConfigError("sync_gain", f"must be in (0, 1], got {sync_gain}")
+        if not (isinstance(hold, int) and 0 <= hold <= 4):
+            raise ConfigError("hold", f"must be a whole number of drive intervals 0 … 4, got "
+                                      f"{hold!r}")
+        self.hold = hold
         self.plant, self.map, self.watchdog = plant, register_map, watchdog
         self.sync_phase, self.sync_gain = sync_phase, sync_gain
         self.dt = plant.drive_dt
@@ -143,6 +166,8 @@ class HilModule:
         self._sampled = -1
         self._last_reading = plant.read()
         self._requests = self._trips = self._max_catch_up = 0
+        self._read_step = -1  # the drive interval of the last counter read
+        self._dac_writes = self._late_writes = 0
         plant.enable(False)
         self._t0 = clock()
 
@@ -182,6 +207,11 @@ class HilModule:
             self.fault = str(exc)
         self._max_catch_up = max(self._max_catch_up, n)
         return n
+
+    def advance_between_reads(self) -> int:
+        """``advance`` to ``hold`` intervals behind the clock: what every access but a
+        counter read does, and the background task (see the module docstring)."""
+        return self.advance(self.now - self.hold * self.dt)
 
     def synchronise(self) -> None:
         """A counter sample arrives now: pull the drive-interval grid a fraction
@@ -268,6 +298,9 @@ class HilModule:
             self._hr[address] = word
         elif address in self._hr:
             k = self._dac_addr.index(address)
+            if k == 0:  # one count per reference write (the DAC registers go together)
+                self._dac_writes += 1
+                self._late_writes += self._read_step >= 0 and self._steps > self._read_step
             self._hr[address] = 0 if self.tripped else word
             self._u[k] = word_to_volts(self._hr[address], self._fs_dac)
         return self._hr.get(address, 0)
@@ -287,7 +320,8 @@ class HilModule:
     def stats(self) -> HilStats:
         """What the module did so far."""
         return HilStats(self._requests, self._steps, self._max_catch_up, self._trips,
-                        self._steps * self.dt, self.now, self.fault)
+                        self._steps * self.dt, self.now, self.fault, self._dac_writes,
+                        self._late_writes)
 
     # ------------------------------------------------------------------ pymodbus glue
     def sim_device(self) -> SimDevice:
@@ -314,9 +348,13 @@ class HilModule:
         self._requests += 1
         if function_code == 4:
             self.synchronise()
-        self.advance()
+            self.advance()
+        else:
+            self.advance_between_reads()
         if self.fault is not None:
             return ExcCodes.DEVICE_FAILURE
+        if function_code == 4:
+            self._read_step = self._steps
         if values is not None:
             if function_code in _READ_BITS:
                 for i, flag in enumerate(values):
@@ -352,7 +390,7 @@ async def _serve(module: HilModule, host: str, port: int,
         on_ready(bound[0], bound[1])
     try:
         while not stop.is_set():
-            module.advance()
+            module.advance_between_reads()
             await asyncio.sleep(module.dt)
     finally:
         await server.shutdown()
@@ -372,7 +410,8 @@ def hil_plant(cfg: MachineConfig, *, start: np.ndarray | None = None,
 
 def serve_hil(plant: Plant, register_map: RegisterMap, *, host: str = "127.0.0.1",
               port: int = 5020, watchdog: float = 0.1, sync_phase: float | None = 0.25,
-              on_ready: Callable[[str, int], None] | None = None) -> HilStats:
+              hold: int = 1, on_ready: Callable[[str, int], None] | None = None
+              ) -> HilStats:
     """Serve ``plant`` as a Modbus/TCP I/O module until SIGINT or SIGTERM.
 
     Parameters
@@ -389,6 +428,8 @@ def serve_hil(plant: Plant, register_map: RegisterMap, *, host: str = "127.0.0.1
     sync_phase : float or None
         Where in a drive interval the client's counter reads are steered (fraction of an
         interval; see ``HilModule``); None: a free-running grid.
+    hold : int
+        Output window in drive intervals (see ``HilModule``).
     on_ready : callable(host, port), optional
         Called once the server listens.
 
@@ -396,6 +437,7 @@ def serve_hil(plant: Plant, register_map: RegisterMap, *, host: str = "127.0.0.1
     -------
     HilStats
     """
-    module = HilModule(plant, register_map, watchdog=watchdog, sync_phase=sync_phase)
+    module = HilModule(plant, register_map, watchdog=watchdog, sync_phase=sync_phase,
+                       hold=hold)
     asyncio.run(_serve(module, host, port, on_ready))
     return module.stats()
