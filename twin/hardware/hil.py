@@ -77,7 +77,8 @@ class HilStats:
     intervals : int
         Drive intervals the plant advanced.
     max_catch_up : int
-        Most drive intervals advanced at once (1–2 when the physics keeps up).
+        Most drive intervals advanced at once (1–2 when the physics keeps up, plus the
+        output window ``hold``).
     watchdog_trips : int
         Times the watchdog zeroed the outputs.
     sim_time, wall_time : float
