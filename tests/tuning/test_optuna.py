@@ -87,7 +87,7 @@ def test_study_keeps_the_report_data(tmp_path):
 def test_two_workers_share_one_study(tmp_path):
     url = f"sqlite:///{tmp_path / 'study.db'}"
     with Evaluator.create("tomsk_xy", "tiny", workers=2) as ev:
-        trials = run_optuna(ev, storage=url, study_name="w", budget_s=5.0)
+        trials = run_optuna(ev, storage=url, study_name="w", budget_s=10.0)  # time to start
         local = len(ev.trials)
     # the extra worker process added trials of its own to the same study
     assert len(trials) > local + 1
