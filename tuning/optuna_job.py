@@ -6,8 +6,12 @@ on any number of hosts join the same study (same ``--storage``, machine and prog
 storage runs a heartbeat: a worker that dies leaves its trial RUNNING only until the grace
 period has passed; the next worker to start a trial marks it FAILED and re-enqueues its
 parameters (``RetryHeartbeatStaleTrialCallback``), so a killed job loses at most the trial in
-flight. Every finished trial keeps its cost terms, metrics and settings as user
-attributes, so a report can be rebuilt from the database alone.
+flight. Optuna's check passes over a trial that never recorded a heartbeat (a worker killed
+between creating the trial and its heartbeat thread's first write, which happens): such a
+trial would stay RUNNING for ever, so each job, at its start and after every trial, fails
+and re-enqueues those that started more than the grace period ago
+(``fail_trials_without_heartbeat``). Every finished trial keeps its cost terms, metrics and
+settings as user attributes, so a report can be rebuilt from the database alone.
 """
 
 from __future__ import annotations
@@ -17,10 +21,12 @@ import multiprocessing
 import time
 import warnings
 from collections.abc import Callable
+from datetime import datetime
 from pathlib import Path
 from typing import Any
 
 import optuna
+import sqlalchemy
 from optuna.storages import RDBStorage
 
 try:
@@ -34,7 +40,8 @@ from tuning.evaluator import Evaluator, Trial
 from twin.config import MachineConfig
 from twin.errors import ConfigError
 
-__all__ = ["default_storage", "open_study", "run_optuna", "study_trials"]
+__all__ = ["default_storage", "fail_trials_without_heartbeat", "open_study", "run_optuna",
+           "study_trials"]
 
 HEARTBEAT_S = 5
 """Heartbeat interval of a running trial (s)."""
@@ -47,20 +54,71 @@ def default_storage(out_dir: Path) -> str:
     return f"sqlite:///{(Path(out_dir) / 'optuna.db').resolve()}"
 
 
-def open_study(url: str, name: str, names: tuple[str, ...], *, seed: int = 0,
-               heartbeat_s: int = HEARTBEAT_S, grace_s: int = GRACE_S) -> optuna.Study:
-    """Create or load study ``name`` in ``url`` (minimisation, multivariate TPE)."""
+def open_storage(url: str, *, heartbeat_s: int = HEARTBEAT_S,
+                 grace_s: int = GRACE_S) -> RDBStorage:
+    """The study database at ``url`` with the heartbeat and the retry of dead trials."""
     optuna.logging.set_verbosity(optuna.logging.WARNING)
     with warnings.catch_warnings():   # the heartbeat is "experimental" in optuna 5
         warnings.simplefilter("ignore", optuna.exceptions.ExperimentalWarning)
-        storage = RDBStorage(url, heartbeat_interval=heartbeat_s, grace_period=grace_s,
-                             heartbeat_stale_trial_callback=RetryHeartbeatStaleTrialCallback(
-                                 max_retry=2))
+        return RDBStorage(url, heartbeat_interval=heartbeat_s, grace_period=grace_s,
+                          heartbeat_stale_trial_callback=RetryHeartbeatStaleTrialCallback(
+                              max_retry=2))
+
+
+def open_study(url: str | RDBStorage, name: str, names: tuple[str, ...], *, seed: int = 0,
+               heartbeat_s: int = HEARTBEAT_S, grace_s: int = GRACE_S) -> optuna.Study:
+    """Create or load study ``name`` in ``url`` (minimisation, multivariate TPE); an open
+    storage is used as it is (its own heartbeat and grace period)."""
+    storage = url if isinstance(url, RDBStorage) else open_storage(
+        url, heartbeat_s=heartbeat_s, grace_s=grace_s)
     sampler = optuna.samplers.TPESampler(seed=seed, multivariate=True, n_startup_trials=10)
     study = optuna.create_study(storage=storage, study_name=name, direction="minimize",
                                 sampler=sampler, load_if_exists=True)
     study.set_user_attr("coordinates", list(names))
+    fail_trials_without_heartbeat(study, storage)
     return study
+
+
+def fail_trials_without_heartbeat(study: optuna.Study, storage: RDBStorage) -> list[int]:
+    """Fail the RUNNING trials of ``study`` that started more than the storage's grace period
+    ago and never recorded a heartbeat, and hand each to the storage's stale-trial callback
+    (the retry), as Optuna does for a trial whose heartbeat went stale. Returns their
+    numbers. A live trial records its first heartbeat within milliseconds of starting."""
+    grace = storage.grace_period or 2 * (storage.heartbeat_interval or 0)
+    now = datetime.now()  # Optuna stamps datetime_start with the local clock too
+    old = [t for t in study.get_trials(deepcopy=False,
+                                       states=(optuna.trial.TrialState.RUNNING,))
+           if t.datetime_start is not None
+           and (now - t.datetime_start).total_seconds() > grace]
+    if not old:
+        return []
+    with storage.engine.connect() as conn:   # Optuna's schema: one row per beating trial
+        beating = {row[0] for row in conn.execute(
+            sqlalchemy.text("SELECT trial_id FROM trial_heartbeats"))}
+    study_id = storage.get_study_id_from_name(study.study_name)
+    retry = storage.get_heartbeat_stale_trial_callback()
+    failed = []
+    for t in old:
+        trial_id = storage.get_trial_id_from_study_id_trial_number(study_id, t.number)
+        if trial_id in beating:
+            continue
+        try:
+            if not storage.set_trial_state_values(trial_id, state=optuna.trial.TrialState.FAIL):
+                continue
+        except optuna.exceptions.UpdateFinishedTrialError:
+            continue   # another worker finished or failed it meanwhile
+        failed.append(t.number)
+        if retry is not None:
+            retry(study, storage.get_trial(trial_id))
+    return failed
+
+
+def _check_after_each_trial(storage: RDBStorage
+                            ) -> Callable[[optuna.Study, optuna.trial.FrozenTrial], None]:
+    def callback(study: optuna.Study, _trial: optuna.trial.FrozenTrial) -> None:
+        fail_trials_without_heartbeat(study, storage)
+
+    return callback
 
 
 def _params(x: Any, names: tuple[str, ...]) -> dict[str, float]:
@@ -115,8 +173,10 @@ def _worker(url: str, name: str, cfg: MachineConfig, program: str, weights: Weig
             penalty: float, baseline: RunOutcome, budget_s: float, seed: int) -> None:
     tuning = Tuning(cfg, program, weights=weights, penalty=penalty, baseline=baseline)
     names = tuning.space.names
-    study = open_study(url, name, names, seed=seed)
-    study.optimize(_objective(Evaluator(tuning), names), timeout=budget_s)
+    storage = open_storage(url)
+    study = open_study(storage, name, names, seed=seed)
+    study.optimize(_objective(Evaluator(tuning), names), timeout=budget_s,
+                   callbacks=[_check_after_each_trial(storage)])
 
 
 def run_optuna(evaluator: Evaluator, *, storage: str, study_name: str, budget_s: float,
@@ -131,8 +191,8 @@ def run_optuna(evaluator: Evaluator, *, storage: str, study_name: str, budget_s:
     if not (math.isfinite(budget_s) and budget_s > 0.0):
         raise ConfigError("budget_s", f"must be a finite number > 0 (s), got {budget_s!r}")
     names = evaluator.tuning.space.names
-    study = open_study(storage, study_name, names, seed=seed, heartbeat_s=heartbeat_s,
-                       grace_s=grace_s)
+    db = open_storage(storage, heartbeat_s=heartbeat_s, grace_s=grace_s)
+    study = open_study(db, study_name, names, seed=seed)
     _seed_baseline(study, evaluator.baseline, names)
     t = evaluator.tuning
     ctx = multiprocessing.get_context("spawn")
@@ -145,7 +205,8 @@ def run_optuna(evaluator: Evaluator, *, storage: str, study_name: str, budget_s:
     local = Evaluator(t, 1, evaluator.on_trial)
     start = time.perf_counter()
     try:
-        study.optimize(_objective(local, names), timeout=budget_s, n_trials=max_trials)
+        study.optimize(_objective(local, names), timeout=budget_s, n_trials=max_trials,
+                       callbacks=[_check_after_each_trial(db)])
     finally:
         for p in extra:
             p.join(timeout=max(1.0, budget_s - (time.perf_counter() - start)) + 60.0)

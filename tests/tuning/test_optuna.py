@@ -91,3 +91,25 @@ def test_two_workers_share_one_study(tmp_path):
         local = len(ev.trials)
     # the extra worker process added trials of its own to the same study
     assert len(trials) > local + 1
+
+
+def test_a_trial_that_never_beat_is_failed_and_retried(tmp_path):
+    """Optuna's own stale check passes over a RUNNING trial without any heartbeat (its
+    worker died between creating it and the heartbeat thread's first write; it happened in
+    CI). ``study.ask()`` makes exactly such a trial; past the grace period the next job
+    fails it and runs its retry."""
+    url = f"sqlite:///{tmp_path / 'study.db'}"
+    with Evaluator.create("tomsk_xy", "tiny") as ev:
+        names = ev.tuning.space.names
+        with pytest.warns(UserWarning, match="Heartbeat"):   # ask() starts no heartbeat
+            zombie = open_study(url, "z", names, heartbeat_s=1, grace_s=1).ask()
+        young = open_study(url, "z", names, heartbeat_s=1, grace_s=1)
+        assert young.trials[zombie.number].state == optuna.trial.TrialState.RUNNING
+        time.sleep(1.5)
+        run_optuna(ev, storage=url, study_name="z", budget_s=60.0, max_trials=1,
+                   heartbeat_s=1, grace_s=1)
+    after = optuna.load_study(study_name="z", storage=url).trials
+    assert after[zombie.number].state == optuna.trial.TrialState.FAIL
+    retried = [t for t in after if t.system_attrs.get("failed_trial") == zombie.number]
+    assert len(retried) == 1 and retried[0].state == optuna.trial.TrialState.COMPLETE
+    assert all(t.state != optuna.trial.TrialState.RUNNING for t in after)
