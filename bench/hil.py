@@ -11,7 +11,7 @@ subprocess whose physics runs in real time. Reported per rate:
   both runs and their ratio HIL / lock-step (issue 7: within 10 % at 200 Hz);
 * ``requests_per_tick`` and the server's statistics (requests; most drive intervals caught
   up at once: 1–2 when the physics keeps up, plus the output window; watchdog trips; DAC
-  writes, and the late ones that missed the output window, ``--hold``).
+  writes, and the late ones that missed the output window, ``--output-window-ms``).
 
 The client thread and the server run under SCHED_FIFO where the OS grants it (``--no-rt``
 turns that off, to see what a plain time-shared process achieves); ``--no-sync`` runs the
@@ -47,7 +47,7 @@ def _rate(args: argparse.Namespace, period: float, out: str) -> dict:
     server_args = ["--machine", args.machine, "--rt-priority", "0" if args.no_rt else "10"]
     if args.no_sync:
         server_args.append("--no-sync")
-    server_args += ["--hold", str(args.hold)]
+    server_args += ["--output-window-ms", str(args.output_window_ms)]
     with spawn_hil_server(*server_args) as server:
         hil_spec = RunSpec(machine=args.machine, builtin=args.program, period=period,
                            driver=server.url)
@@ -85,8 +85,8 @@ def main() -> None:
                         "(as twin run) or none")
     parser.add_argument("--no-rt", action="store_true", help="normal scheduling")
     parser.add_argument("--no-sync", action="store_true", help="free-running server grid")
-    parser.add_argument("--hold", type=int, default=1, help="the server's output window "
-                        "(drive intervals; 0: a write must land in its read's interval)")
+    parser.add_argument("--output-window-ms", type=float, default=2.0, help="the server's "
+                        "output window (0: a write must land in its read's interval)")
     args = parser.parse_args()
     load = os.getloadavg()
     t0 = time.perf_counter()
@@ -97,7 +97,7 @@ def main() -> None:
         "machine": args.machine,
         "program": args.program,
         "phase_lock": not args.no_sync,
-        "output_window_intervals": args.hold,
+        "output_window_ms": args.output_window_ms,
         "cpus": os.cpu_count(),
         "load_average_before": load,
         "load_average_after": os.getloadavg(),

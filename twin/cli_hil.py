@@ -54,9 +54,10 @@ def hil_server(
                                      "fraction of a drive interval (phase lock)."),
     no_sync: bool = typer.Option(False, "--no-sync", help="Free-running drive-interval "
                                  "grid instead (no phase lock)."),
-    hold: int = typer.Option(1, "--hold", min=0, max=4, help="Output window: a DAC write "
-                             "arriving up to this many drive intervals late still takes "
-                             "effect from its counter read's interval."),
+    window_ms: float = typer.Option(2.0, "--output-window-ms", min=0.0, max=50.0,
+                                    help="A DAC write arriving up to this late after its "
+                                    "counter read's drive interval still acts from that "
+                                    "interval (ms)."),
     noise: bool = typer.Option(False, "--noise", help="Sensor noise on."),
     rt_priority: int = typer.Option(0, "--rt-priority", min=0, max=99,
                                     help="Serve under SCHED_FIFO at this priority (Linux, "
@@ -107,7 +108,8 @@ def hil_server(
                   f"watchdog {watchdog_ms:g} ms; Ctrl-C stops", highlight=False)
 
     stats = serve_hil(plant, rmap, host=host, port=port, watchdog=watchdog_ms * 1e-3,
-                      sync_phase=None if no_sync else sync_phase, hold=hold,
+                      sync_phase=None if no_sync else sync_phase,
+                      output_window=window_ms * 1e-3,
                       on_ready=ready)
     if as_json:  # stdout carried the one ready object; the statistics go to stderr
         sys.stderr.write(json.dumps({"hil_stats": dataclasses.asdict(stats)}) + "\n")

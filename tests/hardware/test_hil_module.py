@@ -225,17 +225,20 @@ def test_pymodbus_glue_fills_reads_applies_writes_and_reports_faults(rig, monkey
     assert module.stats().fault == "the plant state diverged"
 
 
-@pytest.mark.parametrize(("hold", "from_interval", "late"), [(1, 3, 0), (0, 4, 1)])
-def test_a_write_in_the_output_window_acts_from_its_reads_interval(plants, hold,
+@pytest.mark.parametrize(("window", "from_interval", "late"), [(1.0, 3, 0), (0.4, 3, 0),
+                                                               (0.0, 4, 1)])
+def test_a_write_in_the_output_window_acts_from_its_reads_interval(plants, window,
                                                                     from_interval, late):
     """Counter read at 3.25 intervals, reference and enable written at 4.6: with a window of
-    one interval they act from the read's boundary (3), as in the lock-step twin; without
-    one, from the boundary before the write (4), counted as a late write."""
+    an interval, or of less (rounded up to one), they act from the read's boundary (3), as in
+    the lock-step twin; without one, from the boundary before the write (4), counted as a
+    late write."""
     plant, ref = plants
     for p in plants:
         p.reset()
     clock = Clock()
-    module = HilModule(plant, RMAP, watchdog=1.0, sync_phase=None, hold=hold, clock=clock)
+    module = HilModule(plant, RMAP, watchdog=1.0, sync_phase=None,
+                       output_window=window * plant.drive_dt, clock=clock)
     dt, u = module.dt, [2.0, -1.5]
     words = [volts_to_word(v, 10.0) for v in u]
 
@@ -258,7 +261,8 @@ def test_a_write_in_the_output_window_acts_from_its_reads_interval(plants, hold,
 
 @pytest.mark.parametrize(("option", "value"), [
     ("watchdog", 0.0), ("watchdog", float("inf")), ("sync_phase", 1.0), ("sync_phase", -0.1),
-    ("sync_gain", 0.0), ("sync_gain", 1.5), ("hold", -1), ("hold", 5), ("hold", 1.5),
+    ("sync_gain", 0.0), ("sync_gain", 1.5), ("output_window", -1e-3),
+    ("output_window", 0.06),
 ])
 def test_module_options_out_of_range_name_the_option(plants, option, value):
     with pytest.raises(ConfigError) as info:
