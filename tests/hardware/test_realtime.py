@@ -63,6 +63,14 @@ def test_overrun_skips_slots_and_counts_them_due():
     assert stats.due == stats.on_time + stats.late + stats.skipped
 
 
+def test_an_overrun_at_the_end_counts_only_the_slots_within_the_duration():
+    # 10 slots of 1 ms; tick 8 takes 3.5 periods, past the end: only slot 9 was skipped
+    # (slots 10 and 11 lie beyond the duration and were never due). Found under load in CI.
+    loop, tick = _fake_loop(1e-3, lambda k: 3.5e-3 if k == 8 else 1e-4)
+    stats = loop.run(tick, duration=0.01)
+    assert (stats.due, stats.on_time, stats.late, stats.skipped) == (10, 9, 0, 1)
+
+
 def test_tick_returning_false_stops_and_is_not_counted():
     loop, _ = _fake_loop(1e-3, lambda k: 0.0)
     stats = loop.run(lambda k, t: k < 4)

@@ -133,6 +133,8 @@ class RealTimeLoop:
         that returns False ends the loop and is not counted. Returns the deadline report.
         """
         period, clock = self.period, self._clock
+        # the slots whose deadlines fall within ``duration``: k·period < duration
+        slots = math.ceil(duration / period - 1e-9) if duration is not None else math.inf
         lateness: list[float] = []
         self._lateness = lateness
         self._skipped = skipped = 0
@@ -142,9 +144,9 @@ class RealTimeLoop:
         while not self._stop:
             if max_ticks is not None and len(lateness) >= max_ticks:
                 break
-            deadline = t0 + k * period
-            if duration is not None and deadline - t0 >= duration:
+            if k >= slots:
                 break
+            deadline = t0 + k * period
             self._wait_until(deadline)
             late = clock() - deadline
             try:
@@ -157,7 +159,7 @@ class RealTimeLoop:
             lateness.append(late)
             # Next slot: the next deadline still in the future (skip overrun slots).
             k += 1
-            behind = int((clock() - t0) / period) - k
+            behind = min(int((clock() - t0) / period), slots) - k  # none past the end
             if behind > 0:
                 skipped += behind
                 self._skipped = skipped
