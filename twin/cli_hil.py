@@ -69,7 +69,7 @@ def hil_server(
     import numpy as np
 
     from twin.config import load_machine
-    from twin.hardware.hil import hil_plant, serve_hil
+    from twin.hardware.hil_server import hil_plant, serve_hil
     from twin.hardware.register_map import load_register_map
     from twin.overrides import parse_sets
 

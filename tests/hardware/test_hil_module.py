@@ -13,7 +13,8 @@ from pymodbus.constants import ExcCodes
 
 from twin.config import load_machine
 from twin.errors import ConfigError, SimulationError
-from twin.hardware.hil import HilModule, hil_plant
+from twin.hardware.hil import HilModule
+from twin.hardware.hil_server import hil_plant
 from twin.hardware.register_map import (
     load_register_map,
     volts_to_word,
