@@ -26,6 +26,7 @@ from rich.table import Table
 from twin.cli_common import err, fail
 from twin.errors import ConfigError, TwinError
 from twin.hardware.realtime import fifo_priority, set_fifo_priority
+from twin.processes import stop_process
 
 __all__ = ["HilProcess", "fifo_priority", "hil_server", "register", "set_fifo_priority",
            "spawn_hil_server"]
@@ -150,9 +151,7 @@ class HilProcess:
     def stop(self) -> dict[str, Any] | None:
         """Stop the server (SIGTERM) and return its statistics (``HilStats`` as a dict;
         None if it died without reporting them)."""
-        if self.process.poll() is None:
-            self.process.terminate()
-            self.process.wait(timeout=10)
+        stop_process(self.process)
         for line in reversed(self.log().splitlines()):
             with contextlib.suppress(ValueError):
                 return json.loads(line)["hil_stats"]
@@ -186,13 +185,7 @@ def spawn_hil_server(*args: str, ready_timeout: float = 60.0) -> Iterator[HilPro
                                    f": {log.read().strip()}")
             yield HilProcess(proc, json.loads(line), log)
         finally:
-            if proc.poll() is None:
-                proc.terminate()
-                try:
-                    proc.wait(timeout=10)
-                except subprocess.TimeoutExpired:
-                    proc.kill()
-                    proc.wait()
+            stop_process(proc)
             proc.stdout.close()  # type: ignore[union-attr]
 
 

@@ -137,13 +137,15 @@ class AxisMonitor:
     the plant's every period, far from any switch edge.
     """
 
-    __slots__ = ("bounds", "debounce", "free", "hit", "home", "limit_max", "limit_min",
+    __slots__ = ("debounce", "edges", "free", "hit", "home", "limit_max", "limit_min",
                  "pending", "quiet", "state", "travel", "width")
 
     def __init__(self, sw: SwitchConfig, travel: tuple[float, float]):
         self.limit_min, self.limit_max = sw.limit_min, sw.limit_max
         self.home, self.width = sw.home, sw.home_width / 2.0
-        self.bounds = (sw.limit_min, sw.limit_max, sw.home - self.width, sw.home + self.width)
+        # where a raw state changes (switch bounds) or an end stop begins (ends of travel)
+        self.edges = (sw.limit_min, sw.limit_max, sw.home - self.width, sw.home + self.width,
+                      *travel)
         self.debounce = sw.debounce - 1e-12  # absorb the float error of sample times
         self.travel = travel
         self.settle(math.inf)
@@ -163,7 +165,7 @@ class AxisMonitor:
         (switch bounds, ends of travel), where the raw states are constant, if nothing is
         pending and the outputs equal those raw states (else an empty interval)."""
         self.hit = self.state[0] or self.state[1]
-        edges = (*self.bounds, *self.travel)
+        edges = self.edges
         if not self.quiet or self.raw(x) != self.state or x != x or x in edges:
             self.free = (math.inf, -math.inf)
             return

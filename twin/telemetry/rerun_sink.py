@@ -21,6 +21,7 @@ import numpy as np
 import rerun as rr
 import rerun.blueprint as rrb
 
+from twin.processes import stop_process
 from twin.telemetry.blueprint import default_blueprint
 
 __all__ = ["APPLICATION_ID", "TIMELINE", "RerunSink", "running_rerun", "start_rerun",
@@ -182,10 +183,5 @@ def running_rerun() -> list[subprocess.Popen]:
 def stop_rerun() -> None:
     """Stop the rerun servers this process started."""
     for proc in _PROCESSES:
-        if proc.poll() is None:
-            proc.terminate()
-            try:
-                proc.wait(timeout=5)
-            except subprocess.TimeoutExpired:
-                proc.kill()
+        stop_process(proc, timeout=5.0)
     _PROCESSES.clear()
