@@ -3,6 +3,49 @@
 Packages: ``twin.drive`` (thyristor/PWM DC drives, numerics only), ``twin.plant`` (MuJoCo
 mechanics + drives), ``twin.controller`` (the CNC stack, hardware independent),
 ``twin.hardware`` (drivers implementing ``MachineIO``), ``twin.telemetry`` (rerun).
+
+Importing the package points numba's on-disk cache at a folder named by a hash of the
+compiled modules' sources. Numba checks only the timestamp of the file that holds a cached
+function, not of the files it calls into, so a kernel compiled before an edit of a function
+in another module would otherwise be loaded stale.
 """
 
+from __future__ import annotations
+
+import hashlib
+import os
+import sys
+from pathlib import Path
+
 __version__ = "0.1.0"
+
+_COMPILED = ("drive", "plant_loop.py")
+"""Parts of the package that hold numba-compiled code (folders or files)."""
+
+
+def _source_stamp() -> str:
+    root = Path(__file__).resolve().parent
+    digest = hashlib.sha256()
+    for part in _COMPILED:
+        path = root / part
+        files = sorted(path.glob("*.py")) if path.is_dir() else [path]
+        for f in files:
+            digest.update(f.name.encode())
+            digest.update(f.read_bytes())
+    return digest.hexdigest()[:16]
+
+
+def _keyed_numba_cache() -> None:
+    base = os.environ.get("NUMBA_CACHE_DIR") or os.path.join(
+        os.environ.get("XDG_CACHE_HOME") or os.path.join(os.path.expanduser("~"), ".cache"),
+        "xy-twin", "numba")
+    stamp = _source_stamp()
+    if Path(base).name == stamp:
+        return
+    keyed = os.path.join(base, stamp)
+    os.environ["NUMBA_CACHE_DIR"] = keyed
+    if "numba" in sys.modules:  # already imported: its config was read from the old value
+        sys.modules["numba"].config.CACHE_DIR = keyed
+
+
+_keyed_numba_cache()

@@ -24,6 +24,7 @@ from dataclasses import dataclass
 from pathlib import Path
 
 import mujoco
+import numpy as np
 
 from twin.config import AXES, MachineConfig, load_machine
 from twin.errors import ConfigError
@@ -36,6 +37,7 @@ __all__ = [
     "axis_mechanics",
     "build_spec",
     "load_model",
+    "passive_parameters",
     "resolve_machine",
 ]
 
@@ -201,12 +203,14 @@ def _apply_axis(spec: mujoco.MjSpec, cfg: MachineConfig, axis: str) -> None:
     slide = spec.joint(axis)
     slide.range = list(mech.travel)
     slide.damping = [mech.slide_viscous, 0.0, 0.0]
-    slide.frictionloss = mech.slide_coulomb
+    # dof friction holds the break-away force; the plant gives the excess over Coulomb back
+    # while the axis slides (Stribeck, twin.plant_loop.passive_forces)
+    slide.frictionloss = mech.breakaway("slide")
 
     spec.body(f"{axis}_motor").inertia = [mech.rotor_inertia] * 3
     rotor = spec.joint(f"{axis}_rotor")
     rotor.damping = [mech.rotor_viscous, 0.0, 0.0]
-    rotor.frictionloss = mech.rotor_coulomb
+    rotor.frictionloss = mech.breakaway("rotor")
 
     # MjSpec exposes no way to edit an existing tendon's wrap coefficients: rebuild the
     # tendon under the same name and default class with length r·θ − x.
@@ -217,8 +221,36 @@ def _apply_axis(spec: mujoco.MjSpec, cfg: MachineConfig, axis: str) -> None:
     screw.wrap_joint(f"{axis}_rotor", two_mass.ratio)
     screw.wrap_joint(axis, -1.0)
     screw.stiffness = [two_mass.stiffness, 0.0, 0.0]
-    screw.damping = [two_mass.damping, 0.0, 0.0]
-    screw.springlength = [0.0, 0.0]
+    # Lost motion: a dead band of the spring (no force while the gap is open). MuJoCo's
+    # tendon damper would still act inside the gap, so with lost motion the plant applies
+    # the damping itself, only while the gap is closed (passive_parameters).
+    half = 0.5 * ax.transmission.backlash
+    screw.damping = [two_mass.damping if half == 0.0 else 0.0, 0.0, 0.0]
+    screw.springlength = [-half, half]
+
+
+def passive_parameters(machine: str | Path | MachineConfig) -> np.ndarray:
+    """Per-axis parameters of the forces the plant applies itself before every physics step
+    (``twin.plant_loop.passive_forces``), shape (2, ``plant_loop.NPASSIVE``): the Stribeck
+    excess of slide and rotor friction over Coulomb with its speed, and the screw damping
+    with half the lost motion. All zero for a machine without break-away friction or lost
+    motion (then MuJoCo does everything and nothing is applied)."""
+    cfg = resolve_machine(machine)
+    out = np.zeros((len(AXES), 7))
+    for k, axis in enumerate(AXES):
+        ax = cfg.axes[axis]
+        mech, r = ax.mechanics, ax.transmission.ratio
+        out[k, 0] = mech.breakaway("slide") - mech.slide_coulomb
+        out[k, 1] = mech.stribeck_velocity
+        out[k, 2] = mech.breakaway("rotor") - mech.rotor_coulomb
+        out[k, 3] = mech.stribeck_velocity / r
+        if ax.transmission.backlash > 0.0:
+            out[k, 4] = 0.5 * ax.transmission.backlash
+            out[k, 5] = axis_mechanics(cfg, axis).damping
+        out[k, 6] = r
+    if not (out[:, 0].any() or out[:, 2].any() or out[:, 4].any()):
+        out[:] = 0.0
+    return out
 
 
 def main(argv: list[str] | None = None) -> None:

@@ -37,12 +37,21 @@ import numpy as np
 from twin import plant_loop
 from twin.config import AXES, MachineConfig
 from twin.drive import Drives
-from twin.drive.kernel import S_ADC, S_FAULT, S_I, S_V
+from twin.drive.layout import S_ADC, S_FAULT, S_I, S_VOUT
 from twin.errors import SimulationError
-from twin.model import load_model, resolve_machine
-from twin.plant_records import FLAGS, TRUTH_FIELDS, AxisMonitor, Reading, StepStatus, Truth
+from twin.model import load_model, passive_parameters, resolve_machine
+from twin.plant_records import (
+    FINE_FIELDS,
+    FINE_WIDTH,
+    FLAGS,
+    TRUTH_FIELDS,
+    AxisMonitor,
+    Reading,
+    StepStatus,
+    Truth,
+)
 
-__all__ = ["TRUTH_FIELDS", "Plant", "Reading", "StepStatus", "Truth"]
+__all__ = ["FINE_FIELDS", "TRUTH_FIELDS", "Plant", "Reading", "StepStatus", "Truth"]
 
 _BAD_STATE = ("mjWARN_BADQPOS", "mjWARN_BADQVEL", "mjWARN_BADQACC")
 _WARNING_NAMES = tuple(mujoco.mjtWarning(i).name for i in range(mujoco.mjtWarning.mjNWARNING))
@@ -56,8 +65,9 @@ class Plant:
     config : MachineConfig
         The machine.
     noise : bool
-        Sensor noise on (``encoder.noise_counts``, ``tacho.noise`` of the machine); off by
-        default, and the plant is then deterministic.
+        Sensor noise as the machine file gives it (``encoder.noise_counts``,
+        ``tacho.noise``); on by default, seeded, so a run is still reproducible. False
+        silences it (the presets have none).
     seed : int, optional
         Seed of the noise generator; default ``simulation.seed``.
 
@@ -72,7 +82,7 @@ class Plant:
         :meth:`step` durations are multiples of it.
     """
 
-    def __init__(self, config: MachineConfig, *, noise: bool = False, seed: int | None = None):
+    def __init__(self, config: MachineConfig, *, noise: bool = True, seed: int | None = None):
         self.config = config
         self.noise = bool(noise)
         self._rng = np.random.default_rng(config.simulation.seed if seed is None else seed)
@@ -91,12 +101,14 @@ class Plant:
         self._table_pos, self._table_vel = d.qpos[table[0]], d.qvel[table[1]]
         self._rotor_pos, self._rotor_vel = d.qpos[rotor[0]], d.qvel[rotor[1]]
         self._torque = d.qfrc_applied[rotor[1]]
+        self._slide_force = d.qfrc_applied[table[1]]
         self._warning_count = d.warning.number  # a live view of the counters
 
         axes = [config.axes[a] for a in AXES]
         self._ratio = np.array([ax.transmission.ratio for ax in axes])
         self._dac = [(2.0 * ax.dac.full_scale / 2**ax.dac.bits, -(2 ** (ax.dac.bits - 1)),
-                      2 ** (ax.dac.bits - 1) - 1) for ax in axes]  # (LSB (V), code range)
+                      2 ** (ax.dac.bits - 1) - 1, 1.0 + ax.dac.gain_error, ax.dac.offset)
+                     for ax in axes]  # (LSB (V), code range, gain, offset (V))
         self._counts_per_rad = np.array([ax.encoder.counts_per_rev / (2.0 * math.pi)
                                          for ax in axes])
         # two's complement masks: -1 & (2³² − 1) = 2³² − 1; a 64-bit counter stays signed
@@ -106,7 +118,12 @@ class Plant:
         self._travel = [ax.mechanics.travel for ax in axes]
         self._monitors = [AxisMonitor(ax.switches, ax.mechanics.travel) for ax in axes]
         self._intervals: dict[float, int] = {}
-        self._samples = np.empty((0, 2))
+        self._samples = np.empty((0, FINE_WIDTH))
+        self._fine = self._samples
+        self._passive = passive_parameters(config)
+        self._has_passive = bool(np.any(self._passive))
+        self._drive_torque = np.zeros(2) if self._has_passive else self._torque
+        self._noise_block = np.zeros((1, *self.drives.kernel_arrays()[3].shape))
         self._encoder_offset = np.zeros(2, dtype=np.int64)
         self._cpr = self._counts_per_rad.tolist()          # scalar copies for read_into
         self._mask = self._counter_mask.tolist()
@@ -208,26 +225,36 @@ class Plant:
         saturated = self._quantise(dac_volts)
         n = self._intervals.get(duration) or self._count_intervals(duration)
         if len(self._samples) < n:
-            self._samples = np.empty((n, 2))
+            self._samples = np.empty((n, FINE_WIDTH))
         samples = self._samples[:n]
         m, d, k, u, x = self.model, self.data, self._substeps, self._u, self._table_pos
-        torque, omega, drives, extent = self._torque, self._rotor_vel, self.drives, self._extent
+        omega, theta, drives, extent = self._rotor_vel, self._rotor_pos, self.drives, self._extent
         t0 = d.time
-        if self._compiled and not drives.noisy:
-            params, state, noise = drives.kernel_arrays()
+        params, state, tables, noise, log = drives.kernel_arrays()
+        if self._compiled:
+            block = self._noise_block
+            if drives.noisy:
+                block = self._rng.standard_normal((n, *noise.shape))
             done, status = plant_loop.step_intervals(
-                *self._addresses, n, k, params, state, u, omega, noise, drives.n_step,
-                drives.dt, drives.enabled, torque, x, samples, extent)
+                *self._addresses, n, k, params, state, tables, u, block, log, drives.n_step,
+                drives.dt, drives.enabled, self._passive, self._has_passive,
+                self._drive_torque, self._torque, self._slide_force, x, self._table_vel,
+                theta, omega, self._ratio, samples, extent)
             drives.advance(done)
             if status:
-                drives.step(u, omega)  # the checked path raises the error naming the input
+                drives.step(u, omega, theta)  # the checked path raises the named error
         else:
-            drive_step, mj_step = drives.step_into, mujoco.mj_step
+            mj_step = mujoco.mj_step
             for i in range(n):
-                drive_step(u, omega, torque)
-                mj_step(m, d, k)
-                samples[i] = x
-            extent[0::2], extent[1::2] = samples.min(axis=0), samples.max(axis=0)
+                drives.step_into(u, omega, self._drive_torque, theta)
+                for _ in range(k):
+                    if self._has_passive:
+                        plant_loop.passive_forces(
+                            self._passive, self._drive_torque, self._torque,
+                            self._slide_force, x, self._table_vel, theta, omega)
+                    mj_step(m, d)
+                plant_loop.record_interval(i, state, x, theta, self._ratio, samples, extent)
+        self._fine = samples
         warnings = () if self._warning_count.tobytes() == self._warnings_seen \
             else self._new_warnings()
         lo_x, hi_x, lo_y, hi_y = extent.tolist()
@@ -288,13 +315,21 @@ class Plant:
             self._snap, self._snap_at = self.drives.snapshot(), n
         return self._snap
 
+    @property
+    def fine(self) -> np.ndarray:
+        """The last :meth:`step`'s drive-rate samples, shape (intervals, ``FINE_WIDTH``),
+        columns ``FINE_FIELDS`` (x then y each), one row at the end of every drive interval:
+        what a scope on the drive would show (the converter's pulses, discontinuous
+        current, the screw's elastic oscillation). A view, valid until the next step."""
+        return self._fine
+
     def truth_row(self) -> tuple[float, ...]:
         """The ``TRUTH_FIELDS`` of now as one flat row of floats (cheap: for per-tick
         recording)."""
         x, v, th = self._table_pos.tolist(), self._table_vel.tolist(), self._rotor_pos.tolist()
         r, st = self._ratio_f, self._snapshot()
         return (x[0], x[1], v[0], v[1], r[0] * th[0] - x[0], r[1] * th[1] - x[1],
-                st[0][S_I], st[1][S_I], st[0][S_V], st[1][S_V])
+                st[0][S_I], st[1][S_I], st[0][S_VOUT], st[1][S_VOUT])
 
     def truth(self) -> Truth:
         """The full state of the twin (see :class:`Truth`)."""
@@ -303,14 +338,16 @@ class Plant:
                      table_velocity=self._table_vel.copy(),
                      rotor_angle=self._rotor_pos.copy(), rotor_speed=self._rotor_vel.copy(),
                      screw_deflection=self._ratio * self._rotor_pos - self._table_pos,
-                     armature_current=dr.current, converter_voltage=dr.voltage,
+                     armature_current=dr.current, converter_voltage=dr.output_voltage,
                      firing_angle=dr.firing_angle, bridge=dr.bridge,
                      speed_reference=dr.speed_reference, time=self.time)
 
     # ------------------------------------------------------------------ internals
     def _quantise(self, dac_volts: np.ndarray) -> np.ndarray:
-        """Write the DAC output into ``self._u``: round to the LSB, clip to the code range.
-        Returns which axes were clipped, shape (2,) bool (read-only)."""
+        """Write the DAC output into ``self._u``: round to the LSB, clip to the code range,
+        then the DAC's own gain error and offset (``dac.gain_error``, ``dac.offset``: the
+        real output stage, which the controller does not know). Returns which axes were
+        clipped, shape (2,) bool (read-only)."""
         if len(dac_volts) != 2:
             raise ValueError(f"dac_volts must have 2 entries, got {len(dac_volts)}")
         clipped = [False, False]
@@ -319,12 +356,12 @@ class Plant:
             if not math.isfinite(v):
                 raise SimulationError(f"dac_volts[{a}] ({AXES[a]}) must be finite, got {v} at "
                                       f"t = {self.time:.6f} s")
-            lsb, lowest, highest = self._dac[a]
+            lsb, lowest, highest, gain, offset = self._dac[a]
             code = math.floor(v / lsb + 0.5)
             if not lowest <= code <= highest:
                 clipped[a] = True
                 code = min(max(code, lowest), highest)
-            self._u[a] = code * lsb
+            self._u[a] = code * lsb * gain + offset
         return FLAGS[2 * clipped[0] + clipped[1]]
 
     def _count_intervals(self, duration: float) -> int:

@@ -8,6 +8,11 @@ the whole drive model. Here the alternation runs inside one numba function that 
 the Python bindings own (their addresses), so the state is the same memory and the result is
 bit-identical to the Python loop (``tests/plant/test_fast_paths.py``).
 
+Forces MuJoCo's passive elements cannot give are applied before every physics step
+(:func:`passive_forces`, shared with the Python loop): the Stribeck part of break-away
+friction, and the damping of a screw with lost motion, which acts only while the dead band
+is closed.
+
 If the shared library cannot be found, or the bindings do not expose the structs' addresses
 (``_address``, present in MuJoCo 3 and 4), ``available()`` is False and the plant keeps its
 Python loop.
@@ -17,6 +22,7 @@ from __future__ import annotations
 
 import ctypes
 import glob
+import math
 import os
 
 import mujoco
@@ -24,8 +30,15 @@ import numba
 import numpy as np
 
 from twin.drive.kernel import drive_step
+from twin.drive.layout import S_CONDUCT, S_I, S_VOUT
 
-__all__ = ["addresses", "available", "step_intervals"]
+__all__ = ["NPASSIVE", "addresses", "available", "passive_forces", "record_interval",
+           "step_intervals"]
+
+NPASSIVE = 7
+"""Columns of the per-axis passive-force parameters: slide break-away excess F_s − F_c (N),
+slide Stribeck speed (m/s), rotor excess (N·m), rotor Stribeck speed (rad/s), half the lost
+motion (m), screw damping (N·s/m), transmission ratio (m/rad)."""
 
 
 def _load_mj_step():
@@ -54,28 +67,78 @@ def available() -> bool:
     return _MJ_STEP is not None
 
 
+@numba.njit(cache=True)
+def passive_forces(passive, drive_torque, rotor_frc, slide_frc, table_pos, table_vel,
+                   rotor_pos, rotor_vel):
+    """Write the applied forces of one physics step: the drive torque plus the extra passive
+    forces on the rotors, the extra passive forces on the slides.
+
+    Break-away friction: MuJoCo's dof friction holds the break-away value F_s (it is what a
+    standing axis must overcome); the excess F_s − F_c is given back while sliding,
+    f = sign(v)·(F_s − F_c)·(1 − exp(−(v/v_s)²)), so the kinetic friction is the Stribeck
+    curve F_c + (F_s − F_c)·exp(−(v/v_s)²). Lost motion: the screw tendon's spring has a
+    dead band of width b; its damping c is applied here, only outside the dead band.
+    """
+    for k in range(rotor_frc.shape[0]):
+        p = passive[k]
+        f_rotor = 0.0
+        f_slide = 0.0
+        if p[0] > 0.0:
+            v = table_vel[k]
+            f_slide += math.copysign(p[0] * -math.expm1(-(v / p[1]) ** 2), v)
+        if p[2] > 0.0:
+            w = rotor_vel[k]
+            f_rotor += math.copysign(p[2] * -math.expm1(-(w / p[3]) ** 2), w)
+        if p[4] > 0.0:
+            r = p[6]
+            length = r * rotor_pos[k] - table_pos[k]
+            if abs(length) > p[4]:
+                f_t = -p[5] * (r * rotor_vel[k] - table_vel[k])  # the tendon's damper
+                f_rotor += r * f_t
+                f_slide -= f_t
+        rotor_frc[k] = drive_torque[k] + f_rotor
+        slide_frc[k] = f_slide
+
+
+@numba.njit(cache=True)
+def record_interval(i, state, table_pos, rotor_pos, ratio, samples, extent):
+    """Row i of the drive-rate samples (``plant_records.FINE_FIELDS``) and the running
+    extent of the table position (x lo, x hi, y lo, y hi; NaN if a sample was NaN)."""
+    for k in range(2):
+        x = table_pos[k]
+        samples[i, k] = x
+        samples[i, 2 + k] = state[k, S_I]
+        samples[i, 4 + k] = state[k, S_VOUT]
+        samples[i, 6 + k] = state[k, S_CONDUCT]
+        samples[i, 8 + k] = ratio[k] * rotor_pos[k] - x
+        if i == 0:
+            extent[2 * k] = extent[2 * k + 1] = x
+        else:
+            if x < extent[2 * k] or x != x:
+                extent[2 * k] = x
+            if x > extent[2 * k + 1] or x != x:
+                extent[2 * k + 1] = x
+
+
 if _MJ_STEP is not None:
     _c_mj_step = _MJ_STEP
 
     @numba.njit
-    def _intervals(m_addr, d_addr, n, substeps, params, state, u, omega, noise, n0, dt,
-                   enabled, torque, table, samples, extent):
+    def _intervals(m_addr, d_addr, n, substeps, params, state, tables, u, noise, log, n0,
+                   dt, enabled, passive, has_passive, drive_torque, rotor_frc, slide_frc,
+                   table_pos, table_vel, rotor_pos, rotor_vel, ratio, samples, extent):
         for i in range(n):
-            status = drive_step(params, state, u, omega, noise, n0 + i, dt, enabled, torque)
+            noise_i = noise[i] if noise.shape[0] > 1 else noise[0]
+            status = drive_step(params, state, tables, u, rotor_vel, rotor_pos, noise_i, log,
+                                n0 + i, dt, enabled, drive_torque)
             if status != 0:
                 return i, status
             for _ in range(substeps):
+                if has_passive:
+                    passive_forces(passive, drive_torque, rotor_frc, slide_frc, table_pos,
+                                   table_vel, rotor_pos, rotor_vel)
                 _c_mj_step(m_addr, d_addr)
-            for k in range(2):
-                x = table[k]
-                samples[i, k] = x
-                if i == 0:
-                    extent[2 * k] = extent[2 * k + 1] = x
-                else:  # a NaN sample makes both ends NaN, and they stay NaN
-                    if x < extent[2 * k] or x != x:
-                        extent[2 * k] = x
-                    if x > extent[2 * k + 1] or x != x:
-                        extent[2 * k + 1] = x
+            record_interval(i, state, table_pos, rotor_pos, ratio, samples, extent)
         return n, 0
 
 
@@ -85,19 +148,23 @@ def addresses(model: mujoco.MjModel, data: mujoco.MjData) -> tuple[int, int]:
     return model._address, data._address
 
 
-def step_intervals(m_addr: int, d_addr: int, n: int, substeps: int,
-                   params: np.ndarray, state: np.ndarray, u: np.ndarray, omega: np.ndarray,
-                   noise: np.ndarray, n0: int, dt: float, enabled: bool, torque: np.ndarray,
-                   table: np.ndarray, samples: np.ndarray, extent: np.ndarray
-                   ) -> tuple[int, int]:
-    """Run ``n`` drive intervals: drive kernel, then ``substeps`` × ``mj_step``, and the
-    table position into ``samples[i]`` after each; ``extent`` (4,) receives the lowest and
-    highest sample of each axis (x lo, x hi, y lo, y hi; NaN if a sample was NaN).
+def step_intervals(m_addr: int, d_addr: int, n: int, substeps: int, params: np.ndarray,
+                   state: np.ndarray, tables: np.ndarray, u: np.ndarray, noise: np.ndarray,
+                   log: np.ndarray, n0: int, dt: float, enabled: bool, passive: np.ndarray,
+                   has_passive: bool, drive_torque: np.ndarray, rotor_frc: np.ndarray,
+                   slide_frc: np.ndarray, table_pos: np.ndarray, table_vel: np.ndarray,
+                   rotor_pos: np.ndarray, rotor_vel: np.ndarray, ratio: np.ndarray,
+                   samples: np.ndarray, extent: np.ndarray) -> tuple[int, int]:
+    """Run ``n`` drive intervals: drive kernel, then ``substeps`` × (passive forces,
+    ``mj_step``), and the drive-rate samples into ``samples[i]`` after each; ``extent``
+    (4,) receives the lowest and highest table position of each axis.
 
-    ``m_addr``, ``d_addr`` are :func:`addresses`; ``omega``, ``torque`` and ``table`` are views
-    of the data (rotor speeds, rotor applied forces, table positions). Returns (intervals
-    done, kernel status): a non-zero status stops before the interval it refers to, with
-    nothing of it applied.
+    ``m_addr``, ``d_addr`` are :func:`addresses`; the ``*_frc``, ``*_pos`` and ``*_vel``
+    arrays are views of the data. ``noise`` is (n, axes, m) standard normal samples (or one
+    (1, axes, m) block reused). Without passive forces (``has_passive`` False),
+    ``drive_torque`` must be ``rotor_frc`` itself. Returns (intervals done, kernel status): a
+    non-zero status stops before the interval it refers to, with nothing of it applied.
     """
-    return _intervals(m_addr, d_addr, n, substeps, params, state, u, omega, noise, n0, dt,
-                      enabled, torque, table, samples, extent)
+    return _intervals(m_addr, d_addr, n, substeps, params, state, tables, u, noise, log, n0,
+                      dt, enabled, passive, has_passive, drive_torque, rotor_frc, slide_frc,
+                      table_pos, table_vel, rotor_pos, rotor_vel, ratio, samples, extent)

@@ -12,12 +12,24 @@ import numpy as np
 
 from twin.config import SwitchConfig
 
-__all__ = ["FLAGS", "TRUTH_FIELDS", "AxisMonitor", "Reading", "StepStatus", "Truth"]
+__all__ = ["FINE_FIELDS", "FINE_WIDTH", "FLAGS", "TRUTH_FIELDS", "AxisMonitor", "Reading",
+           "StepStatus", "Truth"]
 
 TRUTH_FIELDS = (("table_position", 2), ("table_velocity", 2), ("screw_deflection", 2),
                 ("armature_current", 2), ("converter_voltage", 2))
 """The twin's truth channels of :meth:`Plant.truth_row`, for a per-tick record (m, m/s, m, A,
 V; x then y)."""
+
+
+FINE_FIELDS = (("table_position", 2), ("armature_current", 2), ("converter_voltage", 2),
+               ("conduction", 2), ("screw_deflection", 2))
+"""The twin's drive-rate channels (:attr:`Plant.fine`), sampled at the end of every drive
+interval (m, A, V, 1, m; x then y): the armature current at the sample, the converter
+voltage averaged over the interval (the motor terminal voltage: the EMF while no current
+flows), and ``conduction``, the fraction of the interval during which current flowed (below
+1: discontinuous conduction)."""
+
+FINE_WIDTH = sum(width for _, width in FINE_FIELDS)
 
 
 def _frozen(pair: tuple[bool, bool]) -> np.ndarray:
@@ -106,7 +118,8 @@ class Truth:
     screw_deflection : ndarray
         r·θ − x (m): positive when the screw pushes the table forward.
     armature_current, converter_voltage, speed_reference : ndarray
-        Motor current (A), converter mean output voltage (V), filtered speed reference (V).
+        Motor current (A), converter voltage averaged over the last drive interval (the
+        motor terminal voltage, V), filtered speed reference (V).
     firing_angle, bridge : ndarray
         Thyristor firing angle (rad; NaN for PWM or blocked pulses); conducting converter
         (int64: +1 forward, −1 reverse, 0 blocked).

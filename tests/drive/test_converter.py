@@ -1,5 +1,7 @@
-"""Converters: thyristor bridge pair (firing grid, arccos law, limits, discontinuous current,
-reversal pause) and PWM (hold over the PWM period, saturation, free current reversal)."""
+"""Converters: the mean-value thyristor bridge pair (firing grid, arccos law, limits,
+discontinuous current, reversal pause) and PWM (hold over the PWM period, saturation, free
+current reversal). The pulse-level model, the thyristor default, is tested against its own
+reference in ``test_pulse_converter.py``; tests here that hold for both run both."""
 
 from __future__ import annotations
 
@@ -13,7 +15,8 @@ from twin.drive import Drives
 
 from .rig import simulate
 
-TOMSK = load_machine("tomsk_xy")
+TOMSK_PULSE = load_machine("tomsk_xy")
+TOMSK = TOMSK_PULSE.with_overrides({"axes.*.converter.model": "mean"})
 LASER = load_machine("laser_belt")
 SUB = 8  # drive updates per firing period in the grid tests
 
@@ -79,13 +82,15 @@ def test_arccos_firing_law_and_angle_limits():
     assert np.all(np.isnan(run.firing_angle[~conducting, 0]))
 
 
+@pytest.mark.parametrize("model", ["mean", "pulse"])
 @pytest.mark.parametrize("sign", [1.0, -1.0])
-def test_thyristor_saturates_at_the_firing_angle_limits(sign):
+def test_thyristor_saturates_at_the_firing_angle_limits(sign, model):
     """Rotor driven beyond the converter's reach (EMF 147 V > U_d0 = 135 V) and a reference
     above its speed: full rectifier at α_min and no current; then a braking reference: the
     other bridge at the inverter end stop α_max, unable to hold the current. The reference
     filter is off so that the reference acts at once."""
-    cfg = TOMSK.with_overrides({"axes.y.speed_loop.reference_filter": 0.0})
+    cfg = TOMSK.with_overrides({"axes.y.speed_loop.reference_filter": 0.0,
+                                "axes.y.converter.model": model})
     ax = cfg.axes["y"]
     conv = ax.converter
     u_d0 = 1.3505 * conv.line_voltage
@@ -106,8 +111,9 @@ def test_thyristor_saturates_at_the_firing_angle_limits(sign):
     assert drives.current[0] * sign < 0.0
 
 
-def test_current_never_changes_sign_while_a_bridge_conducts():
-    ax = TOMSK.axes["y"]
+@pytest.mark.parametrize("cfg", [TOMSK, TOMSK_PULSE], ids=["mean", "pulse"])
+def test_current_never_changes_sign_while_a_bridge_conducts(cfg):
+    ax = cfg.axes["y"]
     drives = Drives([ax], dt=1e-4)
     run = simulate(drives, lambda t: 1.0 * math.sin(2 * math.pi * 3.0 * t), 0.7,
                    coulomb=ax.mechanics.rotor_coulomb, viscous=ax.mechanics.rotor_viscous)
@@ -117,10 +123,12 @@ def test_current_never_changes_sign_while_a_bridge_conducts():
     assert {-1, 0, 1} <= set(np.unique(b))  # it did reverse, through the blocked state
 
 
+@pytest.mark.parametrize("model", ["mean", "pulse"])
 @pytest.mark.parametrize("pause", [None, 8e-3])
-def test_reversal_pause_is_honoured(pause):
-    cfg = TOMSK if pause is None else TOMSK.with_overrides(
-        {"axes.y.converter.reversal_pause": pause})
+def test_reversal_pause_is_honoured(pause, model):
+    cfg = TOMSK.with_overrides({"axes.y.converter.model": model})
+    if pause is not None:
+        cfg = cfg.with_overrides({"axes.y.converter.reversal_pause": pause})
     ax = cfg.axes["y"]
     pause = ax.converter.reversal_pause
     drives = Drives([ax], dt=ax.converter.firing_period / SUB)
@@ -137,9 +145,10 @@ def test_reversal_pause_is_honoured(pause):
     assert np.all(b[k_forward + 1:k_reverse] >= 0) and np.all(i[k_forward + 1:k_reverse] == 0)
     assert zero_time >= pause
     assert blocked_time >= pause - drives.dt
-    t_p = ax.converter.firing_period
-    release = k_reverse * drives.dt  # the reverse bridge fires on the firing grid
-    assert release / t_p == pytest.approx(round(release / t_p), abs=1e-6)
+    if model == "mean":
+        t_p = ax.converter.firing_period
+        release = k_reverse * drives.dt  # the reverse bridge fires on the firing grid
+        assert release / t_p == pytest.approx(round(release / t_p), abs=1e-6)
 
 
 @pytest.mark.parametrize(("load", "discontinuous"), [(0.0, True), (0.98, False)])

@@ -13,7 +13,10 @@ from twin.drive import Drives
 
 from .rig import simulate
 
-TOMSK = load_machine("tomsk_xy")
+TOMSK_PULSE = load_machine("tomsk_xy")
+TOMSK = TOMSK_PULSE.with_overrides({"axes.*.converter.model": "mean"})
+"""The brute force here replays a held mean voltage: the mean-value model (the pulse-level
+one has its own reference, ``test_pulse_converter.py``)."""
 SUB = 8  # drive updates per firing period: the voltage is constant within each update
 
 
@@ -110,11 +113,15 @@ def test_results_do_not_depend_on_the_update_interval(dt_fine):
         assert fine.voltage[0] == pytest.approx(coarse.voltage[0], abs=1e-9)
 
 
-def test_coupling_converges_with_the_update_interval():
+@pytest.mark.parametrize(("cfg", "bound"), [(TOMSK, 0.01), (TOMSK_PULSE, 0.015)],
+                         ids=["mean", "pulse"])
+def test_coupling_converges_with_the_update_interval(cfg, bound):
     """Rotor coupled through the interval-average torque: the 1 V step response at a 1 ms
     update differs from the 0.1 ms one by < 1 % of the final speed (the speed is
-    extrapolated inside the interval; holding it would delay EMF and tacho by dt/2)."""
-    ax = TOMSK.axes["y"]
+    extrapolated inside the interval; holding it would delay EMF and tacho by dt/2). The
+    pulse-level converter's torque comes in pulses of about a millisecond, which a linear
+    speed inside a 1 ms interval follows less well: < 1.5 %."""
+    ax = cfg.axes["y"]
     runs = {}
     for dt in (1e-3, 1e-4):
         run = simulate(Drives([ax], dt=dt), 1.0, 0.2, coulomb=ax.mechanics.rotor_coulomb,
@@ -123,4 +130,4 @@ def test_coupling_converges_with_the_update_interval():
     final = 1.0 / ax.tacho.gain
     deviation = np.abs(runs[1e-3] - runs[1e-4]).max() / final
     print(f"1 ms vs 0.1 ms update: max deviation {deviation:.2%} of the final speed")
-    assert deviation < 0.01
+    assert deviation < bound

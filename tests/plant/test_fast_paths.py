@@ -38,20 +38,30 @@ def test_truth_row_equals_truth():
 
 def test_step_into_equals_step():
     a, b = Plant.from_machine("tomsk_xy").drives, Plant.from_machine("tomsk_xy").drives
-    u, w = np.array([1.0, -2.0]), np.array([3.0, -1.0])
+    u, w, th = np.array([1.0, -2.0]), np.array([3.0, -1.0]), np.array([0.3, 2.0])
     out = np.zeros(2)
     for _ in range(50):
-        tau = a.step(u, w)
-        b.step_into(u, w, out)
+        tau = a.step(u, w, th)
+        b.step_into(u, w, out, th)
         np.testing.assert_array_equal(tau, out)
 
 
-@pytest.mark.parametrize("machine", ["tomsk_xy", "laser_belt"])
+# every path of the plant loop: the presets, and a machine with noise, tacho ripple,
+# break-away friction and lost motion (passive forces before every physics step)
+_FAULTY = {"axes.*.tacho.noise": 0.002, "axes.*.tacho.ripple": [[1.0, 2.0], [8.0, 1.0]],
+           "axes.*.mechanics.slide_breakaway": 40.0, "axes.*.mechanics.rotor_breakaway": 0.05,
+           "axes.*.transmission.backlash": 10e-6}
+
+
+@pytest.mark.parametrize("machine", ["tomsk_xy", "laser_belt", "faulty"])
 def test_compiled_loop_is_bit_identical_to_the_python_loop(machine):
     from twin import plant_loop
+    from twin.config import load_machine
 
     assert plant_loop.available()
-    fast, slow = Plant.from_machine(machine), Plant.from_machine(machine)
+    cfg = load_machine("tomsk_xy").with_overrides(_FAULTY) if machine == "faulty" \
+        else load_machine(machine)
+    fast, slow = Plant(cfg, seed=5), Plant(cfg, seed=5)
     slow._compiled = False
     period = fast.config.controller.period
     rng = np.random.default_rng(3)
@@ -62,6 +72,7 @@ def test_compiled_loop_is_bit_identical_to_the_python_loop(machine):
     np.testing.assert_array_equal(fast.data.qpos, slow.data.qpos)
     np.testing.assert_array_equal(fast.data.qvel, slow.data.qvel)
     np.testing.assert_array_equal(fast.drives.snapshot(), slow.drives.snapshot())
+    np.testing.assert_array_equal(fast.fine, slow.fine)
     assert fast.time == slow.time and fast.drives.time == slow.drives.time
 
 

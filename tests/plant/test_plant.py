@@ -62,7 +62,7 @@ LSB = 20.0 / 4096  # 12-bit DAC over ±10 V (seed 000, machine files): 4.8828125
 ])
 def test_dac_quantises_to_the_12_bit_grid(volts, code):
     plant = Plant.from_machine("tomsk_xy")
-    status = plant.step(np.array([volts, 0.0]), 0.3)  # ≫ the drive's reference filter
+    status = plant.step(np.array([volts, 0.0]), 0.5)  # ≫ the drive's reference filter
     reference = plant.truth().speed_reference
     assert reference[0] == pytest.approx(code * LSB, abs=LSB / 100)
     assert not status.saturated.any()
@@ -71,7 +71,7 @@ def test_dac_quantises_to_the_12_bit_grid(volts, code):
 @pytest.mark.parametrize("volts", [10.0, 10.3, 25.0, -10.01, -1e6])
 def test_dac_beyond_full_scale_saturates_and_is_flagged(volts):
     plant = Plant.from_machine("tomsk_xy")
-    status = plant.step(np.array([volts, 0.5]), 0.3)
+    status = plant.step(np.array([volts, 0.5]), 0.5)
     limit = 2047 * LSB if volts > 0 else -10.0
     assert plant.truth().speed_reference[0] == pytest.approx(limit, abs=LSB / 100)
     assert status.saturated.tolist() == [True, False]
@@ -141,12 +141,12 @@ def test_truth_is_consistent_with_the_model_kinematics():
     assert plant.drives.time == pytest.approx(plant.time)
 
 
-def test_sensor_noise_is_off_by_default_and_seeded_when_on():
+def test_sensor_noise_follows_the_machine_file_seeded_and_can_be_silenced():
     cfg = Plant.from_machine("tomsk_xy").config.with_overrides(
         {"axes.*.encoder.noise_counts": 2.0, "axes.*.tacho.noise": 0.01})
-    quiet = Plant(cfg)
+    quiet = Plant(cfg, noise=False)
     assert len({tuple(quiet.read().encoder_counts) for _ in range(20)}) == 1
-    noisy = [Plant(cfg, noise=True, seed=7) for _ in range(2)]
+    noisy = [Plant(cfg, seed=7) for _ in range(2)]  # the machine's noise: on by default
     seqs = [[tuple(p.read().encoder_counts) for _ in range(50)] for p in noisy]
     assert seqs[0] == seqs[1]  # same seed, same noise
     assert len(set(seqs[0])) > 1

@@ -35,6 +35,7 @@ from twin.config.schema import (
     SpeedLoopConfig,
     SwitchConfig,
     TachoConfig,
+    TimingConfig,
     TransmissionConfig,
 )
 
@@ -55,6 +56,7 @@ __all__ = [
     "SpeedLoopConfig",
     "SwitchConfig",
     "TachoConfig",
+    "TimingConfig",
     "TransmissionConfig",
     "available_machines",
     "from_dict",

@@ -31,6 +31,7 @@ __all__ = [
     "SpeedLoopConfig",
     "SwitchConfig",
     "TachoConfig",
+    "TimingConfig",
     "TransmissionConfig",
 ]
 
@@ -87,10 +88,29 @@ class MechanicsConfig(_Validated):
     rotor_inertia: float = _num(unit="kg·m²", gt=0, doc="motor rotor + gear, at the motor")
     rotor_coulomb: float = _num(0.0, "N·m", ge=0, doc="Coulomb friction at the motor shaft")
     rotor_viscous: float = _num(0.0, "N·m·s/rad", ge=0, doc="viscous friction at the motor")
+    slide_breakaway: float = _num(
+        0.0, "N", ge=0, doc="break-away (static) friction of the slide, >= slide_coulomb; "
+        "0 = none above Coulomb")
+    rotor_breakaway: float = _num(
+        0.0, "N·m", ge=0, doc="break-away friction at the motor shaft, >= rotor_coulomb; "
+        "0 = none above Coulomb")
+    stribeck_velocity: float = _num(
+        1e-3, "m/s", gt=0, doc="table speed over which the break-away excess decays "
+        "(Stribeck: exp(-(v/v_s)²)); the rotor's is this over the transmission ratio")
 
     def _check(self) -> None:
         if len(self.travel) != 2 or not self.travel[0] < self.travel[1]:
             raise ConfigError("travel", f"must be (min, max) with min < max, got {self.travel}")
+        for part in ("slide", "rotor"):
+            brk, coul = getattr(self, f"{part}_breakaway"), getattr(self, f"{part}_coulomb")
+            if 0.0 < brk < coul:
+                raise ConfigError(f"{part}_breakaway", f"must be >= {part}_coulomb = {coul} "
+                                  f"(or 0 for none), got {brk}")
+
+    def breakaway(self, part: str) -> float:
+        """Break-away friction of ``"slide"`` (N) or ``"rotor"`` (N·m): never below
+        Coulomb (a value of 0 in the file means Coulomb alone)."""
+        return max(getattr(self, f"{part}_breakaway"), getattr(self, f"{part}_coulomb"))
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -107,6 +127,9 @@ class TransmissionConfig(_Validated):
     pulley_radius: float = _num(0.0, "m", ge=0, doc="belt pulley pitch radius (kind = belt)")
     stiffness: dict[str, float] = field(default_factory=dict)
     damping_ratio: float = _num(unit="1", gt=0, le=2, doc="damping of the first elastic mode")
+    backlash: float = _num(
+        0.0, "m", ge=0, le=1e-3, doc="lost motion of gear and nut together, referred to the "
+        "table, in series with the screw spring (a dead band of this width); 0 = none")
 
     def _check(self) -> None:
         if self.kind not in ("screw", "belt"):
@@ -184,12 +207,25 @@ class MotorConfig(_Validated):
 
 @dataclass(frozen=True, kw_only=True)
 class ConverterConfig(_Validated):
-    """Power converter: a 6-pulse thyristor bridge pair or a PWM transistor bridge."""
+    """Power converter: a non-circulating pair of thyristor converters (6-pulse bridges or
+    3-pulse midpoint circuits), or a PWM transistor bridge.
+
+    ``model`` chooses how a thyristor converter is simulated: ``"pulse"`` (the default: the
+    instantaneous voltage of the conducting pair, discontinuous conduction as the circuit
+    gives it, :mod:`twin.drive.pulse`) or ``"mean"`` (the mean voltage of each firing
+    period held constant). A PWM bridge is always ``"mean"``.
+    """
 
     kind: str = "thyristor"
+    model: str | None = None
     line_voltage: float = _num(100.0, "V", gt=0, doc="thyristor: line-to-line rms U_LL")
     mains_frequency: float = _num(50.0, "Hz", gt=0)
-    pulse_number: int = _num(6, "1", gt=0)
+    pulse_number: int = _num(6, "1", gt=0, doc="6: three-phase bridge; 3: midpoint circuit")
+    line_inductance: float = _num(
+        0.0, "H", ge=0, doc="commutating inductance per phase (overlap); 0 = instantaneous")
+    dcm_compensation: bool = True
+    """Thyristor drives: the current regulator adapts to discontinuous conduction (the
+    firing unit inverts the discontinuous characteristic; integral control per pulse)."""
     reversal_pause: float = _num(2e-3, "s", ge=0, doc="current-zero pause at bridge reversal")
     min_firing_angle: float = _num(0.0, "rad", ge=0, le=math.pi)
     max_firing_angle: float = _num(math.radians(150.0), "rad", gt=0, le=math.pi)
@@ -204,13 +240,39 @@ class ConverterConfig(_Validated):
                               "pwm_frequency > 0")
         if self.kind == "thyristor" and not self.min_firing_angle < self.max_firing_angle:
             raise ConfigError("max_firing_angle", "must exceed min_firing_angle")
+        if self.kind == "thyristor" and self.pulse_number not in (3, 6):
+            raise ConfigError("pulse_number", f"must be 6 (bridge) or 3 (midpoint circuit), "
+                              f"got {self.pulse_number}")
+        if self.model is None:
+            object.__setattr__(self, "model", "pulse" if self.kind == "thyristor" else "mean")
+        if self.model not in ("pulse", "mean"):
+            raise ConfigError("model", f"must be 'pulse' or 'mean', got {self.model!r}")
+        if self.kind == "pwm" and self.model != "mean":
+            raise ConfigError("model", "a PWM converter is modelled by its mean voltage: "
+                              "'mean'")
+
+    @property
+    def peak_voltage(self) -> float:
+        """Û, peak of the voltage one conducting pair applies (V): √2·U_LL for the bridge,
+        √2·U_LL/√3 (the phase voltage) for the midpoint circuit; the DC link for PWM."""
+        if self.kind != "thyristor":
+            return self.dc_link_voltage
+        u = math.sqrt(2.0) * self.line_voltage
+        return u if self.pulse_number == 6 else u / math.sqrt(3.0)
 
     @property
     def max_voltage(self) -> float:
-        """Largest mean output voltage (V): U_d0 = 1.35·U_LL, or the DC link for PWM."""
+        """Largest mean output voltage (V): U_d0 = (p/π)·sin(π/p)·Û (1.35·U_LL for the
+        bridge, 0.675·U_LL for the midpoint circuit), or the DC link for PWM."""
         if self.kind == "thyristor":
-            return 3.0 * math.sqrt(2.0) / math.pi * self.line_voltage
+            p = self.pulse_number
+            return p / math.pi * math.sin(math.pi / p) * self.peak_voltage
         return self.dc_link_voltage
+
+    @property
+    def series_phases(self) -> int:
+        """Line inductances in series with a conducting pair: 2 (bridge), 1 (midpoint)."""
+        return 2 if self.pulse_number == 6 else 1
 
     @property
     def firing_period(self) -> float:
@@ -227,6 +289,21 @@ class TachoConfig(_Validated):
     gain: float = _num(unit="V·s/rad", gt=0, doc="K_C")
     filter_time_constant: float = _num(1e-3, "s", ge=0)
     noise: float = _num(0.0, "V", ge=0, doc="rms noise on the tacho signal; 0 = off")
+    ripple: tuple[tuple[float, float], ...] = ()
+    """Ripple of the tacho EMF: ``[[harmonic, amplitude_percent], ...]`` (harmonic per
+    revolution > 0, amplitude in % of K_C·ω, 0 ≤ a < 100; at most 4), e.g. ``[[1, 0.5],
+    [20, 1.0]]`` for an eccentricity and a commutator ripple."""
+
+    def _check(self) -> None:
+        if len(self.ripple) > 4:
+            raise ConfigError("ripple", f"at most 4 harmonics, got {len(self.ripple)}")
+        for k, (harmonic, amplitude) in enumerate(self.ripple):
+            if not (math.isfinite(harmonic) and harmonic > 0):
+                raise ConfigError(f"ripple[{k}]", f"harmonic must be > 0 (per revolution), "
+                                  f"got {harmonic}")
+            if not (math.isfinite(amplitude) and 0.0 <= amplitude < 100.0):
+                raise ConfigError(f"ripple[{k}]", f"amplitude must lie in [0, 100) %, got "
+                                  f"{amplitude}")
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -235,6 +312,9 @@ class DacConfig(_Validated):
 
     bits: int = _num(12, "bit", ge=1, le=32)
     full_scale: float = _num(10.0, "V", gt=0, doc="output range is ±full_scale")
+    offset: float = _num(0.0, "V", ge=-1.0, le=1.0, doc="the plant's DAC: output at code 0")
+    gain_error: float = _num(0.0, "1", ge=-0.5, le=0.5,
+                             doc="the plant's DAC: relative error of its gain")
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -308,6 +388,46 @@ class RegulatorSettings(_Validated):
 
 
 @dataclass(frozen=True, kw_only=True)
+class TimingConfig(_Validated):
+    """When the controller's ticks really come, on the twin (simulation only).
+
+    Off by default: every tick exactly one period after the last, as on a real-time
+    system. Otherwise each tick is due one period after the last *due* instant
+    (``rearm = "absolute"``: a periodic timer) or after the last tick *taken*
+    (``"relative"``: a timer re-armed by its handler), fires only at a multiple of
+    ``granularity`` (the OS clock tick), and is then late by up to ``late_max`` with
+    probability ``late_probability`` or skipped with ``skip_probability``; the controller
+    still assumes one period between ticks. Seeded, so a run is reproducible.
+
+    Seed 000's plain software timer is ``granularity = 0.015625`` (the 64 Hz clock of the
+    PC's OS) with ``rearm = "relative"``: 9/16/64/64 ticks per second at 100/50/10/5 ms
+    against the 9/15/62/63 measured (``docs/timing.md``).
+    """
+
+    granularity: float = _num(0.0, "s", ge=0, le=1.0, doc="OS clock tick; 0 = exact")
+    rearm: str = "absolute"
+    late_probability: float = _num(0.0, "1", ge=0, le=1, doc="chance that a tick is late")
+    late_max: float = _num(0.0, "s", ge=0, le=1.0, doc="a late tick comes up to this late")
+    skip_probability: float = _num(0.0, "1", ge=0, le=1, doc="chance that a tick is lost")
+    seed: int = _num(0, "1", ge=0)
+
+    def _check(self) -> None:
+        if self.rearm not in ("absolute", "relative"):
+            raise ConfigError("rearm", f"must be 'absolute' or 'relative', got {self.rearm!r}")
+        if self.late_probability + self.skip_probability > 1.0:
+            raise ConfigError("skip_probability", "late_probability + skip_probability must "
+                              "not exceed 1")
+        if self.late_probability > 0.0 and self.late_max <= 0.0:
+            raise ConfigError("late_max", "must be > 0 (s) when late_probability > 0")
+
+    @property
+    def ideal(self) -> bool:
+        """Every tick exactly on time."""
+        return (self.granularity == 0.0 and self.late_probability == 0.0
+                and self.skip_probability == 0.0)
+
+
+@dataclass(frozen=True, kw_only=True)
 class ControllerSettings(_Validated):
     """The CNC: period, contour limits, planner and regulator settings."""
 
@@ -322,7 +442,13 @@ class ControllerSettings(_Validated):
     lookahead: int = _num(64, "blocks", ge=1)
     soft_limits: bool = True
     """Refuse motion outside the work zone (the travel between the end switches)."""
+    in_position_tolerance: float = _num(
+        1e-6, "m", gt=0, le=1e-3, doc="after the motion the loop stays closed until every "
+        "axis' following error is within this (seed 000: 1 µm positioning accuracy)")
+    settle_timeout: float = _num(2.0, "s", gt=0, le=60.0,
+                                 doc="longest wait for the in-position tolerance")
     regulator: RegulatorSettings = field(default_factory=RegulatorSettings)
+    timing: TimingConfig = field(default_factory=TimingConfig)
 
 
 @dataclass(frozen=True, kw_only=True)

@@ -21,10 +21,11 @@ The cyclic path never raises for expected conditions; it reports a `ControllerSt
 
 Each of these latches with the outputs at zero and the drives disabled until ``reset()``.
 
-End of program: the loop stays closed on the end point for ``settle_time`` (``SETTLING``;
-the record then shows the residual vibration), then the outputs go to zero and the drives
-are disabled (``FINISHED``). A lead-screw table holds its position without torque, and a
-disabled drive cannot oscillate.
+End of program: the loop stays closed on the end point (``SETTLING``; the record then shows
+how the table comes to rest) for at least ``settle_time`` and until every axis' following
+error is within ``in_position_tolerance`` (at most ``settle_timeout``), then the outputs go
+to zero and the drives are disabled (``FINISHED``). A lead-screw table holds its position
+without torque, and a disabled drive cannot oscillate.
 
 Soft limits: a program held in memory (``Program``, list, tuple) is checked against the
 work zone in the constructor, which raises ``PlanningError`` naming the G-code line before
@@ -76,7 +77,8 @@ class ControllerStatus(IntEnum):
     HOMING = 3
     """Moving toward a home switch, or braking after it closed."""
     SETTLING = 4
-    """Motion done; loop closed on the end point for ``settle_time``."""
+    """Motion done; loop closed on the end point until in position (``settle_time`` at
+    least, ``settle_timeout`` at most)."""
     FINISHED = 5
     """Done: outputs zero, drives disabled."""
     LIMIT_TRIP = 6
@@ -144,7 +146,9 @@ class Controller:
     start : sequence of 2 float, optional
         Table position at the first tick (m); default the program's start point.
     settle_time : float
-        Closed-loop hold after the motion ends (s).
+        Shortest closed-loop hold after the motion ends (s); the hold then lasts until the
+        table is in position (``settings.in_position_tolerance``, at most
+        ``settings.settle_timeout``).
     record_capacity : int
         Rows per chunk of the record.
 
@@ -174,6 +178,8 @@ class Controller:
         self.period = settings.period
         self.mode = mode
         self.settle_time = float(settle_time)
+        self._in_position = settings.in_position_tolerance
+        self._settle_timeout = max(settings.settle_timeout, self.settle_time)
         models = list(axis_models) if axis_models is not None else [
             estimated_axis_model(ax) for ax in self.axes]
         if gains is None:
@@ -326,6 +332,10 @@ class Controller:
             return ControllerStatus.SETTLING
         self._settled += self.period
         if self._settled < self.settle_time - 1e-12:
+            return ControllerStatus.SETTLING
+        err = self.regulator.error
+        if (max(abs(float(err[0])), abs(float(err[1]))) > self._in_position
+                and self._settled < self._settle_timeout - 1e-12):
             return ControllerStatus.SETTLING
         if istatus == InterpolatorStatus.ERROR:
             self.error = self.interpolator.error

@@ -15,9 +15,19 @@ Converter small time constant
     The regulators are sampled at the converter's firing instants, period T_p (the thyristor
     bridge: T_p = 1/(6·f_mains) = 3.33 ms at 50 Hz; PWM: T_p = 1/f_pwm), and the converter
     holds its mean output voltage constant between them. A zero-order hold delays on average
-    by half its period, so **T_μ = T_p/2** (1.67 ms for the bridge). The converter gain is 1:
-    the current regulator's output is the mean voltage itself (the arccos firing law makes
-    the bridge linear in it).
+    by half its period, so **T_μ = T_p/2** (1.67 ms for the bridge) for the mean-value
+    models. The pulse-level thyristor model (:mod:`twin.drive.pulse`) measures, as a real
+    digital drive does, the *pulse-mean* current (the average over the last firing period:
+    the instantaneous current carries the pulse ripple); that moving average delays by
+    another T_p/2, so there **T_μ = T_p** (3.33 ms). The converter gain is 1: the current
+    regulator's output is the mean voltage itself (the arccos firing law makes the bridge
+    linear in it in continuous conduction; the discontinuous-conduction compensation
+    restores that gain below the boundary current).
+
+Line inductance
+    A commutating inductance L_c per phase lies in series with the armature while a pair
+    conducts (two phases for the bridge, one for the midpoint circuit): the current loop is
+    designed on L_eff = L + n·L_c.
 
 Current loop: modulus optimum (MO, "technical optimum")
     Plant from mean voltage to current, the back-EMF being compensated (below):
@@ -86,11 +96,24 @@ class DriveDesign:
     Attributes
     ----------
     converter : str
-        ``"thyristor"`` (non-circulating pair of 6-pulse bridges) or ``"pwm"``.
+        ``"thyristor"`` (non-circulating pair of bridges or midpoint circuits) or ``"pwm"``.
+    model : str
+        ``"pulse"`` (pulse-level thyristor converter) or ``"mean"`` (mean-value).
+    pulse_number : int
+        p: 6 (bridge) or 3 (midpoint circuit); PWM: 1.
+    peak_voltage : float
+        Û, peak of the voltage a conducting pair applies (V); PWM: the DC link.
+    line_inductance : float
+        L_c, commutating inductance per phase (H).
+    series_phases : int
+        Line inductances in series with a conducting pair (2 bridge, 1 midpoint).
+    dcm_compensation : bool
+        The pulse-level drive's current regulator adapts to discontinuous conduction.
     sampling_period : float
         T_p, time between firing instants = regulator sampling period (s).
     converter_time_constant : float
-        T_μ = T_p/2, equivalent lag of the sampled converter (s).
+        T_μ, equivalent lag of the sampled converter and current measurement (s): T_p/2,
+        or T_p for the pulse-level model (pulse-mean current).
     max_voltage : float
         U_d0 = 1.35·U_LL for the bridge, the DC link voltage for PWM (V).
     voltage_range : tuple of float
@@ -99,17 +122,17 @@ class DriveDesign:
     resistance : float
         Armature resistance R (Ω).
     inductance : float
-        Armature inductance L (H).
+        Inductance the current loop sees, L_eff = L + n·L_c (H).
     emf_constant : float
         k, back-EMF k·ω and torque k·i (V·s/rad = N·m/A).
     armature_time_constant : float
-        T_a = L/R (s).
+        T_a = L_eff/R (s).
     inertia : float
         J, total inertia at the motor shaft (kg·m²).
     mechanical_time_constant : float
         T_m = J·R/k² (s).
     current_kp : float
-        K_pi = L/(2·T_μ), proportional gain of the current regulator (V/A).
+        K_pi = L_eff/(2·T_μ), proportional gain of the current regulator (V/A).
     current_ti : float
         T_ii = T_a, integral time of the current regulator (s).
     current_loop_time_constant : float
@@ -137,6 +160,12 @@ class DriveDesign:
     """
 
     converter: str
+    model: str
+    pulse_number: int
+    peak_voltage: float
+    line_inductance: float
+    series_phases: int
+    dcm_compensation: bool
     sampling_period: float
     converter_time_constant: float
     max_voltage: float
@@ -229,13 +258,15 @@ def design(axis: AxisConfig, *, moving_mass: float | None = None,
     Returns
     -------
     DriveDesign
-        T_μ = T_p/2; current PI by the modulus optimum (K_pi = L/(2·T_μ), T_ii = L/R); speed
+        T_μ = T_p/2 (T_p pulse-level); current PI by the modulus optimum (K_pi =
+        L_eff/(2·T_μ), T_ii = L_eff/R); speed
         PI by the symmetric optimum (K_pω = J/(a·T_σ·K_C·k), T_iω = a²·T_σ, T_σ = 2·T_μ + T_f);
         T1 = a²·T_σ unless ``speed_loop.reference_filter`` is set.
     """
     motor, conv, tacho, loop = axis.motor, axis.converter, axis.tacho, axis.speed_loop
     t_p = conv.firing_period
-    t_mu = 0.5 * t_p
+    pulse = conv.kind == "thyristor" and conv.model == "pulse"
+    t_mu = t_p if pulse else 0.5 * t_p
     u_max = conv.max_voltage
     if conv.kind == "thyristor":
         voltage_range = (u_max * math.cos(conv.max_firing_angle),
@@ -246,7 +277,10 @@ def design(axis: AxisConfig, *, moving_mass: float | None = None,
                               f"{math.degrees(conv.min_firing_angle):.1f}°")
     else:
         voltage_range = (-u_max, u_max)
-    r_a, l_a, k = motor.armature_resistance, motor.armature_inductance, motor.emf_constant
+    r_a, k = motor.armature_resistance, motor.emf_constant
+    thyristor = conv.kind == "thyristor"
+    series = conv.series_phases if thyristor else 0
+    l_a = motor.armature_inductance + series * conv.line_inductance
     t_a = l_a / r_a
     j = axis_inertia(axis, moving_mass)
     t_sigma = 2.0 * t_mu + tacho.filter_time_constant
@@ -254,6 +288,12 @@ def design(axis: AxisConfig, *, moving_mass: float | None = None,
     t1 = a * a * t_sigma if loop.reference_filter is None else loop.reference_filter
     return DriveDesign(
         converter=conv.kind,
+        model=conv.model if thyristor else "mean",
+        pulse_number=conv.pulse_number if thyristor else 1,
+        peak_voltage=conv.peak_voltage,
+        line_inductance=conv.line_inductance if thyristor else 0.0,
+        series_phases=series,
+        dcm_compensation=bool(thyristor and pulse and conv.dcm_compensation),
         sampling_period=t_p,
         converter_time_constant=t_mu,
         max_voltage=u_max,

@@ -10,24 +10,20 @@ models, per axis:
 - at each firing instant t_j = j·T_p (the same grid for every axis, phase 0 at time 0): the
   PI speed regulator (symmetric optimum) with the current limit, the bridge logic, the PI
   current regulator (modulus optimum, back-EMF compensation) and the firing angle;
-- converter: a non-circulating pair of 6-pulse thyristor bridges (arccos firing: mean voltage
-  U_d0·cos α, constant between firing instants, clamped by the firing-angle limits; a bridge
-  conducts in one sense only, so the current stops at zero and stays there until the
-  voltage exceeds the EMF again; the logic switching unit selects a bridge when the current
-  reference exceeds ``DriveDesign.bridge_threshold`` in its sense, reverses only at zero
-  current, removes the pulses and releases the other bridge at the first firing instant
-  after ``converter.reversal_pause``; a bridge starts at the EMF balance), or a PWM bridge
-  (averaged voltage held over each PWM period, i.e. a delay of half a period, clamped at
-  ±U_dc, current of either sign);
+- converter: a non-circulating pair of thyristor converters, simulated at pulse level
+  (``converter.model = "pulse"``, :mod:`twin.drive.pulse`: the instantaneous voltage of the
+  conducting pair, firing synchronised to the mains, discontinuous conduction wherever the
+  circuit gives it, commutation overlap through the line inductance) or by its mean voltage
+  (``"mean"``: U_d0·cos α held between firing instants, the 300 Hz ripple left out, so
+  current stops only where the mean voltage falls below the EMF); or a PWM bridge (averaged
+  voltage held over each PWM period, clamped at ±U_dc, current of either sign). The logic
+  switching unit selects a bridge when the current reference exceeds
+  ``DriveDesign.bridge_threshold`` in its sense, reverses only at zero current, removes the
+  pulses and releases the other bridge after ``converter.reversal_pause``; a bridge starts
+  at the EMF balance;
 - armature L·di/dt = u − k·ω − R·i solved exactly, with ω(t) extrapolated linearly inside
   the interval from the last two speeds the plant passed; the returned torque is k times the
   interval-average current.
-
-The model is a mean-value one: the 300 Hz voltage ripple of the bridge is not modelled (it
-presumes the smoothing inductance included in ``armature_inductance`` keeps the ripple
-current small), so discontinuous conduction arises where the mean-value bridge must stop
-its current: while the regulators ask for less current than zero at light load (braking
-with little friction, speed reversal, low-speed regulation), not from ripple.
 
 Enable and faults
     ``enable(False)`` (and a fault) block the converter at the next firing instant: the
@@ -47,6 +43,8 @@ import numpy as np
 
 from twin.config import AXES, AxisConfig, MachineConfig
 from twin.drive import kernel as K
+from twin.drive import layout as L
+from twin.drive.dcm import N_ALPHA, N_EMF, build_table
 from twin.drive.design import DriveDesign, design, moving_masses
 from twin.errors import ConfigError, SimulationError
 
@@ -57,31 +55,60 @@ _INPUT_NAMES = {K.STATUS_NONFINITE_UREF: "speed reference u_ref",
                 K.STATUS_NONFINITE_RESULT: "drive state (result)"}
 
 
+DCM_INTEGRAL_GAIN = 0.5
+"""Per-pulse integral gain g of the current regulator in discontinuous conduction: the
+residual current error falls by (1 − g) per pulse on the linearised plant (design rule in
+``models/README.md``)."""
+
+
 def _params(d: DriveDesign, axis: AxisConfig, overload_time: float,
             extrapolate: bool) -> np.ndarray:
-    p = np.zeros(K.NP)
-    p[K.P_R] = d.resistance
-    p[K.P_TA] = d.armature_time_constant
-    p[K.P_K] = d.emf_constant
-    p[K.P_KC] = d.tacho_gain
-    p[K.P_TF] = d.tacho_filter
-    p[K.P_T1] = d.reference_filter
-    p[K.P_KPS] = d.speed_kp
-    p[K.P_TIS] = d.speed_ti
-    p[K.P_KPC] = d.current_kp
-    p[K.P_TIC] = d.current_ti
-    p[K.P_ILIM] = d.current_limit
-    p[K.P_TP] = d.sampling_period
-    p[K.P_UMAX] = d.max_voltage
-    p[K.P_VLO], p[K.P_VHI] = d.voltage_range
-    p[K.P_PWM] = 1.0 if d.converter == "pwm" else 0.0
-    p[K.P_PAUSE] = axis.converter.reversal_pause
-    p[K.P_ITH] = d.bridge_threshold
-    p[K.P_EMFC] = 1.0 if d.emf_compensation else 0.0
-    p[K.P_NOISE] = axis.tacho.noise
-    p[K.P_OVERLOAD] = overload_time
-    p[K.P_EXTRAP] = 1.0 if extrapolate else 0.0
+    p = np.zeros(L.NP)
+    p[L.P_R] = d.resistance
+    p[L.P_TA] = d.armature_time_constant
+    p[L.P_K] = d.emf_constant
+    p[L.P_KC] = d.tacho_gain
+    p[L.P_TF] = d.tacho_filter
+    p[L.P_T1] = d.reference_filter
+    p[L.P_KPS] = d.speed_kp
+    p[L.P_TIS] = d.speed_ti
+    p[L.P_KPC] = d.current_kp
+    p[L.P_TIC] = d.current_ti
+    p[L.P_ILIM] = d.current_limit
+    p[L.P_TP] = d.sampling_period
+    p[L.P_UMAX] = d.max_voltage
+    p[L.P_VLO], p[L.P_VHI] = d.voltage_range
+    p[L.P_PWM] = 1.0 if d.converter == "pwm" else 0.0
+    p[L.P_PAUSE] = axis.converter.reversal_pause
+    p[L.P_ITH] = d.bridge_threshold
+    p[L.P_EMFC] = 1.0 if d.emf_compensation else 0.0
+    p[L.P_NOISE] = axis.tacho.noise
+    p[L.P_OVERLOAD] = overload_time
+    p[L.P_EXTRAP] = 1.0 if extrapolate else 0.0
+    p[L.P_MODEL] = 1.0 if d.model == "pulse" else 0.0
+    p[L.P_UHAT] = d.peak_voltage
+    p[L.P_WM] = 2.0 * math.pi * axis.converter.mains_frequency
+    p[L.P_PN] = d.pulse_number
+    p[L.P_L] = axis.motor.armature_inductance
+    p[L.P_LC] = d.line_inductance
+    p[L.P_NSER] = d.series_phases
+    p[L.P_DCMC] = 1.0 if d.dcm_compensation else 0.0
+    p[L.P_AMIN] = axis.converter.min_firing_angle
+    p[L.P_AMAX] = axis.converter.max_firing_angle
+    p[L.P_ALPHA_FIX] = math.nan
+    p[L.P_DCMG] = DCM_INTEGRAL_GAIN
+    for k, (harmonic, percent) in enumerate(axis.tacho.ripple):
+        p[L.P_RIPPLE + 2 * k] = harmonic
+        p[L.P_RIPPLE + 2 * k + 1] = 0.01 * percent
     return p
+
+
+def _dcm_table(d: DriveDesign) -> np.ndarray:
+    """The discontinuous characteristic a pulse-level drive's firing unit inverts."""
+    if not d.dcm_compensation:
+        return np.zeros((N_EMF, N_ALPHA))
+    w = 2.0 * math.pi / (d.pulse_number * d.sampling_period)
+    return build_table(float(d.pulse_number), w * d.armature_time_constant)
 
 
 class Drives:
@@ -108,6 +135,9 @@ class Drives:
         inputs (default True, second-order coupling); False holds ω at its start value.
     names : sequence of str, optional
         Axis names for messages; default ``("x", "y")`` for two axes, else indices.
+    firing_log : int, optional
+        Keep the first ``firing_log`` firings of each axis (pulse-level model):
+        :meth:`firings`. Default 0.
 
     Raises
     ------
@@ -124,7 +154,8 @@ class Drives:
                  rng: np.random.Generator | None = None,
                  moving_masses: Sequence[float] | None = None,
                  emf_compensation: bool = True, overload_time: float = 1.0,
-                 extrapolate_speed: bool = True, names: Sequence[str] | None = None):
+                 extrapolate_speed: bool = True, names: Sequence[str] | None = None,
+                 firing_log: int = 0):
         axes = list(axes)
         if not axes:
             raise ConfigError("axes", "need at least one axis")
@@ -148,11 +179,14 @@ class Drives:
         self._params = np.ascontiguousarray(
             [_params(d, ax, overload_time, extrapolate_speed)
              for d, ax in zip(self.designs, axes, strict=True)])
-        self._noisy = bool(np.any(self._params[:, K.P_NOISE] > 0.0))
+        self._tables = np.ascontiguousarray([_dcm_table(d) for d in self.designs])
+        self._noisy = bool(np.any(self._params[:, L.P_NOISE] > 0.0))
         self._rng = rng if rng is not None else np.random.default_rng(0)
-        firings = math.ceil(self.dt / float(np.min(self._params[:, K.P_TP]))) + 2
+        firings = math.ceil(self.dt / float(np.min(self._params[:, L.P_TP]))) + 3
         self._noise = np.zeros((n, firings))
-        self._state = K.empty_state(n)
+        self._log = np.zeros((n, max(int(firing_log), 0), L.NLOG))
+        self._theta = np.zeros(n)
+        self._state = L.empty_state(n)
         self._n_step = 0
         self._enabled = True
         self.reset()
@@ -174,7 +208,8 @@ class Drives:
     # ------------------------------------------------------------------ cyclic use
     def reset(self) -> None:
         """Zero state at time 0: no current, blocked bridges, enabled, faults cleared."""
-        self._state[:] = K.empty_state(len(self.designs))
+        self._state[:] = L.empty_state(len(self.designs))
+        self._log[:] = 0.0
         self._n_step = 0
         self._enabled = True
 
@@ -182,9 +217,10 @@ class Drives:
         """Drive enable input. ``False`` blocks the converters (and acknowledges faults)."""
         self._enabled = bool(flag)
         if not self._enabled:
-            self._state[:, K.S_FAULT] = 0.0
+            self._state[:, L.S_FAULT] = 0.0
 
-    def step(self, u_ref: np.ndarray, omega: np.ndarray) -> np.ndarray:
+    def step(self, u_ref: np.ndarray, omega: np.ndarray,
+             theta: np.ndarray | None = None) -> np.ndarray:
         """Advance all drives by ``dt``.
 
         Parameters
@@ -193,6 +229,9 @@ class Drives:
             Speed references at the drive inputs (V), already quantised and saturated.
         omega : ndarray, shape (n,)
             Rotor speeds at the start of the interval (rad/s).
+        theta : ndarray, shape (n,), optional
+            Rotor angles at the start of the interval (rad), for the tacho ripple; default
+            the last given (0 at first).
 
         Returns
         -------
@@ -210,11 +249,14 @@ class Drives:
         if u.shape != (n,) or w.shape != (n,):
             raise ValueError(f"u_ref and omega must have shape ({n},), got {u.shape} and "
                              f"{w.shape}")
+        if theta is not None:
+            self._theta[:] = theta
         if self._noisy:
             self._noise[:] = self._rng.standard_normal(self._noise.shape)
         tau = np.empty(n)
-        status = K.drive_step(self._params, self._state, u, w, self._noise, self._n_step,
-                              self.dt, self._enabled, tau)
+        status = K.drive_step(self._params, self._state, self._tables, u, w, self._theta,
+                              self._noise, self._log, self._n_step, self.dt, self._enabled,
+                              tau)
         if status:
             code, axis = divmod(status, 1000)
             value = {K.STATUS_NONFINITE_UREF: u, K.STATUS_NONFINITE_OMEGA: w}.get(code)
@@ -224,25 +266,46 @@ class Drives:
         self._n_step += 1
         return tau
 
-    def step_into(self, u_ref: np.ndarray, omega: np.ndarray, torque: np.ndarray) -> None:
+    def step_into(self, u_ref: np.ndarray, omega: np.ndarray, torque: np.ndarray,
+                  theta: np.ndarray) -> None:
         """``step`` for the plant's hot loop: no copies, the torque written into ``torque``.
 
         The caller guarantees float64 arrays of shape (n,) (``torque`` may be a view of the
-        simulator's applied forces); non-finite inputs still raise ``SimulationError``.
+        simulator's applied forces, ``theta`` of its rotor angles); non-finite inputs still
+        raise ``SimulationError``.
         """
         if self._noisy:
             self._noise[:] = self._rng.standard_normal(self._noise.shape)
-        status = K.drive_step(self._params, self._state, u_ref, omega, self._noise,
-                              self._n_step, self.dt, self._enabled, torque)
+        status = K.drive_step(self._params, self._state, self._tables, u_ref, omega, theta,
+                              self._noise, self._log, self._n_step, self.dt, self._enabled,
+                              torque)
         if status:
-            self.step(u_ref, omega)  # the checked path raises the named error
+            self.step(u_ref, omega, theta)  # the checked path raises the named error
         self._n_step += 1
 
-    def kernel_arrays(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        """(params, state, noise): the live arrays ``kernel.drive_step`` works on, for a
-        caller that runs the kernel itself in a compiled loop (``twin.plant_loop``). Such a
-        caller must count the intervals it ran with :meth:`advance`."""
-        return self._params, self._state, self._noise
+    def kernel_arrays(self) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray,
+                                     np.ndarray]:
+        """(params, state, tables, noise, log): the live arrays ``kernel.drive_step`` works
+        on, for a caller that runs the kernel itself in a compiled loop
+        (``twin.plant_loop``). Such a caller must count the intervals it ran with
+        :meth:`advance`."""
+        return self._params, self._state, self._tables, self._noise, self._log
+
+    def firings(self) -> list[np.ndarray]:
+        """The firing log of each axis (pulse-level model; ``firing_log`` entries at most):
+        arrays of shape (k, 4) with time (s), pair index, bridge (±1, or 0 where the gate
+        pulses were removed) and firing angle (rad)."""
+        counts = self._state[:, L.S_NLOG].astype(int)
+        return [self._log[a, :counts[a]].copy() for a in range(len(self.designs))]
+
+    def set_firing_angle(self, alpha: Sequence[float] | None) -> None:
+        """Open-loop converter: fire the forward thyristor converter of each axis at this
+        angle (rad) instead of regulating (pulse-level model; tests and diagnostics).
+        ``None`` returns to regulation."""
+        values = [math.nan] * len(self.designs) if alpha is None else list(alpha)
+        if len(values) != len(self.designs):
+            raise ValueError(f"alpha needs {len(self.designs)} entries, got {len(values)}")
+        self._params[:, L.P_ALPHA_FIX] = values
 
     def advance(self, intervals: int) -> None:
         """Count ``intervals`` updates run outside :meth:`step` (by the compiled loop)."""
@@ -280,32 +343,34 @@ class Drives:
     @property
     def tacho_volts(self) -> np.ndarray:
         """Filtered tacho output as the ADC reads it (V), shape (n,)."""
-        return self._column(K.S_ADC)
+        return self._column(L.S_ADC)
 
     @property
     def current(self) -> np.ndarray:
         """Armature current at the end of the last interval (A), shape (n,)."""
-        return self._column(K.S_I)
+        return self._column(L.S_I)
 
     @property
     def current_reference(self) -> np.ndarray:
         """Speed-regulator output = current reference (A), shape (n,)."""
-        return self._column(K.S_IREF)
+        return self._column(L.S_IREF)
 
     @property
     def voltage(self) -> np.ndarray:
-        """Converter mean output voltage commanded now (V), shape (n,); 0 when blocked."""
-        return self._column(K.S_V)
+        """Converter mean output voltage commanded now (V), shape (n,); 0 when blocked: the
+        mean value model's voltage, and b·U_d0·cos α of the last firing for the pulse-level
+        one (the mean voltage it would give in continuous conduction)."""
+        return self._column(L.S_V)
 
     @property
     def torque(self) -> np.ndarray:
         """Average motor torque over the last interval (N·m), shape (n,)."""
-        return self._column(K.S_TORQUE)
+        return self._column(L.S_TORQUE)
 
     @property
     def firing_angle(self) -> np.ndarray:
         """Firing angle α (rad), shape (n,); NaN for PWM and while the pulses are removed."""
-        return self._column(K.S_ALPHA)
+        return self._column(L.S_ALPHA)
 
     @property
     def bridge(self) -> np.ndarray:
@@ -313,14 +378,33 @@ class Drives:
 
         A PWM converter reports +1 while enabled (one four-quadrant bridge).
         """
-        return self._state[:, K.S_BRIDGE].astype(np.int64)
+        return self._state[:, L.S_BRIDGE].astype(np.int64)
 
     @property
     def speed_reference(self) -> np.ndarray:
         """Speed reference after the T1 filter (V), shape (n,)."""
-        return self._column(K.S_REF)
+        return self._column(L.S_REF)
+
+    @property
+    def output_voltage(self) -> np.ndarray:
+        """Mean motor terminal voltage over the last interval (V), shape (n,): what the
+        converter really applied (R·i + L·di/dt + E averaged; the EMF while no current
+        flows). In discontinuous conduction it differs from the commanded
+        :attr:`voltage`, which is U_d0·cos α."""
+        return self._column(L.S_VOUT)
+
+    @property
+    def conduction(self) -> np.ndarray:
+        """Fraction of the last interval during which armature current flowed, (n,)."""
+        return self._column(L.S_CONDUCT)
+
+    @property
+    def measured_current(self) -> np.ndarray:
+        """The current the current regulator last measured (A), (n,): the pulse mean for the
+        pulse-level model."""
+        return self._column(L.S_IMEAS)
 
     @property
     def fault(self) -> np.ndarray:
         """Latched overload trip (current reference at its limit > overload_time), (n,)."""
-        return self._state[:, K.S_FAULT] != 0.0
+        return self._state[:, L.S_FAULT] != 0.0
