@@ -4,10 +4,14 @@ and the figures of the response: rise time, overshoot, settling time, steady-sta
 the elastic mode seen in the screw deflection.
 
 The closed-loop experiment uses the controller's own encoder unwrapper and position regulator
-(with the machine's gains and DCU order) against the twin through ``SimDriver``, so it shows
-the loop the controller really closes — but with a raw step or ramp as the reference, which
-the planner would never produce. The screw deflection is sampled every drive interval (not
-every controller period), so elastic modes above the controller's Nyquist rate still show.
+(with the machine's gains and DCU order, derived from the controller's model of the machine)
+against the twin, with the controller's timing: the output computed from the sample of
+tick k reaches the drive at tick k + 1 (compute ahead, the one-period delay the gains and the
+DCU are derived for). So it shows the loop the controller really closes — but with a raw
+step or ramp as the reference, which the planner would never produce. Each record row holds
+what the regulator compared at its tick: the reference and the encoder position of the same
+sample. The screw deflection is sampled every drive interval (not every controller period),
+so elastic modes above the controller's Nyquist rate still show.
 """
 
 from __future__ import annotations
@@ -22,11 +26,15 @@ from twin.controller.controller import Controller
 from twin.controller.encoder import EncoderUnwrapper
 from twin.controller.regulator import PositionRegulator
 from twin.errors import ConfigError
-from twin.plant import Plant
-from twin.run import axis_models
+from twin.plant import FINE_FIELDS, Plant
+from twin.run import model_options
 from twin.telemetry.sink import NullSink, Sink
 
-__all__ = ["ExperimentResult", "dominant_frequency", "response_figures", "run_experiment"]
+__all__ = ["ExperimentResult", "converter_lines", "dominant_frequency", "response_figures",
+           "run_experiment"]
+
+FINE_FIELDS_INDEX = tuple((name, k) for k, (name, _) in enumerate(FINE_FIELDS))
+"""(field, index of its x column / 2) of the plant's drive-rate samples."""
 
 
 @dataclass(frozen=True)
@@ -78,13 +86,17 @@ class ExperimentResult:
                 "elastic_mode_hz": self.elastic_mode, "units": "µm or µm/s"}
 
 
-def dominant_frequency(t: np.ndarray, signal: np.ndarray, *, f_min: float = 8.0) -> float:
+def dominant_frequency(t: np.ndarray, signal: np.ndarray, *, f_min: float = 8.0,
+                       exclude: tuple[float, ...] = (), width: float = 5.0) -> float:
     """Frequency (Hz) of the largest spectral peak above ``f_min`` of a uniformly sampled
     signal's derivative (detrended), refined by parabolic interpolation of the
     log-magnitude.
 
     ``f_min`` keeps the slow position-loop response (a few Hz) out of the search; both
-    presets' first elastic modes (16 Hz belt, 90-160 Hz screws) lie well above it."""
+    presets' first elastic modes (16 Hz belt, 90-160 Hz screws) lie well above it. Lines of
+    a known forced excitation are left out within ``width`` (Hz) of each frequency in
+    ``exclude``: a thyristor converter's torque pulses at p·f_mains and its harmonics drive
+    the screw harder than the ringing of its mode, but they are not the mode."""
     dt = float(t[1] - t[0])
     x = np.diff(signal) / dt     # weights the spectrum by f: the slow loop response fades
     x = x - np.polyval(np.polyfit(t[1:], x, 1), t[1:])
@@ -93,12 +105,30 @@ def dominant_frequency(t: np.ndarray, signal: np.ndarray, *, f_min: float = 8.0)
     spec = np.abs(np.fft.rfft(x, n))
     freqs = np.fft.rfftfreq(n, dt)
     band = freqs >= f_min
+    for f in exclude:
+        band &= np.abs(freqs - f) > width
     k = int(np.argmax(np.where(band, spec, 0.0)))
     if 0 < k < len(spec) - 1:
         a, b, c = np.log(spec[k - 1:k + 2] + 1e-300)
         shift = 0.5 * (a - c) / (a - 2 * b + c) if (a - 2 * b + c) != 0 else 0.0
         return float((k + shift) * (freqs[1] - freqs[0]))
     return float(freqs[k])
+
+
+def converter_lines(cfg: MachineConfig, axis: str, dt: float) -> tuple[float, ...]:
+    """The frequencies (Hz) at which a pulse-level thyristor converter's torque pulses
+    (p·f_mains and its harmonics), folded into the band a sample interval ``dt`` (s)
+    resolves; none for a mean-value or PWM converter."""
+    conv = cfg.axes[axis].converter
+    if conv.kind != "thyristor" or conv.model != "pulse":
+        return ()
+    nyquist = 0.5 / dt
+    base = conv.pulse_number * conv.mains_frequency
+    lines = set()
+    for h in range(1, 64):
+        f = (h * base) % (2.0 * nyquist)
+        lines.add(round(min(f, 2.0 * nyquist - f), 9))
+    return tuple(sorted(lines))
 
 
 def response_figures(t: np.ndarray, response: np.ndarray, reference: np.ndarray, *,
@@ -127,12 +157,14 @@ def response_figures(t: np.ndarray, response: np.ndarray, reference: np.ndarray,
 
 def run_experiment(cfg: MachineConfig, *, kind: str, axis: str, amplitude: float,
                    duration: float = 1.0, open_loop: bool = False,
-                   sink: Sink | None = None) -> tuple[ExperimentResult, dict[str, np.ndarray]]:
+                   sink: Sink | None = None, belief: MachineConfig | None = None
+                   ) -> tuple[ExperimentResult, dict[str, np.ndarray]]:
     """Apply a step or ramp to one axis of the twin and measure the response.
 
     Parameters
     ----------
     cfg : MachineConfig
+        The machine (the plant, and the controller's settings).
     kind : {"step", "ramp"}
     axis : {"x", "y"}
     amplitude : float
@@ -144,13 +176,18 @@ def run_experiment(cfg: MachineConfig, *, kind: str, axis: str, amplitude: float
         Drive reference instead of the position loop.
     sink : Sink, optional
         Telemetry (scalars on ``axes/<axis>/...``).
+    belief : MachineConfig, optional
+        The controller's model of the machine (its gains and DCU come from it); default
+        ``cfg``.
 
     Returns
     -------
     (ExperimentResult, record)
-        ``record`` has ``t``, ``reference``, ``position``, ``velocity``, ``dac_volts``,
-        ``armature_current`` per controller period, and ``fine_t``, ``screw_deflection``
-        per drive interval (fine enough for the elastic mode), for the axis (SI).
+        ``record`` has, per controller tick, ``t`` (the sample instant), ``reference`` and
+        the encoder ``position`` the regulator compared then, the table's true
+        ``velocity``, the ``dac_volts`` written at that tick and the ``armature_current``;
+        and ``fine_t``, ``screw_deflection`` per drive interval (fine enough for the elastic
+        mode), for the axis (SI).
     """
     if kind not in ("step", "ramp"):
         raise ConfigError("kind", f"must be 'step' or 'ramp', got {kind!r}")
@@ -158,6 +195,8 @@ def run_experiment(cfg: MachineConfig, *, kind: str, axis: str, amplitude: float
         raise ConfigError("axis", f"must be one of {AXES}, got {axis!r}")
     if not (math.isfinite(amplitude) and amplitude != 0.0):
         raise ConfigError("amplitude", f"must be a non-zero number, got {amplitude!r}")
+    if not (math.isfinite(duration) and 0.0 < duration <= 600.0):
+        raise ConfigError("duration", f"must be a time in (0, 600] s, got {duration!r}")
     k = AXES.index(axis)
     period = cfg.controller.period
     plant = Plant.from_machine(cfg)
@@ -165,17 +204,17 @@ def run_experiment(cfg: MachineConfig, *, kind: str, axis: str, amplitude: float
     start = np.array([0.5 * (ax.switches.limit_min + ax.switches.limit_max)
                       for ax in cfg.axes.values()])
     plant.reset(positions=start)
-    ctrl = Controller.from_machine(cfg, None, axis_models=axis_models(cfg))
+    ctrl = Controller.from_machine(cfg, None, **model_options(belief or cfg))
     regulator = PositionRegulator(ctrl.gains, period)
     encoder = EncoderUnwrapper([a.counts_per_metre for a in cfg.axes.values()],
                                bits=[a.encoder.bits for a in cfg.axes.values()])
-    dt = plant.drive_dt
-    sub = round(period / dt)
     n = round(duration / period)
     rows = np.zeros((n, 6))
-    fine = np.zeros((n * sub, 2))          # (t, screw deflection) every drive interval
+    fine = []
+    held = np.zeros(2)   # the output computed last tick: written at this one
     dac = np.zeros(2)
     zero = (0.0, 0.0)
+    i_col = 2 * dict(FINE_FIELDS_INDEX)["screw_deflection"] + k
     encoder.reset(plant.read().encoder_counts, position=start.tolist())
     regulator.reset(start.tolist())
     for i in range(n):
@@ -185,26 +224,31 @@ def run_experiment(cfg: MachineConfig, *, kind: str, axis: str, amplitude: float
         if open_loop:
             dac[:] = 0.0
             dac[k] = reference = amplitude if kind == "step" else amplitude * t
+            measured = float(plant.truth().table_velocity[k])
         else:
             ref[k] += amplitude if kind == "step" else amplitude * t
             vel = [0.0, 0.0]
             vel[k] = 0.0 if kind == "step" else amplitude
             regulator.update(ref, vel, zero, zero, pos)
-            dac[:] = regulator.output
+            dac[:] = held
+            held[:] = regulator.output
             reference = ref[k] - start[k]
+            measured = float(pos[k]) - start[k]
         if not lo < ref[k] < hi:
             raise ConfigError("amplitude", f"the reference leaves the travel between the "
                               f"limit switches ({lo} … {hi} m)")
-        for j in range(sub):
-            plant.step(dac, dt)
-            fine[i * sub + j] = (plant.time, plant.truth().screw_deflection[k])
         tr = plant.truth()
-        rows[i] = (plant.time, reference, tr.table_position[k] - start[k],
-                   tr.table_velocity[k], dac[k], tr.armature_current[k])
+        rows[i] = (t, reference, measured, tr.table_velocity[k], dac[k],
+                   tr.armature_current[k])
+        t0 = plant.time
+        plant.step(dac, period)
+        f = plant.fine
+        fine.append(np.column_stack((t0 + plant.drive_dt * np.arange(1, len(f) + 1),
+                                     f[:, i_col])))
     plant.enable(False)
     rec = dict(zip(("t", "reference", "position", "velocity", "dac_volts",
                     "armature_current"), rows.T, strict=True))
-    rec["fine_t"], rec["screw_deflection"] = fine.T
+    rec["fine_t"], rec["screw_deflection"] = np.concatenate(fine).T
     response = rec["velocity"] if open_loop else rec["position"]
     if open_loop:  # the steady speed the drive should reach: U/K_C·r
         ratio = cfg.axes[axis].transmission.ratio / cfg.axes[axis].tacho.gain
@@ -212,7 +256,8 @@ def run_experiment(cfg: MachineConfig, *, kind: str, axis: str, amplitude: float
     else:
         ref_speed = rec["reference"]
     figs = response_figures(rec["t"], response, ref_speed, kind=kind)
-    mode = dominant_frequency(rec["fine_t"], rec["screw_deflection"])
+    mode = dominant_frequency(rec["fine_t"], rec["screw_deflection"],
+                              exclude=converter_lines(cfg, axis, plant.drive_dt))
     result = ExperimentResult(kind=kind, axis=axis, open_loop=open_loop,
                               amplitude=float(amplitude), elastic_mode=mode, **figs)
     if sink is not None and not isinstance(sink, NullSink):

@@ -122,7 +122,7 @@ class Plant:
         self._fine = self._samples
         self._passive = passive_parameters(config)
         self._has_passive = bool(np.any(self._passive))
-        self._drive_torque = np.zeros(2) if self._has_passive else self._torque
+        self._drive_torque = np.zeros(2)  # the drives' interval-average torque
         self._noise_block = np.zeros((1, *self.drives.kernel_arrays()[3].shape))
         self._encoder_offset = np.zeros(2, dtype=np.int64)
         self._cpr = self._counts_per_rad.tolist()          # scalar copies for read_into
@@ -230,7 +230,7 @@ class Plant:
         m, d, k, u, x = self.model, self.data, self._substeps, self._u, self._table_pos
         omega, theta, drives, extent = self._rotor_vel, self._rotor_pos, self.drives, self._extent
         t0 = d.time
-        params, state, tables, noise, log = drives.kernel_arrays()
+        params, state, tables, noise, log, sub = drives.kernel_arrays()
         if self._compiled:
             block = self._noise_block
             if drives.noisy:
@@ -238,7 +238,7 @@ class Plant:
             done, status = plant_loop.step_intervals(
                 *self._addresses, n, k, params, state, tables, u, block, log, drives.n_step,
                 drives.dt, drives.enabled, self._passive, self._has_passive,
-                self._drive_torque, self._torque, self._slide_force, x, self._table_vel,
+                self._drive_torque, sub, self._torque, self._slide_force, x, self._table_vel,
                 theta, omega, self._ratio, samples, extent)
             drives.advance(done)
             if status:
@@ -247,11 +247,10 @@ class Plant:
             mj_step = mujoco.mj_step
             for i in range(n):
                 drives.step_into(u, omega, self._drive_torque, theta)
-                for _ in range(k):
-                    if self._has_passive:
-                        plant_loop.passive_forces(
-                            self._passive, self._drive_torque, self._torque,
-                            self._slide_force, x, self._table_vel, theta, omega)
+                for s in range(k):
+                    plant_loop.apply_forces(self._passive, self._has_passive, sub, s,
+                                            self._torque, self._slide_force, x,
+                                            self._table_vel, theta, omega)
                     mj_step(m, d)
                 plant_loop.record_interval(i, state, x, theta, self._ratio, samples, extent)
         self._fine = samples

@@ -32,8 +32,8 @@ import numpy as np
 from twin.drive.kernel import drive_step
 from twin.drive.layout import S_CONDUCT, S_I, S_VOUT
 
-__all__ = ["NPASSIVE", "addresses", "available", "passive_forces", "record_interval",
-           "step_intervals"]
+__all__ = ["NPASSIVE", "addresses", "apply_forces", "available", "passive_forces",
+           "record_interval", "step_intervals"]
 
 NPASSIVE = 7
 """Columns of the per-axis passive-force parameters: slide break-away excess F_s − F_c (N),
@@ -65,6 +65,20 @@ _MJ_STEP = _load_mj_step()
 def available() -> bool:
     """True if the compiled loop can run (MuJoCo's shared library was found)."""
     return _MJ_STEP is not None
+
+
+@numba.njit(cache=True)
+def apply_forces(passive, has_passive, sub_torque, s, rotor_frc, slide_frc, table_pos,
+                 table_vel, rotor_pos, rotor_vel):
+    """Write the applied forces of physics step ``s`` of the interval: the drive's torque
+    over that step (``sub_torque[:, s]``) on the rotors, plus the passive forces MuJoCo
+    cannot give when the machine has any (:func:`passive_forces`)."""
+    if has_passive:
+        passive_forces(passive, sub_torque[:, s], rotor_frc, slide_frc, table_pos, table_vel,
+                       rotor_pos, rotor_vel)
+    else:
+        for k in range(rotor_frc.shape[0]):
+            rotor_frc[k] = sub_torque[k, s]
 
 
 @numba.njit(cache=True)
@@ -125,18 +139,18 @@ if _MJ_STEP is not None:
 
     @numba.njit
     def _intervals(m_addr, d_addr, n, substeps, params, state, tables, u, noise, log, n0,
-                   dt, enabled, passive, has_passive, drive_torque, rotor_frc, slide_frc,
-                   table_pos, table_vel, rotor_pos, rotor_vel, ratio, samples, extent):
+                   dt, enabled, passive, has_passive, torque, sub_torque, rotor_frc,
+                   slide_frc, table_pos, table_vel, rotor_pos, rotor_vel, ratio, samples,
+                   extent):
         for i in range(n):
             noise_i = noise[i] if noise.shape[0] > 1 else noise[0]
             status = drive_step(params, state, tables, u, rotor_vel, rotor_pos, noise_i, log,
-                                n0 + i, dt, enabled, drive_torque)
+                                n0 + i, dt, enabled, torque, sub_torque)
             if status != 0:
                 return i, status
-            for _ in range(substeps):
-                if has_passive:
-                    passive_forces(passive, drive_torque, rotor_frc, slide_frc, table_pos,
-                                   table_vel, rotor_pos, rotor_vel)
+            for s in range(substeps):
+                apply_forces(passive, has_passive, sub_torque, s, rotor_frc, slide_frc,
+                             table_pos, table_vel, rotor_pos, rotor_vel)
                 _c_mj_step(m_addr, d_addr)
             record_interval(i, state, table_pos, rotor_pos, ratio, samples, extent)
         return n, 0
@@ -151,20 +165,23 @@ def addresses(model: mujoco.MjModel, data: mujoco.MjData) -> tuple[int, int]:
 def step_intervals(m_addr: int, d_addr: int, n: int, substeps: int, params: np.ndarray,
                    state: np.ndarray, tables: np.ndarray, u: np.ndarray, noise: np.ndarray,
                    log: np.ndarray, n0: int, dt: float, enabled: bool, passive: np.ndarray,
-                   has_passive: bool, drive_torque: np.ndarray, rotor_frc: np.ndarray,
-                   slide_frc: np.ndarray, table_pos: np.ndarray, table_vel: np.ndarray,
-                   rotor_pos: np.ndarray, rotor_vel: np.ndarray, ratio: np.ndarray,
-                   samples: np.ndarray, extent: np.ndarray) -> tuple[int, int]:
-    """Run ``n`` drive intervals: drive kernel, then ``substeps`` × (passive forces,
+                   has_passive: bool, torque: np.ndarray, sub_torque: np.ndarray,
+                   rotor_frc: np.ndarray, slide_frc: np.ndarray, table_pos: np.ndarray,
+                   table_vel: np.ndarray, rotor_pos: np.ndarray, rotor_vel: np.ndarray,
+                   ratio: np.ndarray, samples: np.ndarray, extent: np.ndarray
+                   ) -> tuple[int, int]:
+    """Run ``n`` drive intervals: drive kernel, then ``substeps`` × (applied forces,
     ``mj_step``), and the drive-rate samples into ``samples[i]`` after each; ``extent``
     (4,) receives the lowest and highest table position of each axis.
 
     ``m_addr``, ``d_addr`` are :func:`addresses`; the ``*_frc``, ``*_pos`` and ``*_vel``
     arrays are views of the data. ``noise`` is (n, axes, m) standard normal samples (or one
-    (1, axes, m) block reused). Without passive forces (``has_passive`` False),
-    ``drive_torque`` must be ``rotor_frc`` itself. Returns (intervals done, kernel status): a
-    non-zero status stops before the interval it refers to, with nothing of it applied.
+    (1, axes, m) block reused). ``torque`` (axes,) and ``sub_torque`` (axes, substeps) are
+    the drive's outputs (interval and per-physics-step averages). Returns (intervals done,
+    kernel status): a non-zero status stops before the interval it refers to, with nothing
+    of it applied.
     """
     return _intervals(m_addr, d_addr, n, substeps, params, state, tables, u, noise, log, n0,
-                      dt, enabled, passive, has_passive, drive_torque, rotor_frc, slide_frc,
-                      table_pos, table_vel, rotor_pos, rotor_vel, ratio, samples, extent)
+                      dt, enabled, passive, has_passive, torque, sub_torque, rotor_frc,
+                      slide_frc, table_pos, table_vel, rotor_pos, rotor_vel, ratio, samples,
+                      extent)

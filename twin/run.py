@@ -24,7 +24,7 @@ from typing import Any
 
 import numpy as np
 
-from twin.config import AXES, MachineConfig, load_machine
+from twin.config import AXES, MachineConfig, load_machine, machine_identity
 from twin.controller.controller import Controller, ControllerStatus
 from twin.controller.gcode import parse
 from twin.controller.library import build_program, program_path
@@ -45,8 +45,8 @@ from twin.runrecord import (
 from twin.telemetry.channels import TelemetryWriter
 from twin.telemetry.sink import Sink
 
-__all__ = ["Prepared", "RunResult", "RunSpec", "axis_models", "load_program", "prepare", "run",
-           "run_summary", "write_json_atomic"]
+__all__ = ["Prepared", "RunResult", "RunSpec", "axis_models", "load_program", "model_options",
+           "prepare", "run", "run_summary", "write_json_atomic"]
 
 
 @dataclass(frozen=True)
@@ -56,7 +56,13 @@ class RunSpec:
     Attributes
     ----------
     machine : str
-        Preset name or TOML path.
+        Preset name or TOML path: the plant (the physics the twin runs), and the machine's
+        controller settings and I/O.
+    controller_model : str or None
+        Preset name or TOML path of the machine *as the controller believes it to be*: every
+        model-based setting (position gain, DCU α1..α3, feed-forward, corner model, speed-loop
+        model) is derived from its axes. None: the machine itself. ``overrides`` do not apply
+        to it (they are the plant's and the controller's settings).
     program : str or None
         G-code file; None runs the built-in program ``builtin``.
     builtin : str
@@ -90,6 +96,7 @@ class RunSpec:
     """
 
     machine: str = "tomsk_xy"
+    controller_model: str | None = None
     program: str | None = None
     builtin: str = "default"
     profile: str | None = None
@@ -117,6 +124,13 @@ class RunSpec:
         if self.dcu_order is not None:
             sets["controller.regulator.dcu_order"] = self.dcu_order
         return load_machine(self.machine).with_overrides(sets)
+
+    def belief(self, cfg: MachineConfig | None = None) -> MachineConfig:
+        """The controller's model of the machine: ``controller_model``, or the machine
+        itself (``cfg``, the overridden machine, when given)."""
+        if self.controller_model is not None:
+            return load_machine(self.controller_model)
+        return cfg if cfg is not None else self.machine_config()
 
     def to_dict(self) -> dict[str, Any]:
         """Plain dict for the run record."""
@@ -153,6 +167,12 @@ def axis_models(cfg: MachineConfig) -> list[LinearAxisModel]:
     return [LinearAxisModel(*axis_transfer_function(cfg.axes[a])) for a in AXES]
 
 
+def model_options(belief: MachineConfig) -> dict[str, Any]:
+    """What a ``Controller`` derives its model-based settings from: the axis models and the
+    axes of the machine it believes it runs (``RunSpec.belief``)."""
+    return {"axis_models": axis_models(belief), "model_axes": belief.axes}
+
+
 def load_program(spec: RunSpec, cfg: MachineConfig, start: np.ndarray) -> list[Any]:
     """Parse the G-code file (``GCodeError`` with line and column before any motion) or
     build the built-in program from ``start``."""
@@ -176,12 +196,15 @@ class Prepared:
     plant: Plant | None
     controller: Controller
     driver: Any
+    belief: MachineConfig | None = None
+    """The controller's model of the machine (None: ``cfg`` itself)."""
 
 
 def prepare(spec: RunSpec) -> Prepared:
     """Load the machine, the program and the machine's I/O (the twin, or a driver URL); build
     the controller (checks the program against the work zone before any motion)."""
     cfg = spec.machine_config()
+    belief = spec.belief(cfg)
     plant = None
     if spec.driver == "sim":
         plant = Plant.from_machine(cfg)
@@ -195,12 +218,12 @@ def prepare(spec: RunSpec) -> Prepared:
         start = _measured_position(driver.read().encoder_counts, cfg)
     try:
         items = load_program(spec, cfg, start)
-        controller = Controller.from_machine(cfg, items or None, axis_models=axis_models(cfg),
+        controller = Controller.from_machine(cfg, items or None, **model_options(belief),
                                              mode=spec.mode, start=start)
     except BaseException:
         driver.close()
         raise
-    return Prepared(cfg, items, program_path(items), plant, controller, driver)
+    return Prepared(cfg, items, program_path(items), plant, controller, driver, belief)
 
 
 def _measured_position(counts: np.ndarray, cfg: MachineConfig) -> np.ndarray:
@@ -381,7 +404,10 @@ class _Loop:
         stats = self.stats or TickStats.lockstep(self.period, self.ticks)
         summary: dict[str, Any] = {"run_id": run_id, "status": ctrl.status.name,
                                    "aborted": aborted, "machine": p.cfg.name,
-                                   "driver": spec.driver}
+                                   "controller_model": (p.belief or p.cfg).name,
+                                   "driver": spec.driver,
+                                   "machine_file": machine_identity(p.cfg),
+                                   "controller_model_file": machine_identity(p.belief or p.cfg)}
         summary.update(run_summary(rec, p.path))
         summary.update({
             "sim_time_s": sim_time,
@@ -393,6 +419,8 @@ class _Loop:
             "spec": spec.to_dict(),
             "config": dataclasses.asdict(p.cfg),
         })
+        if p.belief is not None and p.belief is not p.cfg:
+            summary["controller_model_config"] = dataclasses.asdict(p.belief)
         if ctrl.error is not None:
             summary["error"] = str(ctrl.error)
         write_json_atomic(out / f"{run_id}.json", summary)

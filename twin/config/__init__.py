@@ -15,9 +15,12 @@ Typical use::
 from twin.config.loader import (
     MACHINES_DIR,
     available_machines,
+    diff_machines,
+    flatten,
     from_dict,
     load_machine,
     machine_from_toml_dict,
+    machine_identity,
 )
 from twin.config.schema import (
     AXES,
@@ -59,7 +62,10 @@ __all__ = [
     "TimingConfig",
     "TransmissionConfig",
     "available_machines",
+    "diff_machines",
+    "flatten",
     "from_dict",
     "load_machine",
     "machine_from_toml_dict",
+    "machine_identity",
 ]

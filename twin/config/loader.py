@@ -9,6 +9,8 @@ from __future__ import annotations
 
 import copy
 import dataclasses
+import hashlib
+import json
 import math
 import tomllib
 import types
@@ -19,8 +21,8 @@ from typing import Any
 from twin.config.schema import AXES, MachineConfig
 from twin.errors import ConfigError
 
-__all__ = ["MACHINES_DIR", "available_machines", "from_dict", "load_machine",
-           "machine_from_toml_dict"]
+__all__ = ["MACHINES_DIR", "available_machines", "diff_machines", "flatten", "from_dict",
+           "load_machine", "machine_from_toml_dict", "machine_identity"]
 
 MACHINES_DIR = Path(__file__).resolve().parent.parent / "machines"
 
@@ -194,3 +196,40 @@ def machine_from_toml_dict(doc: dict[str, Any], *, source: str = "<dict>") -> Ma
         **doc,
     }
     return _build(raw, source)
+
+
+def flatten(cfg: MachineConfig) -> dict[str, Any]:
+    """Every leaf of a machine as ``{dotted path: value}`` (tuples as lists), in field order."""
+    out: dict[str, Any] = {}
+
+    def walk(node: Any, prefix: str) -> None:
+        if isinstance(node, dict) and node:
+            for k, v in node.items():
+                walk(v, f"{prefix}.{k}" if prefix else str(k))
+        else:
+            out[prefix] = node
+
+    walk(_to_raw(cfg), "")
+    return out
+
+
+def machine_identity(cfg: MachineConfig) -> dict[str, Any]:
+    """Name, file and hashes of a machine, for a run record: ``file_sha256`` of the TOML file
+    it was loaded from (None for a config built in memory), ``config_sha256`` of the
+    effective configuration (overrides included; canonical JSON)."""
+    path = Path(cfg.source) if cfg.source and not cfg.source.startswith("<") else None
+    file_hash = (hashlib.sha256(path.read_bytes()).hexdigest()
+                 if path is not None and path.is_file() else None)
+    canonical = json.dumps(_to_raw(cfg), sort_keys=True, separators=(",", ":"),
+                           default=str).encode()
+    return {"name": cfg.name, "file": str(path) if path else None, "file_sha256": file_hash,
+            "config_sha256": hashlib.sha256(canonical).hexdigest()}
+
+
+def diff_machines(a: MachineConfig, b: MachineConfig) -> list[tuple[str, Any, Any]]:
+    """Where two machines differ: ``(dotted path, value in a, value in b)`` for every leaf
+    that differs or exists in one only (None for the missing side), in field order."""
+    fa, fb = flatten(a), flatten(b)
+    keys = list(fa) + [k for k in fb if k not in fa]
+    return [(k, fa.get(k), fb.get(k)) for k in keys
+            if k not in ("name", "description") and fa.get(k) != fb.get(k)]

@@ -129,7 +129,12 @@ class Controller:
         axis models (``loop_defaults.loop_gains``).
     axis_models : sequence of 2 LinearAxisModel, optional
         Reference (V) → position (m) models for the gain rules and the DCU; default
-        ``loop_defaults.estimated_axis_model`` of each axis.
+        ``loop_defaults.estimated_axis_model`` of each of ``model_axes``.
+    model_axes : mapping of "x", "y" to AxisConfig, optional
+        The axes as the controller believes them to be (its model of the machine: the
+        mechanics for the corner model, the drives for the default axis models); default
+        ``axes``, the machine itself. ``axes`` stays the machine's I/O (encoder, DAC,
+        switches, travel, limits).
     profile : str, optional
         Acceleration law; default ``settings.profile``.
     planner : str, optional
@@ -164,6 +169,7 @@ class Controller:
     def __init__(self, settings: ControllerSettings, axes: Mapping[str, AxisConfig],
                  program: Iterable[Any] | None, *, gains: RegulatorGains | None = None,
                  axis_models: Sequence[LinearAxisModel] | None = None,
+                 model_axes: Mapping[str, AxisConfig] | None = None,
                  profile: str | None = None, planner: str | None = None,
                  dcu_order: int | None = None, mode: str = "extended",
                  corner_model: CornerModel | None = None, lookahead: int | None = None,
@@ -180,15 +186,18 @@ class Controller:
         self.settle_time = float(settle_time)
         self._in_position = settings.in_position_tolerance
         self._settle_timeout = max(settings.settle_timeout, self.settle_time)
+        believed = axes if model_axes is None else model_axes
+        if sorted(believed) != sorted(AXES):
+            raise ConfigError("model_axes", f"must be {AXES}, got {tuple(believed)}")
         models = list(axis_models) if axis_models is not None else [
-            estimated_axis_model(ax) for ax in self.axes]
+            estimated_axis_model(believed[a]) for a in AXES]
         if gains is None:
             order = settings.regulator.dcu_order if dcu_order is None else dcu_order
             gains = loop_gains(settings, self.axes, models, order)
         self.gains = gains
         if corner_model is None:
             corner_model = SeedCornerModel.from_axes(
-                axes, servo_time_constant=servo_lag(gains, models, self.period))
+                believed, servo_time_constant=servo_lag(gains, models, self.period))
         options: dict[str, Any] = {"law": profile or settings.profile,
                                    "mode": planner or settings.planner,
                                    "lookahead": lookahead or settings.lookahead,

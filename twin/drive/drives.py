@@ -138,6 +138,9 @@ class Drives:
     firing_log : int, optional
         Keep the first ``firing_log`` firings of each axis (pulse-level model):
         :meth:`firings`. Default 0.
+    sub_steps : int, optional
+        Sub-steps of each interval over which the torque is also averaged
+        (:attr:`sub_torque`: the plant's physics steps). Default 1.
 
     Raises
     ------
@@ -155,7 +158,7 @@ class Drives:
                  moving_masses: Sequence[float] | None = None,
                  emf_compensation: bool = True, overload_time: float = 1.0,
                  extrapolate_speed: bool = True, names: Sequence[str] | None = None,
-                 firing_log: int = 0):
+                 firing_log: int = 0, sub_steps: int = 1):
         axes = list(axes)
         if not axes:
             raise ConfigError("axes", "need at least one axis")
@@ -186,6 +189,9 @@ class Drives:
         self._noise = np.zeros((n, firings))
         self._log = np.zeros((n, max(int(firing_log), 0), L.NLOG))
         self._theta = np.zeros(n)
+        if not (isinstance(sub_steps, int) and sub_steps >= 1):
+            raise ConfigError("sub_steps", f"must be an integer >= 1, got {sub_steps!r}")
+        self._sub = np.zeros((n, sub_steps))
         self._state = L.empty_state(n)
         self._n_step = 0
         self._enabled = True
@@ -202,6 +208,7 @@ class Drives:
         if dt is None:
             dt = machine.simulation.timestep * machine.simulation.drive_substeps
         masses = moving_masses(machine)
+        options.setdefault("sub_steps", machine.simulation.drive_substeps)
         return cls([machine.axes[a] for a in AXES], dt,
                    moving_masses=[masses[a] for a in AXES], **options)
 
@@ -256,7 +263,7 @@ class Drives:
         tau = np.empty(n)
         status = K.drive_step(self._params, self._state, self._tables, u, w, self._theta,
                               self._noise, self._log, self._n_step, self.dt, self._enabled,
-                              tau)
+                              tau, self._sub)
         if status:
             code, axis = divmod(status, 1000)
             value = {K.STATUS_NONFINITE_UREF: u, K.STATUS_NONFINITE_OMEGA: w}.get(code)
@@ -278,18 +285,24 @@ class Drives:
             self._noise[:] = self._rng.standard_normal(self._noise.shape)
         status = K.drive_step(self._params, self._state, self._tables, u_ref, omega, theta,
                               self._noise, self._log, self._n_step, self.dt, self._enabled,
-                              torque)
+                              torque, self._sub)
         if status:
             self.step(u_ref, omega, theta)  # the checked path raises the named error
         self._n_step += 1
 
     def kernel_arrays(self) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray,
-                                     np.ndarray]:
-        """(params, state, tables, noise, log): the live arrays ``kernel.drive_step`` works
-        on, for a caller that runs the kernel itself in a compiled loop
-        (``twin.plant_loop``). Such a caller must count the intervals it ran with
-        :meth:`advance`."""
-        return self._params, self._state, self._tables, self._noise, self._log
+                                     np.ndarray, np.ndarray]:
+        """(params, state, tables, noise, log, sub_torque): the live arrays
+        ``kernel.drive_step`` works on, for a caller that runs the kernel itself in a
+        compiled loop (``twin.plant_loop``). Such a caller must count the intervals it ran
+        with :meth:`advance`."""
+        return self._params, self._state, self._tables, self._noise, self._log, self._sub
+
+    @property
+    def sub_torque(self) -> np.ndarray:
+        """Average torque over each sub-step of the last interval (N·m), shape (n, m): a
+        view, valid until the next step."""
+        return self._sub
 
     def firings(self) -> list[np.ndarray]:
         """The firing log of each axis (pulse-level model; ``firing_log`` entries at most):

@@ -168,9 +168,14 @@ def _fire_mean(pa, st, t, active, tacho):
 
 
 @numba.njit(cache=True)
-def _advance_mean(pa, st, t0, t_end, w0, slope, theta0, active, u_in, sigma, noise_row):
-    """Advance one axis with the mean-value converter over [t0, t_end]; returns ∫i dt."""
+def _advance_mean(pa, st, t0, t_end, w0, slope, theta0, active, u_in, sigma, noise_row,
+                  bins):
+    """Advance one axis with the mean-value converter over [t0, t_end]; returns ∫i dt and
+    adds each sub-step's share to ``bins`` (m equal sub-steps of the interval)."""
     t_p = pa[P_TP]
+    m = bins.shape[0]
+    bin_w = (t_end - t0) / m
+    k_bin = 0
     k_noise = 0
     charge = 0.0
     on = 0.0
@@ -183,7 +188,10 @@ def _advance_mean(pa, st, t0, t_end, w0, slope, theta0, active, u_in, sigma, noi
             _fire_mean(pa, st, t, active, tacho)
             st[S_FIRE] += 1.0
             continue
-        seg_end = t_fire if t_fire < t_end - _EPS else t_end
+        t_bin = t0 + (k_bin + 1) * bin_w
+        seg_end = min(t_fire, t_bin) if k_bin < m - 1 else t_fire
+        if seg_end >= t_end - _EPS:
+            seg_end = t_end
         h = seg_end - t
         s = t - t0
         w_t = w0 + slope * s
@@ -193,18 +201,21 @@ def _advance_mean(pa, st, t0, t_end, w0, slope, theta0, active, u_in, sigma, noi
             st[S_I], q = armature_segment(st[S_I], st[S_V], pa[P_K] * w_t, pa[P_K] * slope,
                                           pa[P_R], pa[P_TA], h, st[S_DIR])
             charge += q
+            bins[k_bin] += q
             if q != 0.0:
                 on += h
         t = seg_end
         if seg_end == t_end:
             break
+        if k_bin < m - 1 and seg_end >= t_bin - _EPS:
+            k_bin += 1
     st[S_CONDUCT] = on / (t_end - t0)
     return charge
 
 
 @numba.njit(cache=True)
 def drive_step(params, state, tables, u_ref, omega, theta, noise, log, n_step, dt, enabled,
-               torque):
+               torque, sub_torque):
     """Advance every axis drive over [n_step·dt, (n_step + 1)·dt].
 
     Parameters
@@ -236,6 +247,10 @@ def drive_step(params, state, tables, u_ref, omega, theta, noise, log, n_step, d
         The drive enable input.
     torque : ndarray, shape (n,)
         Output: average motor torque over the interval (N·m), also kept in the state.
+    sub_torque : ndarray, shape (n, m)
+        Output: average motor torque over each of m equal sub-steps of the interval (N·m):
+        what the mechanics' m physics steps get (the pulse-level converter's torque comes
+        in pulses, which one interval average would alias).
 
     Returns
     -------
@@ -265,11 +280,17 @@ def drive_step(params, state, tables, u_ref, omega, theta, noise, log, n_step, d
         u_in = u_ref[a] if active else 0.0
         th = theta[a] if math.isfinite(theta[a]) else 0.0
         i_start = st[S_I]
+        bins = sub_torque[a]
+        bins[:] = 0.0
         if pa[P_MODEL] != 0.0:
             q = advance_pulse(pa, st, tables[a], t0, t_end, w, slope, th, active, u_in,
-                              sigma, noise[a], log[a], scratch)
+                              sigma, noise[a], log[a], scratch, bins)
         else:
-            q = _advance_mean(pa, st, t0, t_end, w, slope, th, active, u_in, sigma, noise[a])
+            q = _advance_mean(pa, st, t0, t_end, w, slope, th, active, u_in, sigma, noise[a],
+                              bins)
+        scale = pa[P_K] * bins.shape[0] / dt
+        for j in range(bins.shape[0]):
+            bins[j] *= scale
         # mean motor terminal voltage over the interval: R·i + L·di/dt + E integrated (it is
         # the EMF while no current flows), exact for both models
         st[S_VOUT] = ((pa[P_R] * q + pa[P_L] * (st[S_I] - i_start)) / dt

@@ -272,10 +272,12 @@ def _sample(pa, st, table, t, active, tacho, log_row):
 
 
 @numba.njit(cache=True)
-def _conduct(pa, st, p, t, h, e0, e1):
+def _conduct(pa, st, p, t, h, e0, e1, bins, s0, bin_w):
     """Armature over [t, t + h] with the gate pulses on: returns (time advanced, charge in
     the motor's sense, conducting time). Stops early at an ignition, an extinction or the
-    end of an overlap (the state then describes that instant)."""
+    end of an overlap (the state then describes that instant). The charge is also added to
+    ``bins`` (the interval's sub-steps of width ``bin_w``; the piece starts ``s0`` into the
+    interval), split exactly at their boundaries."""
     b = st[S_BRIDGE]
     j0 = b * st[S_I]
     pair = st[S_PAIR]
@@ -313,6 +315,16 @@ def _conduct(pa, st, p, t, h, e0, e1):
         hh = math.sin(0.5 * wt)
         st[S_OVL_D] += (dc * math.sin(wt) + ds * 2.0 * hh * hh) / w
     q = charge(t_end, j0, pc, ps, a, bb, tau, w)
+    # the charge of each sub-step the piece spans, from the closed form at their boundaries
+    m = bins.shape[0]
+    k = min(int(s0 / bin_w), m - 1)
+    q_done = 0.0
+    while k < m - 1 and (k + 1) * bin_w < s0 + t_end:
+        q_k = charge((k + 1) * bin_w - s0, j0, pc, ps, a, bb, tau, w)
+        bins[k] += b * max(q_k - q_done, 0.0)
+        q_done = q_k
+        k += 1
+    bins[k] += b * max(q - q_done, 0.0)
     if event == 1:
         st[S_I] = 0.0
         st[S_ZERO] = 1.0
@@ -326,10 +338,12 @@ def _conduct(pa, st, p, t, h, e0, e1):
 
 @numba.njit(cache=True)
 def advance_pulse(pa, st, table, t0, t_end, w0, slope, theta0, active, u_in, sigma,
-                  noise_row, log_row, p):
+                  noise_row, log_row, p, bins):
     """Advance one axis with the pulse-level converter over [t0, t_end]; returns the charge
-    ∫i dt (A·s). ``p`` is a 12-element scratch array for the root finder."""
+    ∫i dt (A·s) and adds each sub-step's share to ``bins`` (m equal sub-steps of the
+    interval). ``p`` is a 12-element scratch array for the root finder."""
     t = t0
+    bin_w = (t_end - t0) / bins.shape[0]
     q_total = 0.0
     k_noise = 0
     zero_events = 0
@@ -353,7 +367,7 @@ def advance_pulse(pa, st, table, t0, t_end, w0, slope, theta0, active, u_in, sig
         e0 = pa[P_K] * w_t
         e1 = pa[P_K] * slope
         if st[S_BRIDGE] != 0.0 and st[S_PULSE] != 0.0:
-            done, q, on = _conduct(pa, st, p, t, h, e0, e1)
+            done, q, on = _conduct(pa, st, p, t, h, e0, e1, bins, s, bin_w)
         else:
             done, q, on = h, 0.0, 0.0
         if done <= 0.0:

@@ -1,0 +1,48 @@
+"""``twin experiment``: the record pairs what the regulator compared, the loop has the
+controller's one-period delay, and the elastic mode is found beside the converter's pulses."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+
+from twin.config import load_machine
+from twin.controller.controller import Controller
+from twin.drive import velocity_gain
+from twin.experiments import run_experiment
+from twin.model import axis_mechanics
+from twin.run import model_options
+
+CFG = load_machine("tomsk_xy")
+
+
+def test_a_closed_loop_ramp_lags_by_v_over_kv():
+    v = 5e-3
+    result, rec = run_experiment(CFG, kind="ramp", axis="x", amplitude=v, duration=1.5)
+    gains = Controller.from_machine(CFG, None, **model_options(CFG)).gains
+    kp = gains.kp[0] if isinstance(gains.kp, tuple) else gains.kp
+    k_v = kp * velocity_gain(CFG.axes["x"])
+    # reference and position of the same tick: the lag of a type-1 loop, V/K_v (to within
+    # one encoder count, 0.2 µm); pairing the next tick's position would read V·T less
+    lag = rec["reference"][-50:] - rec["position"][-50:]
+    assert np.mean(lag) == pytest.approx(v / k_v, abs=0.3e-6)
+    assert result.steady_state_error == pytest.approx(v / k_v, abs=0.3e-6)
+    assert abs(v * CFG.controller.period) > 10e-6  # the V·T the old pairing lost
+
+
+def test_the_output_reaches_the_drive_one_period_after_its_sample():
+    _, rec = run_experiment(CFG, kind="step", axis="y", amplitude=0.5e-3, duration=0.2)
+    dac = rec["dac_volts"]
+    assert dac[0] == 0.0  # nothing computed before the first sample
+    assert dac[1] != 0.0  # the first sample's output, written at the second tick
+
+
+@pytest.mark.parametrize("axis", ["x", "y"])
+def test_the_elastic_mode_is_found_beside_the_converter_pulses(axis):
+    result, _ = run_experiment(CFG, kind="step", axis=axis, amplitude=1.0, duration=1.0,
+                               open_loop=True)
+    mech = axis_mechanics(CFG, axis)
+    expected = mech.locked_rotor_frequency / (2 * math.pi)
+    assert result.elastic_mode == pytest.approx(expected, rel=0.03)
