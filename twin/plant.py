@@ -230,7 +230,7 @@ class Plant:
         m, d, k, u, x = self.model, self.data, self._substeps, self._u, self._table_pos
         omega, theta, drives, extent = self._rotor_vel, self._rotor_pos, self.drives, self._extent
         t0 = d.time
-        params, state, tables, noise, log, sub = drives.kernel_arrays()
+        params, state, tables, noise, log, sub, scratch = drives.kernel_arrays()
         if self._compiled:
             block = self._noise_block
             if drives.noisy:
@@ -238,7 +238,8 @@ class Plant:
             done, status = plant_loop.step_intervals(
                 *self._addresses, n, k, params, state, tables, u, block, log, drives.n_step,
                 drives.dt, drives.enabled, self._passive, self._has_passive,
-                self._drive_torque, sub, self._torque, self._slide_force, x, self._table_vel,
+                self._drive_torque, sub, scratch, self._torque, self._slide_force, x,
+                self._table_vel,
                 theta, omega, self._ratio, samples, extent)
             drives.advance(done)
             if status:

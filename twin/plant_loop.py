@@ -139,13 +139,13 @@ if _MJ_STEP is not None:
 
     @numba.njit
     def _intervals(m_addr, d_addr, n, substeps, params, state, tables, u, noise, log, n0,
-                   dt, enabled, passive, has_passive, torque, sub_torque, rotor_frc,
+                   dt, enabled, passive, has_passive, torque, sub_torque, scratch, rotor_frc,
                    slide_frc, table_pos, table_vel, rotor_pos, rotor_vel, ratio, samples,
                    extent):
         for i in range(n):
             noise_i = noise[i] if noise.shape[0] > 1 else noise[0]
             status = drive_step(params, state, tables, u, rotor_vel, rotor_pos, noise_i, log,
-                                n0 + i, dt, enabled, torque, sub_torque)
+                                n0 + i, dt, enabled, torque, sub_torque, scratch)
             if status != 0:
                 return i, status
             for s in range(substeps):
@@ -166,8 +166,9 @@ def step_intervals(m_addr: int, d_addr: int, n: int, substeps: int, params: np.n
                    state: np.ndarray, tables: np.ndarray, u: np.ndarray, noise: np.ndarray,
                    log: np.ndarray, n0: int, dt: float, enabled: bool, passive: np.ndarray,
                    has_passive: bool, torque: np.ndarray, sub_torque: np.ndarray,
-                   rotor_frc: np.ndarray, slide_frc: np.ndarray, table_pos: np.ndarray,
-                   table_vel: np.ndarray, rotor_pos: np.ndarray, rotor_vel: np.ndarray,
+                   scratch: np.ndarray, rotor_frc: np.ndarray, slide_frc: np.ndarray,
+                   table_pos: np.ndarray, table_vel: np.ndarray, rotor_pos: np.ndarray,
+                   rotor_vel: np.ndarray,
                    ratio: np.ndarray, samples: np.ndarray, extent: np.ndarray
                    ) -> tuple[int, int]:
     """Run ``n`` drive intervals: drive kernel, then ``substeps`` × (applied forces,
@@ -177,11 +178,12 @@ def step_intervals(m_addr: int, d_addr: int, n: int, substeps: int, params: np.n
     ``m_addr``, ``d_addr`` are :func:`addresses`; the ``*_frc``, ``*_pos`` and ``*_vel``
     arrays are views of the data. ``noise`` is (n, axes, m) standard normal samples (or one
     (1, axes, m) block reused). ``torque`` (axes,) and ``sub_torque`` (axes, substeps) are
-    the drive's outputs (interval and per-physics-step averages). Returns (intervals done,
+    the drive's outputs (interval and per-physics-step averages), ``scratch`` its work
+    space. Returns (intervals done,
     kernel status): a non-zero status stops before the interval it refers to, with nothing
     of it applied.
     """
     return _intervals(m_addr, d_addr, n, substeps, params, state, tables, u, noise, log, n0,
-                      dt, enabled, passive, has_passive, torque, sub_torque, rotor_frc,
-                      slide_frc, table_pos, table_vel, rotor_pos, rotor_vel, ratio, samples,
-                      extent)
+                      dt, enabled, passive, has_passive, torque, sub_torque, scratch,
+                      rotor_frc, slide_frc, table_pos, table_vel, rotor_pos, rotor_vel, ratio,
+                      samples, extent)

@@ -192,6 +192,7 @@ class Drives:
         if not (isinstance(sub_steps, int) and sub_steps >= 1):
             raise ConfigError("sub_steps", f"must be an integer >= 1, got {sub_steps!r}")
         self._sub = np.zeros((n, sub_steps))
+        self._scratch = np.zeros(12)
         self._state = L.empty_state(n)
         self._n_step = 0
         self._enabled = True
@@ -263,7 +264,7 @@ class Drives:
         tau = np.empty(n)
         status = K.drive_step(self._params, self._state, self._tables, u, w, self._theta,
                               self._noise, self._log, self._n_step, self.dt, self._enabled,
-                              tau, self._sub)
+                              tau, self._sub, self._scratch)
         if status:
             code, axis = divmod(status, 1000)
             value = {K.STATUS_NONFINITE_UREF: u, K.STATUS_NONFINITE_OMEGA: w}.get(code)
@@ -285,18 +286,18 @@ class Drives:
             self._noise[:] = self._rng.standard_normal(self._noise.shape)
         status = K.drive_step(self._params, self._state, self._tables, u_ref, omega, theta,
                               self._noise, self._log, self._n_step, self.dt, self._enabled,
-                              torque, self._sub)
+                              torque, self._sub, self._scratch)
         if status:
             self.step(u_ref, omega, theta)  # the checked path raises the named error
         self._n_step += 1
 
-    def kernel_arrays(self) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray,
-                                     np.ndarray, np.ndarray]:
-        """(params, state, tables, noise, log, sub_torque): the live arrays
+    def kernel_arrays(self) -> tuple[np.ndarray, ...]:
+        """(params, state, tables, noise, log, sub_torque, scratch): the live arrays
         ``kernel.drive_step`` works on, for a caller that runs the kernel itself in a
         compiled loop (``twin.plant_loop``). Such a caller must count the intervals it ran
         with :meth:`advance`."""
-        return self._params, self._state, self._tables, self._noise, self._log, self._sub
+        return (self._params, self._state, self._tables, self._noise, self._log, self._sub,
+                self._scratch)
 
     @property
     def sub_torque(self) -> np.ndarray:

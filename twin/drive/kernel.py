@@ -29,7 +29,6 @@ from __future__ import annotations
 import math
 
 import numba
-import numpy as np
 
 from twin.drive.armature import armature_segment
 from twin.drive.layout import (
@@ -171,11 +170,10 @@ def _fire_mean(pa, st, t, active, tacho):
 def _advance_mean(pa, st, t0, t_end, w0, slope, theta0, active, u_in, sigma, noise_row,
                   bins):
     """Advance one axis with the mean-value converter over [t0, t_end]; returns ∫i dt and
-    adds each sub-step's share to ``bins`` (m equal sub-steps of the interval)."""
+    gives every sub-step in ``bins`` the interval's average: the mean voltage is held over
+    whole firing periods and the current changes smoothly with T_a, so the interval average
+    is what the mechanics needs (and splitting at the sub-steps would only cost time)."""
     t_p = pa[P_TP]
-    m = bins.shape[0]
-    bin_w = (t_end - t0) / m
-    k_bin = 0
     k_noise = 0
     charge = 0.0
     on = 0.0
@@ -188,10 +186,7 @@ def _advance_mean(pa, st, t0, t_end, w0, slope, theta0, active, u_in, sigma, noi
             _fire_mean(pa, st, t, active, tacho)
             st[S_FIRE] += 1.0
             continue
-        t_bin = t0 + (k_bin + 1) * bin_w
-        seg_end = min(t_fire, t_bin) if k_bin < m - 1 else t_fire
-        if seg_end >= t_end - _EPS:
-            seg_end = t_end
+        seg_end = t_fire if t_fire < t_end - _EPS else t_end
         h = seg_end - t
         s = t - t0
         w_t = w0 + slope * s
@@ -201,21 +196,21 @@ def _advance_mean(pa, st, t0, t_end, w0, slope, theta0, active, u_in, sigma, noi
             st[S_I], q = armature_segment(st[S_I], st[S_V], pa[P_K] * w_t, pa[P_K] * slope,
                                           pa[P_R], pa[P_TA], h, st[S_DIR])
             charge += q
-            bins[k_bin] += q
             if q != 0.0:
                 on += h
         t = seg_end
         if seg_end == t_end:
             break
-        if k_bin < m - 1 and seg_end >= t_bin - _EPS:
-            k_bin += 1
     st[S_CONDUCT] = on / (t_end - t0)
+    share = charge / bins.shape[0]
+    for j in range(bins.shape[0]):
+        bins[j] = share
     return charge
 
 
 @numba.njit(cache=True)
 def drive_step(params, state, tables, u_ref, omega, theta, noise, log, n_step, dt, enabled,
-               torque, sub_torque):
+               torque, sub_torque, scratch):
     """Advance every axis drive over [n_step·dt, (n_step + 1)·dt].
 
     Parameters
@@ -251,6 +246,8 @@ def drive_step(params, state, tables, u_ref, omega, theta, noise, log, n_step, d
         Output: average motor torque over each of m equal sub-steps of the interval (N·m):
         what the mechanics' m physics steps get (the pulse-level converter's torque comes
         in pulses, which one interval average would alias).
+    scratch : ndarray, shape (12,)
+        Work space of the root finder (no allocation per call).
 
     Returns
     -------
@@ -266,7 +263,6 @@ def drive_step(params, state, tables, u_ref, omega, theta, noise, log, n_step, d
             return 1000 * STATUS_NONFINITE_OMEGA + a
     t0 = n_step * dt
     t_end = (n_step + 1) * dt
-    scratch = np.zeros(12)
     for a in range(n):
         pa = params[a]
         st = state[a]
