@@ -87,8 +87,9 @@ def _run(program: Path | None, machine: str, profile: str | None, planner: str |
         console = Console()
         console.print(_summary_table(summary, f"run {summary['run_id']}"))
         t = summary["ticks"]
-        if t["paced"]:
-            console.print(f"deadlines: {t['due']} due, {t['on_time']} on time "
+        if t["paced"] or t.get("simulated_timer"):
+            kind = "deadlines" if t["paced"] else "simulated timer"
+            console.print(f"{kind}: {t['due']} due, {t['on_time']} on time "
                           f"({100 * t['on_time_ratio']:.2f} %), {t['late']} late, "
                           f"{t['skipped']} skipped; start jitter p50/p99/max "
                           f"{t['jitter_p50_us']:.0f}/{t['jitter_p99_us']:.0f}/"

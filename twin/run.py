@@ -210,7 +210,8 @@ def prepare(spec: RunSpec) -> Prepared:
         plant = Plant.from_machine(cfg)
         plant.reset(positions=None if spec.start is None else np.asarray(spec.start, float))
         start = plant.truth().table_position
-        driver = SimDriver(plant, cfg.controller.period, dry_run=spec.dry_run)
+        driver = SimDriver(plant, cfg.controller.period, dry_run=spec.dry_run,
+                           timing=cfg.controller.timing)
     else:
         from twin.hardware.drivers import open_driver
 
@@ -400,8 +401,11 @@ class _Loop:
         rec = ctrl.record.as_arrays()
         if self.truth is not None:
             rec.update(self.truth.as_arrays())
-        sim_time = self.ticks * self.period
-        stats = self.stats or TickStats.lockstep(self.period, self.ticks)
+        # the twin's own clock: with a simulated timer the ticks are not one period apart
+        sim_time = p.plant.time if p.plant is not None else self.ticks * self.period
+        schedule = getattr(p.driver, "schedule", None)
+        stats = self.stats or (schedule.stats() if schedule is not None
+                               else TickStats.lockstep(self.period, self.ticks))
         summary: dict[str, Any] = {"run_id": run_id, "status": ctrl.status.name,
                                    "aborted": aborted, "machine": p.cfg.name,
                                    "controller_model": (p.belief or p.cfg).name,
@@ -415,7 +419,8 @@ class _Loop:
             "real_time_factor": sim_time / wall if wall > 0 else math.inf,
             "telemetry_wall_s": self.writer.wall,
             "recording": recording,
-            "ticks": {**ticks_dict(stats), "rt_priority_granted": self.rt_granted},
+            "ticks": {**ticks_dict(stats), "rt_priority_granted": self.rt_granted,
+                      "simulated_timer": schedule is not None},
             "spec": spec.to_dict(),
             "config": dataclasses.asdict(p.cfg),
         })

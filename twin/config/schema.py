@@ -401,7 +401,8 @@ class TimingConfig(_Validated):
 
     Seed 000's plain software timer is ``granularity = 0.015625`` (the 64 Hz clock of the
     PC's OS) with ``rearm = "relative"``: 9/16/64/64 ticks per second at 100/50/10/5 ms
-    against the 9/15/62/63 measured (``docs/timing.md``).
+    against the 9/15/62/63 measured (``twin.hardware.timing``,
+    ``tests/hardware/test_timing.py``).
     """
 
     granularity: float = _num(0.0, "s", ge=0, le=1.0, doc="OS clock tick; 0 = exact")

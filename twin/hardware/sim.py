@@ -9,7 +9,9 @@ from __future__ import annotations
 
 import numpy as np
 
+from twin.config import TimingConfig
 from twin.controller.io import Inputs, Outputs
+from twin.hardware.timing import TickSchedule
 from twin.plant import Plant
 
 __all__ = ["SimDriver"]
@@ -27,9 +29,14 @@ class SimDriver:
     dry_run : bool
         Run the controller without driving the motors (seed 001's dry run): the drives stay
         disabled whatever the controller asks.
+    timing : TimingConfig, optional
+        When the ticks really come (``[controller.timing]``): each ``write`` then advances
+        the plant to the next tick of that timer instead of by exactly one period (the
+        controller does not know). Default: ideal.
     """
 
-    def __init__(self, plant: Plant, period: float, *, dry_run: bool = False):
+    def __init__(self, plant: Plant, period: float, *, dry_run: bool = False,
+                 timing: TimingConfig | None = None):
         if not period > 0:
             raise ValueError(f"period must be > 0 s, got {period}")
         self.plant = plant
@@ -39,6 +46,10 @@ class SimDriver:
         self._zero = np.zeros(2)
         self._inputs = Inputs()
         self._enabled: bool | None = None  # unknown: the first write sets it
+        self.schedule = None if timing is None or timing.ideal else TickSchedule(
+            period, timing, plant.drive_dt)
+        """TickSchedule or None: the simulated timer (None: every tick on time)."""
+        self._now = plant.time
 
     def read(self) -> Inputs:
         """Sample encoders, tachos and switches now (one ``Inputs`` object, reused: a
@@ -52,8 +63,12 @@ class SimDriver:
         if enable != self._enabled:
             self.plant.enable(enable)
             self._enabled = enable
+        duration = self.period
+        if self.schedule is not None:
+            t = self.schedule.next()
+            duration, self._now = t - self._now, t
         self.last_status = self.plant.step(outputs.dac_volts if enable else self._zero,
-                                           self.period)
+                                           duration)
 
     def close(self) -> None:
         """Disable the drives (the plant keeps its state for inspection)."""
