@@ -37,7 +37,7 @@ __all__ = ["METRICS", "RunOutcome", "Weights", "cost_terms", "measure", "metric_
            "tuning_run"]
 
 METRICS = ("max_coordinate_error", "rms_coordinate_error", "max_contour_error",
-           "rms_contour_error", "overshoot", "residual_vibration", "cycle_time",
+           "rms_contour_error", "overshoot", "settling_travel", "cycle_time",
            "saturation_time")
 """What a tuning run measures (m, m, m, m, m, m, s, s); coordinate errors are the larger
 of the two axes."""
@@ -97,7 +97,7 @@ class Weights:
     max_contour_error: float = 0.5
     rms_contour_error: float = 0.25
     overshoot: float = 0.5
-    residual_vibration: float = 0.25
+    settling_travel: float = 0.25
     cycle_time: float = 1.0
     saturation_time: float = 0.5
 
@@ -208,7 +208,7 @@ def measure(rec: Mapping[str, np.ndarray], path: list, settings: TuningSettings
         "max_contour_error": m.max_contour_error,
         "rms_contour_error": m.rms_contour_error,
         "overshoot": m.overshoot,
-        "residual_vibration": m.residual_vibration,
+        "settling_travel": m.settling_travel,
         "cycle_time": m.cycle_time,
         "saturation_time": float(np.count_nonzero(saturated)) * period,
     }

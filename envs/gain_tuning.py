@@ -147,7 +147,7 @@ class GainTuningEnv(gym.Env):
     | 27-34 | ln(metric / scale) of the best run so far     | 1                      |
 
     The metrics, in order: max and RMS coordinate error (larger axis), max and RMS
-    contour error, overshoot, residual vibration, cycle time, saturation time.
+    contour error, overshoot, settling travel, cycle time, saturation time.
 
     ## Rewards
 

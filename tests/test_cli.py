@@ -37,7 +37,7 @@ def test_run_json_prints_exactly_one_object(tmp_path):
     d = json.loads(lines[0])
     for key in ("cycle_time_s", "path_length_mm", "max_contour_error_um",
                 "rms_contour_error_um", "max_coordinate_error_um", "max_velocity_error_um_s",
-                "residual_vibration_um", "sim_time_s", "wall_time_s", "real_time_factor",
+                "settling_travel_um", "sim_time_s", "wall_time_s", "real_time_factor",
                 "recording", "ticks"):
         assert key in d, key
     assert set(d["ticks"]) >= {"due", "on_time", "late", "jitter_p99_us"}

@@ -110,7 +110,7 @@ def test_compare_json_has_one_summary_per_law_and_the_report(compared):
         for key in ("cycle_time_s", "max_contour_error_um", "rms_contour_error_um",
                     "max_coordinate_error_um", "max_velocity_error_um_s",
                     "peak_reference_jerk_m_per_s3", "junction_speed_jump_mm_per_s",
-                    "elastic_oscillation_um", "residual_vibration_um"):
+                    "elastic_oscillation_um", "settling_travel_um"):
             assert key in s, key
     png = compared["report"]
     with open(png, "rb") as f:

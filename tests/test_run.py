@@ -39,14 +39,14 @@ def _rrd_points(path, entity: str) -> np.ndarray:
 @pytest.fixture(scope="module", params=["tomsk_xy", "laser_belt"])
 def default_run(request, tmp_path_factory):
     out = tmp_path_factory.mktemp(request.param)
-    return run(RunSpec(machine=request.param), out_dir=out, run_id="default")
+    return run(RunSpec(machine=request.param), out_dir=out, run_id="default", keep_fine=True)
 
 
 def test_default_program_finishes_and_writes_both_records(default_run):
     s = default_run.summary
     assert s["status"] == "FINISHED" and s["aborted"] is None
     for key in ("cycle_time_s", "path_length_mm", "max_contour_error_um", "rms_contour_error_um",
-                "residual_vibration_um", "sim_time_s", "wall_time_s", "real_time_factor"):
+                "settling_travel_um", "sim_time_s", "wall_time_s", "real_time_factor"):
         assert np.isfinite(s[key]), key
     assert set(s["max_coordinate_error_um"]) == {"x", "y"}
     assert set(s["ticks"]) >= {"due", "on_time", "late", "jitter_p99_us"}
@@ -65,12 +65,44 @@ def test_rrd_matches_the_simulation_record_sample_for_sample(default_run):
         assert len(t) == len(rec["t"])
         np.testing.assert_allclose(t[order], rec["t"], rtol=0, atol=1e-9)
         np.testing.assert_array_equal(v[order], rec["position"][:, k])    # float64: exact
+        # the converter's channels at the drive rate, every sample
+        fine = default_run.fine
         t, v = scalars[f"axes/{axis}/drive/armature_current"]
-        np.testing.assert_array_equal(v[np.argsort(t, kind="stable")],
-                                      rec["armature_current"][:, k])
+        order = np.argsort(t, kind="stable")
+        np.testing.assert_allclose(t[order], fine["t"], rtol=0, atol=1e-9)
+        np.testing.assert_array_equal(v[order], fine["armature_current"][:, k])
     pts = _rrd_points(default_run.summary["recording"], "path/actual")
     np.testing.assert_allclose(pts, rec["position"], rtol=1e-6, atol=1e-7)  # float32 points
     assert "errors/contour_um" in scalars
+
+
+def test_the_summary_has_the_elastic_oscillation_of_the_drive_rate_deflection(default_run):
+    from twin.compare import elastic_oscillation, mode_periods
+
+    fine, s = default_run.fine, default_run.summary
+    batch = elastic_oscillation(fine["t"], fine["screw_deflection"],
+                                mode_periods(default_run.config))
+    assert s["elastic_oscillation_um"] == pytest.approx(batch * 1e6, rel=1e-6)
+    assert s["elastic_oscillation_um"] > 0.0
+
+
+def test_the_recording_shows_discontinuous_conduction_at_table_2s_feed(tmp_path):
+    """Seed 000's Table-2 move (0.44 mm/s): the armature current in the .rrd, logged at the
+    drive rate, flows in pulses with gaps (conduction < 1 of most intervals)."""
+    result = run(RunSpec(machine="tomsk_xy", builtin="spline_line", dcu_order=3),
+                 out_dir=tmp_path, run_id="table2")
+    assert result.summary["status"] == "FINISHED"
+    scalars = _rrd_scalars(result.summary["recording"])
+    t, i = scalars["axes/x/drive/armature_current"]
+    _, conduction = scalars["axes/x/drive/conduction"]
+    order = np.argsort(t, kind="stable")
+    t, i, conduction = t[order], i[order], conduction[order][:len(order)]
+    cruise = (t > 1.0) & (t < 2.4)
+    dt = np.median(np.diff(t))
+    assert dt == pytest.approx(1e-3, rel=1e-6)               # the drive rate, not 200 Hz
+    assert np.count_nonzero(i[cruise] == 0.0) > 0.3 * np.count_nonzero(cruise)
+    assert i[cruise].max() > 0.0
+    assert np.mean(conduction[cruise]) < 0.5
 
 
 def test_rrd_has_the_paths_blueprint_and_events(default_run):

@@ -40,7 +40,7 @@ RUN_ROWS = (
     ("status", "status", ""), ("cycle time", "cycle_time_s", "s"),
     ("path length", "path_length_mm", "mm"),
     *METRIC_ROWS,
-    ("residual vibration", "residual_vibration_um", "µm"),
+    ("settling travel", "settling_travel_um", "µm"),
     ("real-time factor", "real_time_factor", "×"),
     ("recording", "recording", ""),
 )

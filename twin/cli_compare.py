@@ -23,7 +23,7 @@ ROWS = (
     ("peak reference jerk |Δa|/T", "peak_reference_jerk_m_per_s3", "m/s³"),
     ("speed jump at junctions", "junction_speed_jump_mm_per_s", "mm/s"),
     ("elastic oscillation", "elastic_oscillation_um", "µm"),
-    ("residual vibration", "residual_vibration_um", "µm"),
+    ("settling travel", "settling_travel_um", "µm"),
 )
 """Rows of the comparison table: label, summary key (or (key, axis)), unit."""
 

@@ -17,14 +17,16 @@ elastic oscillation
     The screw deflection minus its moving average over one period of the axis' first
     elastic mode (which removes that oscillation and keeps the quasi-static part, m·a/k and
     friction): the largest magnitude over the run, per axis, then the larger axis (m). The
-    deflection is sampled every drive interval (``DeflectionProbe``), because the modes
-    (93 and 161 Hz on tomsk_xy) lie near or above the Nyquist rate of the controller period.
+    deflection is sampled every drive interval (the twin's drive-rate samples), because the
+    modes (93 and 161 Hz on tomsk_xy) lie near or above the Nyquist rate of the controller
+    period. Every run summary has it (``elastic_oscillation_um``).
 contour error (max and RMS)
     Of the table's true path, searched over the whole program (``true_contour_error``);
     they replace the run summary's, which measures the encoder position near the active
     block only.
-residual vibration
-    The run summary's: peak deviation from the final position after the motion.
+settling travel
+    The run summary's: how far the table still travelled after the motion ended (mostly the
+    position loop catching up its lag).
 
 The telemetry of all laws goes into ONE ``.rrd``: one recording whose entity tree holds one
 subtree per law (``laws/<law>/...``, the entity paths of ``twin run`` below it), with a
@@ -34,7 +36,6 @@ blueprint that overlays the laws in each plot, one colour per law.
 from __future__ import annotations
 
 import dataclasses
-import math
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 from pathlib import Path
@@ -42,15 +43,14 @@ from typing import Any
 
 import numpy as np
 
-from twin.config import AXES, MachineConfig
-from twin.controller.io import Inputs, Outputs
-from twin.controller.metrics import contour_error
-from twin.run import RunResult, RunSpec, prepare, run
+from twin.controller.metrics import contour_error, oscillation
+from twin.model import mode_periods
+from twin.run import RunResult, RunSpec, run
 from twin.telemetry.sink import Sink
 
-__all__ = ["LAW_COLOURS", "Comparison", "DeflectionProbe", "LawRun", "compare",
-           "elastic_oscillation", "junction_speed_jump", "junctions", "law_figures",
-           "mode_periods", "true_contour_error"]
+__all__ = ["LAW_COLOURS", "Comparison", "LawRun", "compare", "elastic_oscillation",
+           "junction_speed_jump", "junctions", "law_figures", "mode_periods",
+           "true_contour_error"]
 
 LAW_COLOURS = {"trapezoid": (214, 39, 40), "parabolic": (31, 119, 180),
                "cosine": (44, 160, 44), "cubic": (148, 103, 189),
@@ -58,62 +58,7 @@ LAW_COLOURS = {"trapezoid": (214, 39, 40), "parabolic": (31, 119, 180),
 """One colour per law (RGB), shared by the PNG report and the rerun overlay."""
 
 
-class DeflectionProbe:
-    """A ``MachineIO`` over a ``SimDriver`` that advances the plant one drive interval at a
-    time and keeps the screw deflection after each (the rest is exactly ``SimDriver.write``:
-    same enable logic, same DAC value for the whole period).
-
-    Attributes
-    ----------
-    t : list of float
-        Plant time after each drive interval (s).
-    deflection : list of tuple
-        Screw deflection of (x, y) after each drive interval (m).
-    """
-
-    def __init__(self, driver: Any):
-        self.driver = driver
-        self.plant = driver.plant
-        self.steps = max(1, round(driver.period / self.plant.drive_dt))
-        self.t: list[float] = []
-        self.deflection: list[tuple[float, float]] = []
-        self._zero = np.zeros(2)
-
-    def read(self) -> Inputs:
-        """The driver's sample of the sensors."""
-        return self.driver.read()
-
-    def write(self, outputs: Outputs) -> None:
-        """Apply the outputs for one period, sampling the deflection every drive interval."""
-        plant = self.plant
-        enable = bool(outputs.enable) and not self.driver.dry_run
-        plant.enable(enable)
-        dac = outputs.dac_volts if enable else self._zero
-        dt = plant.drive_dt
-        for _ in range(self.steps):
-            plant.step(dac, dt)
-            self.t.append(plant.time)
-            self.deflection.append(tuple(plant.truth().screw_deflection.tolist()))
-
-    def close(self) -> None:
-        """Disable the drives."""
-        self.driver.close()
-
-    def arrays(self) -> tuple[np.ndarray, np.ndarray]:
-        """``(t (n,) s, deflection (n, 2) m)``."""
-        return np.asarray(self.t), np.asarray(self.deflection).reshape(-1, 2)
-
-
 # --------------------------------------------------------------------------- metrics
-def mode_periods(cfg: MachineConfig) -> tuple[float, float]:
-    """Period of the first (locked-rotor) elastic mode of x and y (s): ``2π/√(k/m)``, the
-    x axis carrying the y carriage (see ``twin/models/README.md``)."""
-    masses = {"x": cfg.axes["x"].mechanics.carriage_mass + cfg.axes["y"].mechanics.carriage_mass,
-              "y": cfg.axes["y"].mechanics.carriage_mass}
-    return tuple(2.0 * math.pi / math.sqrt(cfg.axes[a].transmission.axial_stiffness
-                                           / masses[a]) for a in AXES)  # type: ignore
-
-
 def elastic_oscillation(t, deflection, periods: Sequence[float]) -> float:
     """Largest oscillating part of the screw deflection (m).
 
@@ -131,22 +76,15 @@ def elastic_oscillation(t, deflection, periods: Sequence[float]) -> float:
     -------
     float
         ``max_k max_i |d_k(i) − mean_{window}(d_k)(i)|``; the record's ends (half a window)
-        are left out.
+        are left out (``twin.controller.metrics.oscillation``, which every run summary
+        computes on the fly as ``elastic_oscillation_um``).
     """
     t = np.asarray(t, dtype=float)
     d = np.asarray(deflection, dtype=float).reshape(-1, 2)
     if t.size < 3:
         return 0.0
     dt = float(np.median(np.diff(t)))
-    peak = 0.0
-    for k, period in enumerate(periods):
-        w = max(1, round(period / dt)) | 1       # odd: the average is centred on a sample
-        if w >= d.shape[0]:
-            continue
-        smooth = np.convolve(d[:, k], np.ones(w) / w, mode="valid")
-        lo = w // 2
-        peak = max(peak, float(np.abs(d[lo:lo + smooth.size, k] - smooth).max()))
-    return peak
+    return oscillation(d, [max(1, round(p / dt)) | 1 for p in periods])
 
 
 def junctions(rec: Mapping[str, np.ndarray]) -> np.ndarray:
@@ -183,16 +121,18 @@ def junction_speed_jump(rec: Mapping[str, np.ndarray], period: float, *,
     return peak
 
 
-def law_figures(result: RunResult, probe: DeflectionProbe | None) -> dict[str, float]:
-    """The figures ``compare`` adds to a run's summary (units in the key names)."""
+def law_figures(result: RunResult) -> dict[str, float]:
+    """The figures ``compare`` adds to a run's summary (units in the key names); the elastic
+    oscillation from the run's drive-rate samples when it kept them (``keep_fine``), else
+    from its per-tick truth record."""
     rec, cfg = result.record, result.config
     period = cfg.controller.period
     step = np.diff(rec["ref_acceleration"], axis=0) / period
     jerk = float(np.hypot(*step.T).max()) if step.size else 0.0
     out = {"spec_period_s": period, "peak_reference_jerk_m_per_s3": jerk,
            "junction_speed_jump_mm_per_s": junction_speed_jump(rec, period) * 1e3}
-    if probe is not None:
-        t, d = probe.arrays()
+    if result.fine is not None:
+        t, d = result.fine["t"], result.fine["screw_deflection"]
     else:
         t, d = rec["t"], rec["screw_deflection"]
     out["elastic_oscillation_um"] = elastic_oscillation(t, d, mode_periods(cfg)) * 1e6
@@ -321,17 +261,14 @@ def compare(spec: RunSpec, laws: Sequence[str], *, out_dir: str | Path = "runs",
     try:
         for law in laws:
             law_spec = dataclasses.replace(spec, profile=law)
-            p = prepare(law_spec)
-            probe = DeflectionProbe(p.driver) if p.plant is not None else None
-            if probe is not None:
-                p = dataclasses.replace(p, driver=probe)
             sink = _LawSink(shared, law) if shared is not None else None
             result = run(law_spec, out_dir=out, rerun="none", run_id=f"{run_id}-{law}",
-                         sink=sink, prepared=p)
+                         sink=sink, keep_fine=True)
             summary = {k: v for k, v in result.summary.items() if k not in ("config", "spec")}
-            summary.update(law_figures(result, probe))
-            fine_t, fine_d = probe.arrays() if probe is not None else (
-                result.record["t"], result.record["screw_deflection"])
+            summary.update(law_figures(result))
+            fine_t, fine_d = (result.fine["t"], result.fine["screw_deflection"]) \
+                if result.fine is not None else (result.record["t"],
+                                                 result.record["screw_deflection"])
             runs[law] = LawRun(law, summary, result.record, result.path, fine_t, fine_d)
     finally:
         if shared is not None:

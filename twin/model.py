@@ -37,6 +37,7 @@ __all__ = [
     "axis_mechanics",
     "build_spec",
     "load_model",
+    "mode_periods",
     "passive_parameters",
     "resolve_machine",
 ]
@@ -132,6 +133,13 @@ def axis_mechanics(cfg: MachineConfig, axis: str) -> AxisMechanics:
         stiffness=ax.transmission.axial_stiffness,
         damping_ratio=ax.transmission.damping_ratio,
     )
+
+
+def mode_periods(cfg: MachineConfig) -> tuple[float, float]:
+    """Period of the first (locked-rotor) elastic mode of x and y (s): ``2π/√(k/m)``, the
+    x axis carrying the y carriage."""
+    return tuple(2.0 * math.pi / axis_mechanics(cfg, a).locked_rotor_frequency
+                 for a in AXES)  # type: ignore[return-value]
 
 
 def resolve_machine(machine: str | Path | MachineConfig) -> MachineConfig:

@@ -51,9 +51,13 @@ from twin.plant_records import (
     Truth,
 )
 
-__all__ = ["FINE_FIELDS", "TRUTH_FIELDS", "Plant", "Reading", "StepStatus", "Truth"]
+__all__ = ["FINE_FIELDS", "FINE_WIDTH", "TRUTH_FIELDS", "Plant", "Reading", "StepStatus",
+           "Truth"]
 
 _BAD_STATE = ("mjWARN_BADQPOS", "mjWARN_BADQVEL", "mjWARN_BADQACC")
+FINE_RING = 1 << 16
+"""Rows of the plant's ring buffer of drive-rate samples (65 s of tomsk_xy, 16 s of
+laser_belt; 5.8 MB)."""
 _WARNING_NAMES = tuple(mujoco.mjtWarning(i).name for i in range(mujoco.mjtWarning.mjNWARNING))
 
 
@@ -120,6 +124,9 @@ class Plant:
         self._intervals: dict[float, int] = {}
         self._samples = np.empty((0, FINE_WIDTH))
         self._fine = self._samples
+        self._ring = np.full((FINE_RING, FINE_WIDTH), np.nan)
+        self._ring_n = 0      # rows ever written to the ring
+        self._ring_read = 0   # rows drained
         self._passive = passive_parameters(config)
         self._has_passive = bool(np.any(self._passive))
         self._drive_torque = np.zeros(2)  # the drives' interval-average torque
@@ -189,6 +196,7 @@ class Plant:
             self._rng.bit_generator.state = np.random.default_rng(seed).bit_generator.state
         self.drives.reset()
         self._encoder_offset[:] = 0
+        self._ring_read = self._ring_n  # samples from before the reset are not drained
         if encoder_preset is not None:
             self._encoder_offset[:] = np.asarray(encoder_preset, np.int64) - self._raw_counts()
         self._offset = self._encoder_offset.tolist()
@@ -240,8 +248,9 @@ class Plant:
                 drives.dt, drives.enabled, self._passive, self._has_passive,
                 self._drive_torque, sub, scratch, self._torque, self._slide_force, x,
                 self._table_vel,
-                theta, omega, self._ratio, samples, extent)
+                theta, omega, self._ratio, samples, extent, self._ring, self._ring_n)
             drives.advance(done)
+            self._ring_n += done
             if status:
                 drives.step(u, omega, theta)  # the checked path raises the named error
         else:
@@ -253,7 +262,9 @@ class Plant:
                                             self._torque, self._slide_force, x,
                                             self._table_vel, theta, omega)
                     mj_step(m, d)
-                plant_loop.record_interval(i, state, x, theta, self._ratio, samples, extent)
+                plant_loop.record_interval(i, drives.time, state, x, theta, self._ratio,
+                                           samples, extent, self._ring, self._ring_n)
+            self._ring_n += n
         self._fine = samples
         warnings = () if self._warning_count.tobytes() == self._warnings_seen \
             else self._new_warnings()
@@ -322,6 +333,19 @@ class Plant:
         what a scope on the drive would show (the converter's pulses, discontinuous
         current, the screw's elastic oscillation). A view, valid until the next step."""
         return self._fine
+
+    def drain_fine(self) -> np.ndarray:
+        """The drive-rate samples (rows of ``FINE_FIELDS``) written since the last drain, in
+        order: at most the ring's ``FINE_RING`` rows (older ones are overwritten if nobody
+        drains; the run loop drains every few dozen periods)."""
+        n = self._ring_n - self._ring_read
+        cap = len(self._ring)
+        n = min(n, cap)
+        start = (self._ring_n - n) % cap
+        self._ring_read = self._ring_n
+        if start + n <= cap:
+            return self._ring[start:start + n].copy()
+        return np.concatenate((self._ring[start:], self._ring[:start + n - cap]))
 
     def truth_row(self) -> tuple[float, ...]:
         """The ``TRUTH_FIELDS`` of now as one flat row of floats (cheap: for per-tick

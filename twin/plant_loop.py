@@ -115,9 +115,14 @@ def passive_forces(passive, drive_torque, rotor_frc, slide_frc, table_pos, table
 
 
 @numba.njit(cache=True)
-def record_interval(i, state, table_pos, rotor_pos, ratio, samples, extent):
-    """Row i of the drive-rate samples (``plant_records.FINE_FIELDS``) and the running
-    extent of the table position (x lo, x hi, y lo, y hi; NaN if a sample was NaN)."""
+def record_interval(i, t, state, table_pos, rotor_pos, ratio, samples, extent, ring, ring_n):
+    """Row i of the drive-rate samples (``plant_records.FINE_FIELDS``, at plant time t),
+    also written to row ``ring_n + i`` (modulo its length) of the ring buffer ``ring``, and
+    the running extent of the table position (x lo, x hi, y lo, y hi; NaN if a sample was
+    NaN)."""
+    r = (ring_n + i) % ring.shape[0]
+    samples[i, 10] = t
+    ring[r, 10] = t
     for k in range(2):
         x = table_pos[k]
         samples[i, k] = x
@@ -125,6 +130,8 @@ def record_interval(i, state, table_pos, rotor_pos, ratio, samples, extent):
         samples[i, 4 + k] = state[k, S_VOUT]
         samples[i, 6 + k] = state[k, S_CONDUCT]
         samples[i, 8 + k] = ratio[k] * rotor_pos[k] - x
+        for c in range(k, 10, 2):
+            ring[r, c] = samples[i, c]
         if i == 0:
             extent[2 * k] = extent[2 * k + 1] = x
         else:
@@ -141,7 +148,7 @@ if _MJ_STEP is not None:
     def _intervals(m_addr, d_addr, n, substeps, params, state, tables, u, noise, log, n0,
                    dt, enabled, passive, has_passive, torque, sub_torque, scratch, rotor_frc,
                    slide_frc, table_pos, table_vel, rotor_pos, rotor_vel, ratio, samples,
-                   extent):
+                   extent, ring, ring_n):
         for i in range(n):
             noise_i = noise[i] if noise.shape[0] > 1 else noise[0]
             status = drive_step(params, state, tables, u, rotor_vel, rotor_pos, noise_i, log,
@@ -152,7 +159,8 @@ if _MJ_STEP is not None:
                 apply_forces(passive, has_passive, sub_torque, s, rotor_frc, slide_frc,
                              table_pos, table_vel, rotor_pos, rotor_vel)
                 _c_mj_step(m_addr, d_addr)
-            record_interval(i, state, table_pos, rotor_pos, ratio, samples, extent)
+            record_interval(i, (n0 + i + 1) * dt, state, table_pos, rotor_pos, ratio, samples,
+                            extent, ring, ring_n)
         return n, 0
 
 
@@ -169,11 +177,12 @@ def step_intervals(m_addr: int, d_addr: int, n: int, substeps: int, params: np.n
                    scratch: np.ndarray, rotor_frc: np.ndarray, slide_frc: np.ndarray,
                    table_pos: np.ndarray, table_vel: np.ndarray, rotor_pos: np.ndarray,
                    rotor_vel: np.ndarray,
-                   ratio: np.ndarray, samples: np.ndarray, extent: np.ndarray
-                   ) -> tuple[int, int]:
+                   ratio: np.ndarray, samples: np.ndarray, extent: np.ndarray,
+                   ring: np.ndarray, ring_n: int) -> tuple[int, int]:
     """Run ``n`` drive intervals: drive kernel, then ``substeps`` × (applied forces,
-    ``mj_step``), and the drive-rate samples into ``samples[i]`` after each; ``extent``
-    (4,) receives the lowest and highest table position of each axis.
+    ``mj_step``), and the drive-rate samples into ``samples[i]`` (and row ``ring_n + i`` of
+    the ring buffer ``ring``) after each; ``extent`` (4,) receives the lowest and highest
+    table position of each axis.
 
     ``m_addr``, ``d_addr`` are :func:`addresses`; the ``*_frc``, ``*_pos`` and ``*_vel``
     arrays are views of the data. ``noise`` is (n, axes, m) standard normal samples (or one
@@ -186,4 +195,4 @@ def step_intervals(m_addr: int, d_addr: int, n: int, substeps: int, params: np.n
     return _intervals(m_addr, d_addr, n, substeps, params, state, tables, u, noise, log, n0,
                       dt, enabled, passive, has_passive, torque, sub_torque, scratch,
                       rotor_frc, slide_frc, table_pos, table_vel, rotor_pos, rotor_vel, ratio,
-                      samples, extent)
+                      samples, extent, ring, ring_n)

@@ -22,12 +22,12 @@ V; x then y)."""
 
 
 FINE_FIELDS = (("table_position", 2), ("armature_current", 2), ("converter_voltage", 2),
-               ("conduction", 2), ("screw_deflection", 2))
+               ("conduction", 2), ("screw_deflection", 2), ("t", 1))
 """The twin's drive-rate channels (:attr:`Plant.fine`), sampled at the end of every drive
 interval (m, A, V, 1, m; x then y): the armature current at the sample, the converter
 voltage averaged over the interval (the motor terminal voltage: the EMF while no current
 flows), and ``conduction``, the fraction of the interval during which current flowed (below
-1: discontinuous conduction)."""
+1: discontinuous conduction), and the plant time at the sample (s)."""
 
 FINE_WIDTH = sum(width for _, width in FINE_FIELDS)
 

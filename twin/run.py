@@ -29,12 +29,14 @@ from twin.controller.controller import Controller, ControllerStatus
 from twin.controller.gcode import parse
 from twin.controller.library import build_program, program_path
 from twin.controller.linear import LinearAxisModel
+from twin.controller.metrics import OscillationMeter
 from twin.controller.record import Record
 from twin.drive.linear import axis_transfer_function
 from twin.errors import ConfigError, DriverError
 from twin.hardware.realtime import RealTimeLoop, TickStats, fifo_priority
 from twin.hardware.sim import SimDriver
-from twin.plant import TRUTH_FIELDS, Plant
+from twin.model import mode_periods
+from twin.plant import FINE_FIELDS, FINE_WIDTH, TRUTH_FIELDS, Plant
 from twin.runrecord import (
     make_sink,
     parse_command,
@@ -153,6 +155,11 @@ class RunResult:
         The programmed path.
     status : ControllerStatus
         How the controller ended.
+    config : MachineConfig or None
+        The machine.
+    fine : dict of ndarray or None
+        The twin's drive-rate samples (``twin.plant.FINE_FIELDS``: one row every drive
+        interval) when the run was asked to keep them (``run(keep_fine=True)``).
     """
 
     summary: dict[str, Any]
@@ -160,6 +167,7 @@ class RunResult:
     path: list
     status: ControllerStatus
     config: MachineConfig | None = None
+    fine: dict[str, np.ndarray] | None = None
 
 
 def axis_models(cfg: MachineConfig) -> list[LinearAxisModel]:
@@ -241,7 +249,8 @@ def run(spec: RunSpec, *, out_dir: str | Path = "runs", rerun: str = "file",
         run_id: str | None = None, sink: Sink | None = None,
         progress: Callable[[float, float], None] | None = None,
         prepared: Prepared | None = None,
-        commands: Sequence[Callable[[Controller], None]] = ()) -> RunResult:
+        commands: Sequence[Callable[[Controller], None]] = (),
+        keep_fine: bool = False) -> RunResult:
     """Run ``spec`` and write ``<run_id>.rrd`` and ``<run_id>.json`` into ``out_dir``.
 
     On the twin (``driver="sim"``) the loop runs in lock-step, as fast as the machine allows;
@@ -269,6 +278,10 @@ def run(spec: RunSpec, *, out_dir: str | Path = "runs", rerun: str = "file",
     commands : sequence of callables(controller)
         Manual-mode commands (``controller.home``, ``controller.jog`` ...) started one after
         the other, each when the previous motion has FINISHED; a trip ends the run.
+    keep_fine : bool
+        Keep the twin's drive-rate samples in ``RunResult.fine`` (they always go to the
+        telemetry and into the summary's elastic oscillation; kept, they cost 88 bytes per
+        drive interval).
     """
     run_id = run_id or time.strftime("%Y%m%d-%H%M%S-") + uuid.uuid4().hex[:6]
     out = Path(out_dir)
@@ -278,7 +291,7 @@ def run(spec: RunSpec, *, out_dir: str | Path = "runs", rerun: str = "file",
     recording = None
     if sink is None:
         sink, recording = make_sink(rerun, out, run_id)
-    loop = _Loop(p, sink, spec.max_time, pending, progress, spec.rt_priority)
+    loop = _Loop(p, sink, spec.max_time, pending, progress, spec.rt_priority, keep_fine)
     aborted = None
     t_wall = time.perf_counter()
     try:
@@ -302,7 +315,8 @@ class _Loop:
 
     def __init__(self, p: Prepared, sink: Sink, max_time: float,
                  pending: list[Callable[[Controller], None]],
-                 progress: Callable[[float, float], None] | None, rt_priority: int = 0):
+                 progress: Callable[[float, float], None] | None, rt_priority: int = 0,
+                 keep_fine: bool = False):
         self.p, self.sink, self.pending, self.progress = p, sink, pending, progress
         self.rt_priority = rt_priority
         self.rt_granted = False
@@ -315,10 +329,31 @@ class _Loop:
         self.every = 50
         self._next_batch = time.perf_counter() + BATCH_WALL
         self.truth = Record(TRUTH_FIELDS) if p.plant is not None else None
-        self.writer = TelemetryWriter(sink, p.path, truth_record=self.truth)
+        self.writer = TelemetryWriter(sink, p.path, truth_record=self.truth,
+                                      fine_fields=FINE_FIELDS)
         self.names = {int(s): s.name for s in ControllerStatus}
         self.ticks = 0
         self.stats: TickStats | None = None
+        # the twin's drive-rate samples: to the telemetry, into the elastic oscillation
+        # (streamed: memory does not grow with the run), and kept only when asked
+        self.meter = None if p.plant is None else OscillationMeter(
+            [max(1, round(period / p.plant.drive_dt)) | 1 for period in mode_periods(p.cfg)])
+        self.kept: list[np.ndarray] | None = [] if keep_fine and p.plant is not None else None
+        self._deflection = [_FINE_COLUMNS["screw_deflection"],
+                            _FINE_COLUMNS["screw_deflection"] + 1]
+
+    def drain(self) -> None:
+        """Move the twin's drive-rate samples since the last drain to the telemetry, the
+        elastic-oscillation meter and (if kept) the run's fine record."""
+        if self.meter is None:
+            return
+        rows = self.p.plant.drain_fine()
+        if not len(rows):
+            return
+        self.meter.feed(rows[:, self._deflection])
+        self.writer.add_fine(rows)
+        if self.kept is not None:
+            self.kept.append(rows)
 
     def _next_command(self) -> bool:
         """At rest: start the next manual command; False when the run is over."""
@@ -357,6 +392,7 @@ class _Loop:
                 append(row())
                 self.ticks += 1
                 if self.ticks % every == 0:
+                    self.drain()
                     self._batch()
         finally:
             if paused:
@@ -396,6 +432,7 @@ class _Loop:
             while len(self.truth) < len(ctrl.record):  # interrupted between the appends
                 self.truth.append(p.plant.truth_row())
         p.driver.close()
+        self.drain()
         self.writer.flush(ctrl.record, status_names=self.names)
         self.sink.close()
         rec = ctrl.record.as_arrays()
@@ -413,6 +450,8 @@ class _Loop:
                                    "machine_file": machine_identity(p.cfg),
                                    "controller_model_file": machine_identity(p.belief or p.cfg)}
         summary.update(run_summary(rec, p.path))
+        if self.meter is not None:
+            summary["elastic_oscillation_um"] = self.meter.peak * 1e6
         summary.update({
             "sim_time_s": sim_time,
             "wall_time_s": wall,
@@ -429,10 +468,27 @@ class _Loop:
         if ctrl.error is not None:
             summary["error"] = str(ctrl.error)
         write_json_atomic(out / f"{run_id}.json", summary)
-        return RunResult(summary, rec, p.path, ctrl.status, p.cfg)
+        fine = None
+        if self.kept is not None:
+            rows = np.concatenate(self.kept) if self.kept else np.zeros((0, FINE_WIDTH))
+            fine = {name: rows[:, c:c + w] if w > 1 else rows[:, c]
+                    for name, (c, w) in _FINE_SLICES.items()}
+        return RunResult(summary, rec, p.path, ctrl.status, p.cfg, fine)
 
 
 _READY = (ControllerStatus.IDLE, ControllerStatus.FINISHED)
+
+
+def _fine_slices() -> dict[str, tuple[int, int]]:
+    out, col = {}, 0
+    for name, width in FINE_FIELDS:
+        out[name] = (col, width)
+        col += width
+    return out
+
+
+_FINE_SLICES = _fine_slices()
+_FINE_COLUMNS = {name: c for name, (c, _) in _FINE_SLICES.items()}
 BATCH_WALL = 0.25
 """Wall time between telemetry batches (s)."""
 

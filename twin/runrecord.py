@@ -89,7 +89,7 @@ def run_summary(rec: Mapping[str, np.ndarray], path: list) -> dict[str, Any]:
         "max_velocity_error_um_s": {
             a: m.max_velocity_error[i] * 1e6 for i, a in enumerate(AXES)},
         "max_vector_error_um": r["max_vector_error_um"],
-        "residual_vibration_um": r["residual_vibration_um"],
+        "settling_travel_um": r["settling_travel_um"],
         "overshoot_um": r["overshoot_um"],
         "productivity_mm_per_min": r["productivity_mm_per_min"],
     }

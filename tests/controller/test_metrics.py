@@ -17,7 +17,7 @@ from twin.controller.metrics import (
     cycle_time,
     overshoot,
     productivity,
-    residual_vibration,
+    settling_travel,
     vector_error,
     velocity_error,
 )
@@ -218,7 +218,7 @@ def damped(t, amplitude, sigma, omega_d):
 
 
 @pytest.mark.parametrize("sigma, omega_d", [(5.0, 2 * math.pi * 20), (40.0, 2 * math.pi * 8)])
-def test_residual_vibration_of_a_damped_sinusoid(sigma, omega_d):
+def test_settling_travel_of_a_damped_sinusoid(sigma, omega_d):
     """Peak of A·e^(−σt)·sin(ω_d t) at tan(ω_d t*) = ω_d/σ, along a slanted direction."""
     t_end, amplitude = 0.3, 4e-6
     t = np.arange(0.0, 3.0, 1e-5)
@@ -229,14 +229,14 @@ def test_residual_vibration_of_a_damped_sinusoid(sigma, omega_d):
     pos[t <= t_end] = target + [0.05, 0.0] * (1 - t[t <= t_end, None] / t_end)  # the move
     t_peak = math.atan2(omega_d, sigma) / omega_d
     peak = amplitude * math.exp(-sigma * t_peak) * math.sin(omega_d * t_peak)
-    assert residual_vibration(t, pos, t_end, target=target) == pytest.approx(peak, rel=1e-7)
+    assert settling_travel(t, pos, t_end, target=target) == pytest.approx(peak, rel=1e-7)
     # about the final sample (which has settled to within 1e-10 of the target)
-    assert residual_vibration(t, pos, t_end) == pytest.approx(peak, rel=1e-4)
+    assert settling_travel(t, pos, t_end) == pytest.approx(peak, rel=1e-4)
 
 
-def test_residual_vibration_needs_samples_after_the_motion():
+def test_settling_travel_needs_samples_after_the_motion():
     with pytest.raises(ValueError, match=r"t_end = 1\.0"):
-        residual_vibration([0.0, 0.5, 1.0], np.zeros((3, 2)), 1.0)
+        settling_travel([0.0, 0.5, 1.0], np.zeros((3, 2)), 1.0)
 
 
 @pytest.mark.parametrize("zeta", [0.1, 0.3, 0.6])
@@ -306,7 +306,7 @@ def test_summarize_circle_analytic():
     assert m.cycle_time == pytest.approx(n_moving * T)
     assert m.path_length == pytest.approx(2 * math.pi * 0.01, rel=1e-12)
     assert m.productivity == pytest.approx(m.path_length / m.cycle_time)
-    assert m.residual_vibration == 0.0 and m.overshoot == 0.0
+    assert m.settling_travel == 0.0 and m.overshoot == 0.0
     report = m.to_report()
     assert report["max_contour_error_um"] == pytest.approx(3.0, rel=1e-6)
     assert report["path_length_mm"] == pytest.approx(20 * math.pi, rel=1e-12)
@@ -330,15 +330,15 @@ def test_summarize_agrees_with_the_single_metrics():
     assert m.rms_vector_error == pytest.approx(np.sqrt((vector_error(ref, act) ** 2).mean()))
     assert m.rms_velocity_error == pytest.approx(np.sqrt((vel**2).mean(axis=0)))
     t_end = t[np.count_nonzero(t < duration)]
-    assert m.residual_vibration == residual_vibration(t, act, t_end)
-    assert m.residual_vibration == pytest.approx(2e-6, rel=1e-3)
+    assert m.settling_travel == settling_travel(t, act, t_end)
+    assert m.settling_travel == pytest.approx(2e-6, rel=1e-3)
     assert set(m.to_report()) == {
         "samples", "max_coordinate_error_x_um", "max_coordinate_error_y_um",
         "rms_coordinate_error_x_um", "rms_coordinate_error_y_um", "max_contour_error_um",
         "rms_contour_error_um", "max_vector_error_um", "rms_vector_error_um",
         "max_velocity_error_x_mm_per_min", "max_velocity_error_y_mm_per_min",
         "rms_velocity_error_x_mm_per_min", "rms_velocity_error_y_mm_per_min",
-        "residual_vibration_um", "overshoot_um", "cycle_time_s", "path_length_mm",
+        "settling_travel_um", "overshoot_um", "cycle_time_s", "path_length_mm",
         "productivity_mm_per_min"}
 
 
@@ -346,7 +346,7 @@ def test_summarize_without_rest_reports_nan_vibration():
     t, ref, ref_vel, act, act_vel, path, duration, _ = circle_run()
     keep = t < duration
     m = summarize(t[keep], ref[keep], ref_vel[keep], act[keep], act_vel[keep], path)
-    assert math.isnan(m.residual_vibration)
+    assert math.isnan(m.settling_travel)
 
 
 def test_run_metrics_validation_names_the_field():

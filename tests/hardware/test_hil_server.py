@@ -24,7 +24,8 @@ from twin.run import RunSpec, prepare, run
 
 UNIT = 1
 TRUTH_ONLY = {f"/axes/{a}/{n}" for a in "xy" for n in
-              ("drive/armature_current", "drive/converter_voltage", "screw_deflection_um")}
+              ("drive/armature_current", "drive/converter_voltage", "drive/conduction",
+               "screw_deflection_um")}
 
 
 @contextlib.contextmanager

@@ -21,8 +21,8 @@ from twin.controller.gcode import Dwell
 from twin.controller.geometry import Arc, Line, Segment, SplinePath
 from twin.controller.planner import MotionBlock, segments_from_program
 
-__all__ = ["PROGRAMS", "build_program", "default_program", "program_path", "spline_line",
-           "square_corner"]
+__all__ = ["PROGRAMS", "TABLE2_FEED", "build_program", "default_program", "program_path",
+           "spline_line", "square_corner", "table2_move"]
 
 # Shape of the default program in units of the program scale L, relative to its start O.
 _OA = ((0.0, 0.0), (0.25, 0.05), (0.5, 0.15), (0.75, 0.3))
@@ -85,6 +85,18 @@ def spline_line(cfg: MachineConfig, start: Sequence[float], *, length: float | N
     return [MotionBlock(SplinePath(knots), v)]
 
 
+TABLE2_FEED = 0.44e-3
+"""Seed 000, Table 2's straight X move at about 26 mm/min (m/s): the feed of a rig whose
+position loop lagged it by 30 µm (``twin.studies.seed000_dcu`` sizes it from the twin's own
+velocity gain; this is the figure for the rig's)."""
+
+
+def table2_move(cfg: MachineConfig, start: Sequence[float]) -> list[Any]:
+    """Seed 000, Table 2's test: 1.2 mm along X described by a spline at ``TABLE2_FEED``
+    (``twin run --builtin spline_line``)."""
+    return spline_line(cfg, start, length=1.2e-3, feed=TABLE2_FEED)
+
+
 def square_corner(cfg: MachineConfig, start: Sequence[float], *, angle: float = np.pi / 2,
                   length: float | None = None, feed: float | None = None) -> list[Any]:
     """Two lines A-B, B-C meeting at B with the direction turning by ``angle`` (rad)."""
@@ -96,7 +108,7 @@ def square_corner(cfg: MachineConfig, start: Sequence[float], *, angle: float = 
     return [MotionBlock(Line(a, b), v), MotionBlock(Line(b, c), v)]
 
 
-PROGRAMS = {"default": default_program, "spline_line": spline_line,
+PROGRAMS = {"default": default_program, "spline_line": table2_move,
             "corner": square_corner}
 """Built-in programs by name: ``twin run --program-name NAME``."""
 

@@ -21,7 +21,7 @@ from twin.controller.metrics import (
     cycle_time,
     overshoot,
     productivity,
-    residual_vibration,
+    settling_travel,
     velocity_error,
 )
 from twin.errors import ConfigError
@@ -49,7 +49,7 @@ class RunMetrics:
         Largest and RMS vector error (m).
     max_velocity_error, rms_velocity_error : tuple of float, (x, y)
         Largest absolute and RMS velocity error per axis (m/s).
-    residual_vibration : float
+    settling_travel : float
         Peak deviation from the final position after the motion (m); NaN if the record
         stops with the motion.
     overshoot : float
@@ -71,7 +71,7 @@ class RunMetrics:
     rms_vector_error: float
     max_velocity_error: tuple[float, float]
     rms_velocity_error: tuple[float, float]
-    residual_vibration: float
+    settling_travel: float
     overshoot: float
     cycle_time: float
     path_length: float
@@ -92,7 +92,7 @@ class RunMetrics:
         Keys: ``samples``, ``max_coordinate_error_{x,y}_um``, ``rms_coordinate_error_{x,y}_um``,
         ``max_contour_error_um``, ``rms_contour_error_um``, ``max_vector_error_um``,
         ``rms_vector_error_um``, ``max_velocity_error_{x,y}_mm_per_min``,
-        ``rms_velocity_error_{x,y}_mm_per_min``, ``residual_vibration_um``, ``overshoot_um``,
+        ``rms_velocity_error_{x,y}_mm_per_min``, ``settling_travel_um``, ``overshoot_um``,
         ``cycle_time_s``, ``path_length_mm``, ``productivity_mm_per_min``.
         """
         report: dict[str, float] = {"samples": self.samples}
@@ -105,7 +105,7 @@ class RunMetrics:
         for name in ("max_velocity_error", "rms_velocity_error"):
             for axis, value in zip(AXES, getattr(self, name), strict=True):
                 report[f"{name}_{axis}_mm_per_min"] = to_mm_per_min(value)
-        report["residual_vibration_um"] = to_um(self.residual_vibration)
+        report["settling_travel_um"] = to_um(self.settling_travel)
         report["overshoot_um"] = to_um(self.overshoot)
         report["cycle_time_s"] = self.cycle_time
         report["path_length_mm"] = to_mm(self.path_length)
@@ -142,7 +142,7 @@ def summarize(t, ref_position, ref_velocity, position, velocity, path: Sequence[
     Returns
     -------
     RunMetrics
-        Samples that move are those with a non-zero reference velocity; residual vibration
+        Samples that move are those with a non-zero reference velocity; settling travel
         is measured after ``t_end`` about the final position, overshoot after ``t_end``
         past the end of the path along its final tangent.
     """
@@ -162,9 +162,9 @@ def summarize(t, ref_position, ref_velocity, position, velocity, path: Sequence[
         idx = np.flatnonzero(moving)
         t_end = float(times[min(int(idx[-1]) + 1, n - 1)]) if idx.size else float(times[0])
     try:
-        vibration = residual_vibration(times, pos, t_end)
+        travel = settling_travel(times, pos, t_end)
     except ValueError:
-        vibration = math.nan
+        travel = math.nan
     segments = list(path)
     length = math.fsum(seg.length for seg in segments)
     return RunMetrics(
@@ -177,7 +177,7 @@ def summarize(t, ref_position, ref_velocity, position, velocity, path: Sequence[
         rms_vector_error=float(_rms(vector)),
         max_velocity_error=tuple(np.abs(vel).max(axis=0).tolist()),
         rms_velocity_error=tuple(_rms(vel, axis=0).tolist()),
-        residual_vibration=vibration,
+        settling_travel=travel,
         overshoot=overshoot(times, pos, segments[-1].end, segments[-1].end_tangent,
                             after=t_end),
         cycle_time=duration,

@@ -1,5 +1,5 @@
 """What every reproduction study shares: running a program built in memory on the twin
-(optionally with the deflection probe of ``twin.compare``), and the small numeric helpers of
+(optionally keeping the twin's drive-rate samples), and the small numeric helpers of
 the reports.
 
 A study builds its program as planner items (``MotionBlock``s of lines and splines) from the
@@ -18,11 +18,10 @@ from typing import Any
 
 import numpy as np
 
-from twin.compare import DeflectionProbe
 from twin.config import MachineConfig
 from twin.controller.controller import Controller
 from twin.controller.library import program_path
-from twin.run import RunResult, RunSpec, axis_models, prepare, run
+from twin.run import RunResult, RunSpec, model_options, prepare, run
 
 __all__ = ["ProgramBuilder", "fit_line", "percent", "run_items"]
 
@@ -30,9 +29,8 @@ ProgramBuilder = Callable[[MachineConfig, np.ndarray], list[Any]]
 """``build(cfg, start) -> items``: a program (planner items) from the table position (m)."""
 
 
-def run_items(spec: RunSpec, build: ProgramBuilder, *, probe: bool = False,
-              out_dir: str | None = None, **controller_options: Any
-              ) -> tuple[RunResult, DeflectionProbe | None]:
+def run_items(spec: RunSpec, build: ProgramBuilder, *, keep_fine: bool = False,
+              out_dir: str | None = None, **controller_options: Any) -> RunResult:
     """Run an in-memory program on the twin through the full controller.
 
     Parameters
@@ -41,31 +39,31 @@ def run_items(spec: RunSpec, build: ProgramBuilder, *, probe: bool = False,
         Machine, law, planner, DCU order and overrides (its program fields are ignored).
     build : callable(cfg, start) -> list
         The program, from the machine configuration and the table's start position (m).
-    probe : bool
-        Sample the screw deflection every drive interval (``DeflectionProbe``).
+    keep_fine : bool
+        Keep the twin's drive-rate samples in ``RunResult.fine``.
     out_dir : str, optional
         Where ``run`` writes its summary JSON; default a temporary directory.
     **controller_options
-        Passed to ``Controller.from_machine`` (e.g. ``corner_model``); ``axis_models``
-        defaults to the twin's own linear models (``twin.run.axis_models``).
+        Passed to ``Controller.from_machine`` (e.g. ``corner_model``); the axis models and
+        axes default to the controller's model of the machine (``spec.controller_model``,
+        or the machine itself: ``twin.run.model_options``).
 
     Returns
     -------
-    (RunResult, DeflectionProbe or None)
+    RunResult
     """
     spec = dataclasses.replace(spec, program=None, builtin="none")
     p = prepare(spec)
     start = p.plant.truth().table_position
     items = build(p.cfg, start)
-    controller_options.setdefault("axis_models", axis_models(p.cfg))
+    for key, value in model_options(p.belief or p.cfg).items():
+        controller_options.setdefault(key, value)
     controller = Controller.from_machine(p.cfg, items, mode=spec.mode, start=start,
                                          **controller_options)
-    fine = DeflectionProbe(p.driver) if probe else None
-    p = dataclasses.replace(p, items=items, path=program_path(items), controller=controller,
-                            driver=fine or p.driver)
+    p = dataclasses.replace(p, items=items, path=program_path(items), controller=controller)
     with tempfile.TemporaryDirectory(prefix="xy-twin-study-") as tmp:
-        result = run(spec, out_dir=out_dir or tmp, rerun="none", prepared=p)
-    return result, fine
+        return run(spec, out_dir=out_dir or tmp, rerun="none", prepared=p,
+                   keep_fine=keep_fine)
 
 
 def percent(value: float, reference: float) -> float:

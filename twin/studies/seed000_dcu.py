@@ -127,7 +127,7 @@ def run_study(*, quick: bool = False) -> dict[str, Any]:
 
     rows = {}
     for order in range(4):
-        result, _ = run_items(_spec(move, order), build)
+        result = run_items(_spec(move, order), build)
         rows[order] = measure(result.record, move["speed"])
     _with_percentages(rows)
     mismatch = []
@@ -137,7 +137,7 @@ def run_study(*, quick: bool = False) -> dict[str, Any]:
         for error in (0.1, 0.3):
             gain = {"axes.*.tacho.gain": cfg.axes["x"].tacho.gain / (1.0 + error)}
             for order in (1, 3):
-                result, _ = run_items(_spec(move, order, gain), build, axis_models=nominal)
+                result = run_items(_spec(move, order, gain), build, axis_models=nominal)
                 row = measure(result.record, move["speed"])
                 mismatch.append({"drive_gain_error": error, "order": order, **row,
                                  "pct_coordinate": percent(row["coordinate_error_um"],

@@ -43,8 +43,8 @@ def _oabc(cfg, start):
 def law_run(law: str) -> dict[str, float]:
     """The O-A-B-C sections with one law: the figures of ``FIGURES``."""
     spec = RunSpec(machine=MACHINE, profile=law, planner="lookahead")
-    result, probe = run_items(spec, _oabc, probe=True)
-    figures = {**result.summary, **law_figures(result, probe)}
+    result = run_items(spec, _oabc, keep_fine=True)
+    figures = {**result.summary, **law_figures(result)}
     return {k: float(figures[k]) for k in FIGURES}
 
 

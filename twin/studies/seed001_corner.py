@@ -103,7 +103,7 @@ def corner_point(speed: float, sine: float, damping: float, *, friction: bool = 
         nodes.update(a=a, b=b, c=c)
         return [MotionBlock(Line(a, b), speed), MotionBlock(Line(b, c), speed)]
 
-    result, _ = run_items(spec, build)
+    result = run_items(spec, build)
     rec = result.record
     t_node = rec["t"][np.argmax(rec["block"] >= 1)]
     half = 0.5 * length / speed

@@ -50,7 +50,7 @@ def _job_run(gcode: str, planner: str, **options: Any) -> dict[str, Any]:
     def build(cfg, start):
         return list(parse(gcode, start=tuple(start.tolist())))
 
-    result, _ = run_items(RunSpec(machine=MACHINE, planner=planner, max_time=4000.0), build,
+    result = run_items(RunSpec(machine=MACHINE, planner=planner, max_time=4000.0), build,
                           **options)
     s = result.summary
     contour = true_contour_error(result)

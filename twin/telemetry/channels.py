@@ -1,12 +1,14 @@
 """What a run sends to a telemetry sink, and under which entity paths.
 
-``TelemetryWriter`` turns the controller's record and the twin's truth record into batches of
-columns (one ``send_columns`` per entity per batch): per axis reference/actual position and
-velocity, following error, DAC volts, tacho, armature current, converter voltage, regulator
-and DCU terms, screw deflection; the contour error; the programmed and actual paths; events
-(block starts, status changes: trips, limit switches). The live contour error is measured
-against the path densified to chords within 1 nm (``PathDistance``); the run summary's is
-exact.
+``TelemetryWriter`` turns the controller's record, the twin's truth record and the twin's
+drive-rate samples into batches of columns (one ``send_columns`` per entity per batch): per
+axis reference/actual position and velocity, following error, DAC volts, tacho, regulator
+and DCU terms (once per controller period); armature current, converter voltage, conduction
+and screw deflection (once per drive interval: the converter's pulses and the screw's
+ringing lie above the controller's Nyquist rate); the contour error; the programmed and
+actual paths; events (block starts, status changes: trips, limit switches). The live
+contour error is measured against the path densified to chords within 1 nm
+(``PathDistance``); the run summary's is exact.
 """
 
 from __future__ import annotations
@@ -118,9 +120,13 @@ class TelemetryWriter:
         The programmed path (drawn once; used for the contour error).
     truth_record : Record
         The twin's truth channels (``twin.plant.TRUTH_FIELDS``); None behind real I/O.
+    fine_fields : sequence of (str, int)
+        Layout of the twin's drive-rate sample rows (``twin.plant.FINE_FIELDS``) that
+        :meth:`add_fine` receives.
     """
 
-    def __init__(self, sink: Sink, path: Sequence, *, truth_record: Record | None = None):
+    def __init__(self, sink: Sink, path: Sequence, *, truth_record: Record | None = None,
+                 fine_fields: Sequence[tuple[str, int]] = ()):
         self.sink = sink
         self.path = list(path)
         self.truth_record = truth_record
@@ -129,6 +135,12 @@ class TelemetryWriter:
         self._sent = 0
         self._block = -1
         self._status = -1
+        self._fine: list[np.ndarray] = []
+        self._col: dict[str, int] = {}
+        col = 0
+        for name, width in fine_fields:
+            self._col[name] = col
+            col += width
         t0 = time.perf_counter()
         if self.path:
             sink.static_path("path/programmed", programmed_polyline(self.path))
@@ -144,12 +156,35 @@ class TelemetryWriter:
                 style(f"axes/{ax}/regulator", name=[f"{ax} {t}" for t in TERMS])
         self.wall += time.perf_counter() - t0
 
-    def flush(self, record: Record, *, status_names: Mapping[int, str] | None = None) -> None:
-        """Send the rows appended to ``record`` (and the truth record) since the last flush."""
-        n = len(record)
-        if n <= self._sent:
+    def add_fine(self, rows: np.ndarray) -> None:
+        """Queue drive-rate samples of the twin (rows of ``twin.plant.FINE_FIELDS``) for the
+        next flush."""
+        self._fine.append(rows)
+
+    def _flush_fine(self) -> None:
+        if not self._fine:
             return
+        rows = np.concatenate(self._fine)
+        self._fine.clear()
+        c = self._col
+        cols: dict[str, np.ndarray] = {}
+        for k, ax in enumerate(AXES):
+            base = f"axes/{ax}"
+            cols[f"{base}/drive/armature_current"] = rows[:, c["armature_current"] + k]
+            cols[f"{base}/drive/converter_voltage"] = rows[:, c["converter_voltage"] + k]
+            cols[f"{base}/drive/conduction"] = rows[:, c["conduction"] + k]
+            cols[f"{base}/screw_deflection_um"] = rows[:, c["screw_deflection"] + k] * 1e6
+        self.sink.scalars(rows[:, c["t"]], cols)
+
+    def flush(self, record: Record, *, status_names: Mapping[int, str] | None = None) -> None:
+        """Send the rows appended to ``record`` (and the truth record) since the last flush,
+        and the queued drive-rate samples."""
+        n = len(record)
         t0 = time.perf_counter()
+        self._flush_fine()
+        if n <= self._sent:
+            self.wall += time.perf_counter() - t0
+            return
         c = record.as_arrays(self._sent)
         tr = self.truth_record.as_arrays(self._sent) if self.truth_record is not None else {}
         t = c["t"]
@@ -165,9 +200,6 @@ class TelemetryWriter:
             cols[f"{base}/regulator"] = c["terms"][:, k, :]   # one series per term
             if tr:
                 cols[f"{base}/velocity/actual"] = tr["table_velocity"][:, k]
-                cols[f"{base}/drive/armature_current"] = tr["armature_current"][:, k]
-                cols[f"{base}/drive/converter_voltage"] = tr["converter_voltage"][:, k]
-                cols[f"{base}/screw_deflection_um"] = tr["screw_deflection"][:, k] * 1e6
         if self.path:
             cols["errors/contour_um"] = self._distance(c["position"]) * 1e6
         self.sink.scalars(t, cols)
