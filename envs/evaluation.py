@@ -131,7 +131,8 @@ _DIVERGED = (ControllerStatus.INVALID_INPUT,)
 
 def tuning_run(cfg: MachineConfig, settings: TuningSettings, *,
                models: Sequence[LinearAxisModel], program: str = "compact",
-               max_time: float = 600.0) -> RunOutcome:
+               max_time: float = 600.0, model_axes: Mapping[str, Any] | None = None
+               ) -> RunOutcome:
     """Run ``program`` on machine ``cfg`` with ``settings`` and measure it.
 
     Parameters
@@ -146,6 +147,9 @@ def tuning_run(cfg: MachineConfig, settings: TuningSettings, *,
         Tuning program name (``envs.programs.PROGRAMS``).
     max_time : float
         Simulated time after which an unfinished run counts as tripped (s).
+    model_axes : mapping, optional
+        The axes the controller believes the machine has (its corner model); default the
+        machine's.
 
     Returns
     -------
@@ -158,7 +162,7 @@ def tuning_run(cfg: MachineConfig, settings: TuningSettings, *,
     start = plant.truth().table_position
     items = tuning_program(program, cfg, start)
     ctrl = Controller.from_machine(cfg, items, gains=settings.gains, axis_models=list(models),
-                                   start=start)
+                                   model_axes=model_axes, start=start)
     driver = SimDriver(plant, cfg.controller.period)
     limit = round(max_time / cfg.controller.period)
     ticks = 0

@@ -52,11 +52,16 @@ class Tuning:
     baseline : RunOutcome, optional
         The analytic baseline's outcome if already known (a worker process need not run
         it again); it must come from the same machine and program.
+    belief : MachineConfig, optional
+        The controller's model of the machine: the analytic design, the tuning space's
+        scales and the corner model come from it; the runs are on ``cfg``. Default
+        ``cfg``.
     """
 
     def __init__(self, cfg: MachineConfig, program: str = "compact", *,
                  weights: Weights | None = None, penalty: float = 50.0,
-                 max_time_factor: float = 3.0, baseline: RunOutcome | None = None):
+                 max_time_factor: float = 3.0, baseline: RunOutcome | None = None,
+                 belief: MachineConfig | None = None):
         if program not in PROGRAMS:
             raise ConfigError("program", f"unknown tuning program {program!r}; valid: "
                               f"{', '.join(PROGRAMS)}")
@@ -66,11 +71,12 @@ class Tuning:
         self.program = program
         self.weights = weights or Weights()
         self.penalty = float(penalty)
-        self.models = axis_models(cfg)
+        self.belief = belief or cfg
+        self.models = axis_models(self.belief)
         self.space = TuningSpace.from_machine(cfg, self.models)
         self.baseline = baseline or tuning_run(
             cfg, self.space.decode(np.zeros(self.space.dim)), models=self.models,
-            program=program)
+            program=program, model_axes=self.belief.axes)
         if self.baseline.failed:
             raise SimulationError(f"the analytic baseline fails on {cfg.name}: "
                                   f"{self.baseline.status} ({self.baseline.message})")
@@ -80,7 +86,7 @@ class Tuning:
     def run(self, settings: TuningSettings) -> RunOutcome:
         """One run with ``settings``."""
         return tuning_run(self.cfg, settings, models=self.models, program=self.program,
-                          max_time=self.max_time)
+                          max_time=self.max_time, model_axes=self.belief.axes)
 
     def terms(self, outcome: RunOutcome) -> dict[str, float]:
         """Weighted cost terms (``cost_terms``) of an outcome on this machine."""

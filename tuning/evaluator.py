@@ -17,7 +17,7 @@ from typing import Any
 
 import numpy as np
 
-from envs.evaluation import RunOutcome, Weights
+from envs.evaluation import Weights
 from envs.gain_tuning import Tuning
 from twin.config import MachineConfig, load_machine
 from twin.errors import ConfigError
@@ -89,10 +89,9 @@ def baseline_trial(tuning: Tuning) -> Trial:
 _WORKER: Tuning | None = None
 
 
-def _init_worker(cfg: MachineConfig, program: str, weights: Weights, penalty: float,
-                 baseline: RunOutcome) -> None:
+def _init_worker(tuning: Tuning) -> None:
     global _WORKER
-    _WORKER = Tuning(cfg, program, weights=weights, penalty=penalty, baseline=baseline)
+    _WORKER = tuning
 
 
 def _work(x: Sequence[float]) -> Trial:
@@ -129,11 +128,15 @@ class Evaluator:
     @classmethod
     def create(cls, machine: str | MachineConfig, program: str = "compact", *,
                weights: Weights | None = None, penalty: float = 50.0, workers: int = 1,
-               on_trial: Callable[[Trial], None] | None = None) -> Evaluator:
-        """Load the machine, run the analytic baseline and return an evaluator."""
+               on_trial: Callable[[Trial], None] | None = None,
+               belief: str | MachineConfig | None = None) -> Evaluator:
+        """Load the machine (and the controller's model of it, ``belief``; default the
+        machine), run the analytic baseline and return an evaluator."""
         cfg = machine if isinstance(machine, MachineConfig) else load_machine(machine)
-        return cls(Tuning(cfg, program, weights=weights, penalty=penalty), workers,
-                   on_trial)
+        model = belief if belief is None or isinstance(belief, MachineConfig) \
+            else load_machine(belief)
+        return cls(Tuning(cfg, program, weights=weights, penalty=penalty, belief=model),
+                   workers, on_trial)
 
     @property
     def dim(self) -> int:
@@ -172,8 +175,7 @@ class Evaluator:
             t = self.tuning
             self._pool = ProcessPoolExecutor(
                 self.workers, mp_context=multiprocessing.get_context("spawn"),
-                initializer=_init_worker,
-                initargs=(t.cfg, t.program, t.weights, t.penalty, t.baseline))
+                initializer=_init_worker, initargs=(t,))
         return self._pool
 
     def close(self) -> None:

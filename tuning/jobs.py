@@ -41,7 +41,10 @@ class TuneSpec:
     method : str
         One of ``METHODS``.
     machine : str
-        Preset name or TOML path.
+        Preset name or TOML path: the machine the tuning runs are on.
+    controller_model : str or None
+        Preset name or TOML path of the machine as the controller believes it to be (the
+        analytic design and the tuning space's scales come from it); None: the machine.
     program : str
         Tuning program (``envs.programs.PROGRAMS``).
     budget_s : float
@@ -69,6 +72,7 @@ class TuneSpec:
 
     method: str
     machine: str = "tomsk_xy"
+    controller_model: str | None = None
     program: str = "default"
     budget_s: float = 600.0
     out_dir: Path = Path("runs/tune")
@@ -189,7 +193,7 @@ def tune(spec: TuneSpec, *, on_trial: Callable[[Trial], None] | None = None,
     files: dict[str, Path] = {}
     with Evaluator.create(cfg, spec.program, weights=Weights.from_mapping(spec.weights),
                           workers=spec.workers if spec.method in ("cma", "optuna") else 1,
-                          on_trial=on_trial) as ev:
+                          on_trial=on_trial, belief=spec.controller_model) as ev:
         trials = _search(spec, ev, files, progress)
         baseline = ev.baseline
     best = min([baseline, *trials], key=lambda t: t.cost)

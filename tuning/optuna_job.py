@@ -34,10 +34,8 @@ try:
 except ImportError:  # optuna < 4.9 (pyproject allows >= 4.0)
     from optuna.storages import RetryFailedTrialCallback as RetryHeartbeatStaleTrialCallback
 
-from envs.evaluation import RunOutcome, Weights
 from envs.gain_tuning import Tuning
 from tuning.evaluator import Evaluator, Trial
-from twin.config import MachineConfig
 from twin.errors import ConfigError
 
 __all__ = ["default_storage", "fail_trials_without_heartbeat", "open_study", "run_optuna",
@@ -169,9 +167,7 @@ def study_trials(study: optuna.Study) -> list[Trial]:
     return out
 
 
-def _worker(url: str, name: str, cfg: MachineConfig, program: str, weights: Weights,
-            penalty: float, baseline: RunOutcome, budget_s: float, seed: int) -> None:
-    tuning = Tuning(cfg, program, weights=weights, penalty=penalty, baseline=baseline)
+def _worker(url: str, name: str, tuning: Tuning, budget_s: float, seed: int) -> None:
     names = tuning.space.names
     storage = open_storage(url)
     study = open_study(storage, name, names, seed=seed)
@@ -197,8 +193,7 @@ def run_optuna(evaluator: Evaluator, *, storage: str, study_name: str, budget_s:
     t = evaluator.tuning
     ctx = multiprocessing.get_context("spawn")
     extra = [ctx.Process(target=_worker, daemon=True,
-                         args=(storage, study_name, t.cfg, t.program, t.weights, t.penalty,
-                               t.baseline, budget_s, seed + 1 + i))
+                         args=(storage, study_name, t, budget_s, seed + 1 + i))
              for i in range(evaluator.workers - 1)]
     for p in extra:
         p.start()

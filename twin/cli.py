@@ -20,8 +20,8 @@ from rich.console import Console
 from rich.progress import BarColumn, Progress, TextColumn, TimeElapsedColumn
 from rich.table import Table
 
-from twin.cli_common import RUN_ROWS, err, fail, summary_table
-from twin.config import available_machines, load_machine
+from twin.cli_common import CONTROLLER_MODEL_HELP, RUN_ROWS, err, fail, summary_table
+from twin.config import available_machines, diff_machines, field_unit, load_machine
 from twin.errors import TwinError
 
 __all__ = ["app"]
@@ -30,7 +30,8 @@ app = typer.Typer(help="xy-twin: a digital twin of a two-axis CNC cross table.",
                   no_args_is_help=True, add_completion=False)
 
 MachineOpt = typer.Option("tomsk_xy", "--machine", "-m",
-                          help="Machine preset name or TOML file.")
+                          help="Machine preset name or TOML file (the plant).")
+ModelOpt = typer.Option(None, "--controller-model", help=CONTROLLER_MODEL_HELP)
 OutOpt = typer.Option(Path("runs"), "--out", help="Directory for run records.")
 JsonOpt = typer.Option(False, "--json", help="Print exactly one JSON object on stdout.")
 
@@ -58,12 +59,14 @@ def _summary_table(summary: dict[str, Any], title: str) -> Table:
 def _run(program: Path | None, machine: str, profile: str | None, planner: str | None,
          dcu_order: int | None, period: float | None, sets: list[str], rerun: str,
          out: Path, as_json: bool, dry_run: bool = False, builtin: str = "default",
-         driver: str = "sim", rt_priority: int = 0, set_file: Path | None = None) -> None:
+         driver: str = "sim", rt_priority: int = 0, set_file: Path | None = None,
+         controller_model: str | None = None) -> None:
     from twin.overrides import parse_sets, set_file_overrides
     from twin.run import RunSpec, run
 
     try:
-        spec = RunSpec(machine=machine, program=str(program) if program else None,
+        spec = RunSpec(machine=machine, controller_model=controller_model,
+                       program=str(program) if program else None,
                        builtin=builtin, profile=profile, planner=planner,
                        dcu_order=dcu_order, period=period, overrides={
                            **(set_file_overrides(set_file) if set_file else {}),
@@ -122,6 +125,7 @@ def run_cmd(
     program: Path | None = typer.Argument(None, help="G-code file; none: the built-in "
                                            "default program."),
     machine: str = MachineOpt,
+    controller_model: str | None = ModelOpt,
     profile: str | None = typer.Option(
         None, help="Acceleration law: trapezoid, parabolic, cosine, cubic, jerk-limited."),
     planner: str | None = typer.Option(None, help="lookahead or stop."),
@@ -151,11 +155,12 @@ def run_cmd(
     if profile is not None:
         profile = profile.replace("_", "-")
     _run(program, machine, profile, planner, dcu_order, period, sets, rerun, out, as_json,
-         dry_run, builtin, driver, rt_priority, set_file)
+         dry_run, builtin, driver, rt_priority, set_file, controller_model)
 
 
 @app.command()
-def demo(machine: str = MachineOpt, out: Path = OutOpt, as_json: bool = JsonOpt) -> None:
+def demo(machine: str = MachineOpt, out: Path = OutOpt, as_json: bool = JsonOpt,
+         controller_model: str | None = ModelOpt) -> None:
     """Run the built-in default program (spline sections, a corner, a circle) with DCU
     order 0 and 3, and print both summaries."""
     from twin.run import RunSpec, run
@@ -165,7 +170,8 @@ def demo(machine: str = MachineOpt, out: Path = OutOpt, as_json: bool = JsonOpt)
         try:
             with _progress() as bar:
                 task = bar.add_task(f"DCU order {order}", total=None)
-                result = run(RunSpec(machine=machine, dcu_order=order), out_dir=out,
+                result = run(RunSpec(machine=machine, controller_model=controller_model,
+                                     dcu_order=order), out_dir=out,
                              progress=lambda t, _m, task=task, bar=bar, o=order:
                              bar.update(task, description=f"DCU {o}: {t:.1f} s"))
         except TwinError as exc:
@@ -197,8 +203,16 @@ def view(
 
 
 @app.command()
-def machines(as_json: bool = JsonOpt) -> None:
-    """List the machine presets and their key figures."""
+def machines(
+    as_json: bool = JsonOpt,
+    diff: tuple[str, str] | None = typer.Option(
+        None, "--diff", help="Show where two machine files (presets or TOML) differ: "
+        "--diff A B."),
+) -> None:
+    """List the machine presets and their key figures, or compare two machines."""
+    if diff is not None:
+        _machine_diff(*diff, as_json)
+        return
     rows = []
     for name in available_machines():
         try:
@@ -225,6 +239,34 @@ def machines(as_json: bool = JsonOpt) -> None:
     for r in rows:
         table.add_row(*(f"{r[k]:g}" if isinstance(r[k], float) else str(r[k]) for k in keys))
     Console().print(table)
+
+
+def _machine_diff(a: str, b: str, as_json: bool) -> None:
+    """``twin machines --diff A B``: every field whose value differs, with its unit."""
+    try:
+        ma, mb = load_machine(a), load_machine(b)
+    except TwinError as exc:
+        fail(exc)
+    rows = [{"field": path, "unit": field_unit(path), a: va, b: vb}
+            for path, va, vb in diff_machines(ma, mb)]
+    if as_json:
+        _emit({"a": a, "b": b, "differences": rows}, True)
+        return
+    if not rows:
+        Console().print(f"{a} and {b} are the same machine (names and descriptions aside)")
+        return
+    table = Table(title=f"{a} vs {b}: {len(rows)} differences")
+    for col in ("field", a, b, "unit"):
+        table.add_column(col, justify="right" if col in (a, b) else "left")
+    for r in rows:
+        table.add_row(r["field"], _cell(r[a]), _cell(r[b]), r["unit"])
+    Console().print(table)
+
+
+def _cell(value: Any) -> str:
+    if value is None:
+        return "—"
+    return f"{value:.6g}" if isinstance(value, float) else str(value)
 
 
 def _register_more() -> None:

@@ -14,7 +14,14 @@ import typer
 from rich.console import Console
 from rich.table import Table
 
-__all__ = ["METRIC_ROWS", "RUN_ROWS", "err", "fail", "summary_table"]
+__all__ = ["CONTROLLER_MODEL_HELP", "METRIC_ROWS", "RUN_ROWS", "err", "fail",
+           "summary_table"]
+
+CONTROLLER_MODEL_HELP = (
+    "The machine as the controller believes it to be (preset or TOML file): its gains, "
+    "DCU, feed-forward and corner model are derived from this model; the physics runs "
+    "--machine. Default: the machine itself.")
+"""Help of every command's ``--controller-model``."""
 
 err = Console(stderr=True)
 """Console on stderr for messages, progress and errors."""
@@ -40,6 +47,7 @@ RUN_ROWS = (
     ("status", "status", ""), ("cycle time", "cycle_time_s", "s"),
     ("path length", "path_length_mm", "mm"),
     *METRIC_ROWS,
+    ("elastic oscillation", "elastic_oscillation_um", "µm"),
     ("settling travel", "settling_travel_um", "µm"),
     ("real-time factor", "real_time_factor", "×"),
     ("recording", "recording", ""),

@@ -11,7 +11,7 @@ import typer
 from rich.console import Console
 from rich.table import Table
 
-from twin.cli_common import METRIC_ROWS, err, fail, summary_table
+from twin.cli_common import CONTROLLER_MODEL_HELP, METRIC_ROWS, err, fail, summary_table
 from twin.errors import ConfigError, TwinError
 
 __all__ = ["ROWS", "register"]
@@ -23,7 +23,7 @@ ROWS = (
     ("peak reference jerk |Δa|/T", "peak_reference_jerk_m_per_s3", "m/s³"),
     ("speed jump at junctions", "junction_speed_jump_mm_per_s", "mm/s"),
     ("elastic oscillation", "elastic_oscillation_um", "µm"),
-    ("settling travel", "settling_travel_um", "µm"),
+    ("settling travel (loop lag)", "settling_travel_um", "µm"),
 )
 """Rows of the comparison table: label, summary key (or (key, axis)), unit."""
 
@@ -49,7 +49,9 @@ def compare_cmd(
                                  help="Comma-separated laws: trapezoid, parabolic, cosine, "
                                       "cubic, jerk-limited."),
     machine: str = typer.Option("tomsk_xy", "--machine", "-m",
-                                help="Machine preset name or TOML file."),
+                                help="Machine preset name or TOML file (the plant)."),
+    controller_model: str | None = typer.Option(None, "--controller-model",
+                                                help=CONTROLLER_MODEL_HELP),
     sets: list[str] = typer.Option([], "--set", help="key=value overrides (repeatable)."),
     planner: str | None = typer.Option(None, help="lookahead or stop."),
     dcu_order: int | None = typer.Option(None, "--dcu-order", min=0, max=3),
@@ -74,10 +76,11 @@ def compare_cmd(
     try:
         for law in laws:
             check_law(law)
-        base = RunSpec(machine=machine, program=str(program) if program else None,
+        base = RunSpec(machine=machine, controller_model=controller_model,
+                       program=str(program) if program else None,
                        builtin=builtin, planner=planner, dcu_order=dcu_order,
                        overrides=parse_sets(sets))
-        base.machine_config()
+        base.belief(base.machine_config())
         out.mkdir(parents=True, exist_ok=True)
         if sweep is not None:
             result = _sweep(base, laws, sweep, figure, out, write_sweep_report)

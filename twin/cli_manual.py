@@ -11,7 +11,7 @@ import typer
 from rich.console import Console
 from rich.table import Table
 
-from twin.cli_common import RUN_ROWS, err, fail, summary_table
+from twin.cli_common import CONTROLLER_MODEL_HELP, RUN_ROWS, err, fail, summary_table
 from twin.errors import ConfigError, TwinError
 
 __all__ = ["register"]
@@ -26,7 +26,10 @@ def experiment(
     duration: float = typer.Option(1.0, help="Record length after the input (s)."),
     open_loop: bool = typer.Option(False, "--open-loop",
                                    help="Apply to the drive's speed reference instead."),
-    machine: str = typer.Option("tomsk_xy", "--machine", "-m"),
+    machine: str = typer.Option("tomsk_xy", "--machine", "-m",
+                                help="Machine preset name or TOML file (the plant)."),
+    controller_model: str | None = typer.Option(None, "--controller-model",
+                                                help=CONTROLLER_MODEL_HELP),
     sets: list[str] = typer.Option([], "--set", help="key=value overrides."),
     rerun: Path | None = typer.Option(None, "--rerun", help="Write the response to this "
                                       ".rrd file."),
@@ -40,13 +43,15 @@ def experiment(
     sink = None
     try:
         cfg = load_machine(machine).with_overrides(parse_sets(sets))
+        belief = load_machine(controller_model) if controller_model else None
         if rerun is not None:
             from twin.telemetry.rerun_sink import RerunSink
 
             sink = RerunSink(rerun, recording_id=f"{kind}-{axis}")
         scale = 1.0 if open_loop else 1e-3
         result, _ = run_experiment(cfg, kind=kind, axis=axis, amplitude=amplitude * scale,
-                                   duration=duration, open_loop=open_loop, sink=sink)
+                                   duration=duration, open_loop=open_loop, sink=sink,
+                                   belief=belief)
     except TwinError as exc:
         fail(exc)
     finally:

@@ -14,7 +14,7 @@ import typer
 from rich.console import Console
 from rich.progress import BarColumn, Progress, TextColumn, TimeElapsedColumn
 
-from twin.cli_common import err, fail
+from twin.cli_common import CONTROLLER_MODEL_HELP, err, fail
 from twin.errors import TwinError
 
 __all__ = ["register"]
@@ -23,7 +23,10 @@ __all__ = ["register"]
 def tune(
     method: str = typer.Option(..., "--method", help="analytic, cma, optuna, ppo or sac."),
     machine: str = typer.Option("tomsk_xy", "--machine", "-m",
-                                help="Machine preset name or TOML file."),
+                                help="Machine preset name or TOML file (the plant the "
+                                     "tuning runs are on)."),
+    controller_model: str | None = typer.Option(None, "--controller-model",
+                                                help=CONTROLLER_MODEL_HELP),
     program: str = typer.Option("default", "--program", help="Tuning program: default, "
                                 "compact (default shrunk to 5 %), tiny, corner, spline_line."),
     budget_s: float = typer.Option(600.0, "--budget-s", help="Wall-time budget (s)."),
@@ -49,7 +52,8 @@ def tune(
     from tuning.jobs import tune as run_job
 
     try:
-        spec = TuneSpec(method=method, machine=machine, program=program, budget_s=budget_s,
+        spec = TuneSpec(method=method, machine=machine, controller_model=controller_model,
+                        program=program, budget_s=budget_s,
                         out_dir=out, storage=storage, study=study, workers=workers,
                         seed=seed, max_runs=max_runs, policy=policy, train_steps=train_steps)
         training = method in ("ppo", "sac") and policy is None

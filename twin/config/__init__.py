@@ -40,6 +40,7 @@ from twin.config.schema import (
     TachoConfig,
     TimingConfig,
     TransmissionConfig,
+    field_unit,
 )
 
 __all__ = [
@@ -63,6 +64,7 @@ __all__ = [
     "TransmissionConfig",
     "available_machines",
     "diff_machines",
+    "field_unit",
     "flatten",
     "from_dict",
     "load_machine",

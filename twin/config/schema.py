@@ -33,6 +33,7 @@ __all__ = [
     "TachoConfig",
     "TimingConfig",
     "TransmissionConfig",
+    "field_unit",
 ]
 
 AXES = ("x", "y")
@@ -493,3 +494,32 @@ class MachineConfig(_Validated):
             else:
                 _set_path(raw, parts, value, key)
         return _build(raw, self.source)
+
+
+def field_unit(path: str) -> str:
+    """The unit of the machine field at a dotted ``path`` (``"axes.x.tacho.gain"`` →
+    ``"V·s/rad"``), from the schema's metadata; ``""`` for a field without one (a string, a
+    flag, a table) or an unknown path."""
+    import typing
+
+    node: Any = MachineConfig
+    parts = path.split(".")
+    i = 0
+    while i < len(parts):
+        if not dataclasses.is_dataclass(node):
+            return ""
+        hints = typing.get_type_hints(node)
+        f = next((f for f in dataclasses.fields(node) if f.name == parts[i]), None)
+        if f is None:
+            return ""
+        if i == len(parts) - 1:
+            return str(f.metadata.get("unit", "")) if f.metadata else ""
+        tp = hints[f.name]
+        if typing.get_origin(tp) is dict:  # axes.<name>.…, stiffness.<name>
+            value_type = typing.get_args(tp)[1]
+            if i + 1 == len(parts) - 1:
+                return "N/m" if f.name == "stiffness" else ""
+            node, i = value_type, i + 2
+            continue
+        node, i = tp, i + 1
+    return ""

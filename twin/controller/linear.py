@@ -346,9 +346,20 @@ def position_gain(model: LinearAxisModel, period: float, *,
     def crossing(target: float) -> list[float]:
         """Frequencies (rad/s) where the unwrapped phase crosses ``target`` downwards."""
         idx = np.flatnonzero((phase[:-1] > target) & (phase[1:] <= target))
-        rot = np.exp(-1j * target)
-        return [scipy.optimize.brentq(lambda w: float(np.angle(response(w) * rot)),
-                                      grid[i], grid[i + 1]) for i in idx]
+        return [_refine(i, target) for i in idx]
+
+    def _refine(i: int, target: float) -> float:
+        """The crossing inside grid step i: the phase continued from grid[i] (so the wrap
+        of the angle at ±π cannot split the bracket); a step over which the phase turns by
+        π or more (a notch of the response) keeps the grid point."""
+        r0 = complex(response(grid[i]))
+
+        def offset(w: float) -> float:
+            return float(phase[i] + np.angle(complex(response(w)) / r0) - target)
+
+        if offset(grid[i + 1]) > 0.0:
+            return float(grid[i + 1])
+        return scipy.optimize.brentq(offset, grid[i], grid[i + 1])
 
     candidates = []
     pm_cross = crossing(-math.pi + phase_margin)
