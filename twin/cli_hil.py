@@ -59,7 +59,8 @@ def hil_server(
                                     help="A DAC write arriving up to this late after its "
                                     "counter read's drive interval still acts from that "
                                     "interval (ms)."),
-    noise: bool = typer.Option(False, "--noise", help="Sensor noise on."),
+    noise: bool = typer.Option(True, "--noise/--no-noise", help="The machine file's sensor "
+                               "noise (tacho, encoder); --no-noise silences it."),
     rt_priority: int = typer.Option(0, "--rt-priority", min=0, max=99,
                                     help="Serve under SCHED_FIFO at this priority (Linux, "
                                     "needs CAP_SYS_NICE); 0: normal scheduling."),

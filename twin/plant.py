@@ -147,7 +147,7 @@ class Plant:
         self.reset()
 
     @classmethod
-    def from_machine(cls, machine: str | Path | MachineConfig, *, noise: bool = False,
+    def from_machine(cls, machine: str | Path | MachineConfig, *, noise: bool = True,
                      seed: int | None = None) -> Plant:
         """A plant of a preset name, a machine TOML path or a config."""
         return cls(resolve_machine(machine), noise=noise, seed=seed)

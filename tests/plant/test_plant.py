@@ -8,6 +8,7 @@ import numpy as np
 import pytest
 
 from tests.plant.modal import mid_travel
+from twin.config import load_machine
 from twin.errors import SimulationError
 from twin.plant import Plant
 
@@ -166,3 +167,50 @@ def test_reset_places_the_tables_and_rejects_positions_outside_the_travel():
         plant.reset(positions=np.array([0.5, 0.05]))
     with pytest.raises(ValueError, match="keyframe"):
         plant.reset("nowhere")
+
+
+@pytest.mark.parametrize(("gain_error", "offset"), [(0.1, 0.0), (0.0, 0.05), (-0.2, -0.03)])
+def test_the_plants_dac_has_its_own_gain_error_and_offset(gain_error, offset):
+    """The drive turns at (code·LSB·(1 + gain error) + offset)/K_C: the real output stage,
+    which the controller's DAC setting does not know."""
+    cfg = load_machine("tomsk_xy").with_overrides(
+        {"axes.x.dac.gain_error": gain_error, "axes.x.dac.offset": offset})
+    plant = Plant(cfg)
+    volts = 205 * LSB  # one code grid point: 1.00098 V
+    plant.step(np.array([volts, 0.0]), 0.5)
+    expected = volts * (1.0 + gain_error) + offset
+    assert plant.truth().speed_reference[0] == pytest.approx(expected, abs=1e-6)
+    omega = plant.truth().rotor_speed[0]
+    assert omega == pytest.approx(expected / cfg.axes["x"].tacho.gain, rel=0.02)
+
+
+def test_tacho_ripple_rides_on_the_tacho_signal_at_its_harmonic():
+    from twin.drive import Drives
+
+    ax = load_machine("tomsk_xy").with_overrides(
+        {"axes.y.tacho.ripple": [[2.0, 3.0]]}).axes["y"]
+    drives = Drives([ax], dt=1e-3)
+    omega = 20.0
+    tacho = []
+    for k in range(1000):  # rotor held at 20 rad/s, angle advancing
+        drives.step(np.array([0.0]), np.array([omega]), np.array([omega * k * 1e-3]))
+        tacho.append(drives.tacho_volts[0])
+    tacho = np.array(tacho[200:])
+    mean = ax.tacho.gain * omega
+    assert tacho.mean() == pytest.approx(mean, rel=0.01)
+    # 3 % at twice the rotation (40 rad/s, far below the 1 ms filter's corner)
+    assert (tacho.max() - tacho.min()) / 2 == pytest.approx(0.03 * mean, rel=0.05)
+
+
+def test_the_machines_tacho_noise_reaches_a_twin_run(tmp_path):
+    from twin.run import RunSpec, run
+
+    def tacho(noise, seed=0):
+        spec = RunSpec(builtin="spline_line", overrides={"axes.*.tacho.noise": noise,
+                                                         "simulation.seed": seed})
+        return run(spec, out_dir=tmp_path, rerun="none").record["tacho_volts"][:, 0]
+
+    clean, noisy, again, other = tacho(0.0), tacho(0.02), tacho(0.02), tacho(0.02, seed=1)
+    assert np.std(noisy - clean) > 0.005               # honoured, not silently ignored
+    np.testing.assert_array_equal(noisy, again)         # and seeded
+    assert not np.array_equal(noisy, other)

@@ -45,10 +45,11 @@ async def _serve(module: HilModule, host: str, port: int,
 
 
 def hil_plant(cfg: MachineConfig, *, start: np.ndarray | None = None,
-              noise: bool = False) -> Plant:
+              noise: bool = True) -> Plant:
     """A plant ready to serve: warmed up (the drive kernels are compiled by a first step,
     which must not happen on the clock) and reset to ``start`` (m; default: the home
-    keyframe). ``ValueError`` if ``start`` is outside the travel."""
+    keyframe). ``ValueError`` if ``start`` is outside the travel. ``noise``: the machine
+    file's sensor noise (False silences it)."""
     plant = Plant.from_machine(cfg, noise=noise)
     plant.enable(False)
     plant.step(np.zeros(2), plant.drive_dt)
