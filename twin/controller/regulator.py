@@ -17,10 +17,11 @@ DAC mapping: a bipolar ``dac_bits`` converter spanning ±``output_limit``;
 ``c = floor(u/lsb + 1/2)`` clamped to ``-2**(bits-1) … 2**(bits-1) - 1`` and the output is
 ``c·lsb`` volts (offset-binary word ``c + 2**(bits-1)``), so +10 V comes out as 9.99512 V.
 
-``update`` is the cyclic path: plain Python float arithmetic over the axes (arrays are read
-once as lists, no numpy temporaries), and it never raises for expected conditions. A
-following error beyond the limit, or a non-finite input, zeroes the outputs and latches
-``FOLLOWING_ERROR`` (``INVALID_INPUT``) until ``reset``.
+``update`` is the cyclic path, compiled (numba, :func:`_regulate`) over float64 arrays of
+the gains and the state; ``update_reference`` is the same arithmetic in plain Python, kept as
+the reference the compiled path is tested against bit for bit. Neither raises for expected
+conditions: a following error beyond the limit, or a non-finite input, zeroes the outputs
+and latches ``FOLLOWING_ERROR`` (``INVALID_INPUT``) until ``reset``.
 """
 
 from __future__ import annotations
@@ -30,6 +31,7 @@ from collections.abc import Sequence
 from dataclasses import dataclass
 from enum import IntEnum
 
+import numba
 import numpy as np
 
 from twin.controller.dcu import dcu_as_feedforward, dcu_coefficients
@@ -156,6 +158,67 @@ def _per_axis(gains: RegulatorGains, name: str, n: int) -> list[float]:
     return [value] * n
 
 
+# gain columns of the compiled path
+_KP, _KI_T, _KD_T, _FF1, _FF2, _FF3, _FEL, _A1, _A2, _A3 = range(10)
+# state columns: integral (V), previous error (m), reference history x(k-1..k-3) (m)
+_INT, _EPREV, _H1, _H2, _H3 = range(5)
+
+
+@numba.njit(cache=True)
+def _regulate(par, st, x_ref, v_ref, a_ref, j_ref, x_act, out, err, terms, limit, lsb,
+              code_min, code_max):
+    """One tick of every axis (the arithmetic of ``update_reference``, in the same order);
+    returns the ``RegulatorStatus`` code (a trip returns at once; the caller zeroes the
+    outputs and latches it until ``reset``, which clears the state)."""
+    n = par.shape[0]
+    status = 0
+    for k in range(n):
+        xr = x_ref[k]
+        e = xr - x_act[k]
+        err[k] = e
+        if not abs(e) <= par[k, _FEL]:
+            return 2 if e - e == 0.0 else 3
+        p = par[k, _KP] * e
+        i_old = st[k, _INT]
+        i = i_old + par[k, _KI_T] * e
+        d = par[k, _KD_T] * (e - st[k, _EPREV])
+        ff = par[k, _FF1] * v_ref[k] + par[k, _FF2] * a_ref[k] + par[k, _FF3] * j_ref[k]
+        x1, x2 = st[k, _H1], st[k, _H2]
+        d1 = xr - x1
+        d1p = x1 - x2
+        d2 = d1 - d1p
+        dcu = (par[k, _A1] * d1 + par[k, _A2] * d2
+               + par[k, _A3] * (d2 - d1p + (x2 - st[k, _H3])))
+        u = p + i + d + ff + dcu
+        if u - u != 0.0:                       # NaN or inf from a feed-forward input
+            return 3
+        if u > limit or u < -limit:
+            if (u > 0.0) == (e > 0.0):         # conditional integration: hold
+                u += i_old - i
+                i = i_old
+            if u > limit:
+                u = limit
+                status = 1
+            elif u < -limit:
+                u = -limit
+                status = 1
+        if lsb:
+            c = math.floor(u / lsb + 0.5)
+            u = lsb * (code_max if c > code_max else code_min if c < code_min else c)
+        out[k] = u
+        terms[k, 0] = p
+        terms[k, 1] = i
+        terms[k, 2] = d
+        terms[k, 3] = ff
+        terms[k, 4] = dcu
+        st[k, _INT] = i
+        st[k, _EPREV] = e
+        st[k, _H3] = x2
+        st[k, _H2] = x1
+        st[k, _H1] = xr
+    return status
+
+
 class PositionRegulator:
     """The position regulator of ``n_axes`` axes.
 
@@ -191,27 +254,29 @@ class PositionRegulator:
         self.n_axes = n_axes
         n = n_axes
         self._axes = range(n)
-        self._kp = _per_axis(gains, "kp", n)
-        self._ki_t = [k * period for k in _per_axis(gains, "ki", n)]
-        self._kd_t = [k / period for k in _per_axis(gains, "kd", n)]
-        self._ff1 = _per_axis(gains, "ff1", n)
-        self._ff2 = _per_axis(gains, "ff2", n)
-        self._ff3 = _per_axis(gains, "ff3", n)
-        self._fel = _per_axis(gains, "following_error_limit", n)
         alpha = np.broadcast_to(np.asarray(gains.dcu_alpha, dtype=float), (n, 3)) \
             if np.ndim(gains.dcu_alpha) == 1 or len(gains.dcu_alpha) == n else None
         if alpha is None:
             raise ConfigError("dcu_alpha", f"has {len(gains.dcu_alpha)} rows, the regulator "
                               f"has {n} axes")
-        self._a1, self._a2, self._a3 = (alpha[:, i].tolist() for i in range(3))
-        self._limit = gains.output_limit
-        self._lsb = gains.dac_lsb
+        par = np.zeros((n, 10))
+        par[:, _KP] = _per_axis(gains, "kp", n)
+        par[:, _KI_T] = [k * period for k in _per_axis(gains, "ki", n)]
+        par[:, _KD_T] = [k / period for k in _per_axis(gains, "kd", n)]
+        par[:, _FF1] = _per_axis(gains, "ff1", n)
+        par[:, _FF2] = _per_axis(gains, "ff2", n)
+        par[:, _FF3] = _per_axis(gains, "ff3", n)
+        par[:, _FEL] = _per_axis(gains, "following_error_limit", n)
+        par[:, _A1:_A3 + 1] = alpha
+        self._par = par
+        self._st = np.zeros((n, 5))
+        self._limit = float(gains.output_limit)
+        self._lsb = float(gains.dac_lsb or 0.0)
         half = 0 if gains.dac_bits is None else 2 ** (gains.dac_bits - 1)
         self._code_min, self._code_max = -half, half - 1
         self.output = np.zeros(n)
         self.error = np.zeros(n)
         self.terms = np.zeros((n, len(TERMS)))
-        self._rows = list(self.terms)
         self.reset(np.zeros(n))
 
     @property
@@ -226,10 +291,8 @@ class PositionRegulator:
         if len(pos) != self.n_axes or not all(map(math.isfinite, pos)):
             raise ConfigError("position", f"must be {self.n_axes} finite numbers (m), "
                               f"got {position!r}")
-        n = self.n_axes
-        self._integral = [0.0] * n
-        self._e_prev = [0.0] * n
-        self._h1, self._h2, self._h3 = list(pos), list(pos), list(pos)
+        self._st[:] = 0.0
+        self._st[:, _H1] = self._st[:, _H2] = self._st[:, _H3] = pos
         self._latched = RegulatorStatus.OK
         self.status = RegulatorStatus.OK
         self.output[:] = 0.0
@@ -237,12 +300,13 @@ class PositionRegulator:
         self.terms[:] = 0.0
 
     def update(self, x_ref, v_ref, a_ref, j_ref, x_actual) -> RegulatorStatus:
-        """One regulation tick.
+        """One regulation tick (compiled: :func:`_regulate`).
 
         Parameters
         ----------
         x_ref, v_ref, a_ref, j_ref : sequence of float, length n_axes
-            Position (m), velocity (m/s), acceleration (m/s²) and jerk (m/s³) references.
+            Position (m), velocity (m/s), acceleration (m/s²) and jerk (m/s³) references
+            (float64 arrays on the cyclic path; anything else is converted).
         x_actual : sequence of float, length n_axes
             Measured position (m).
 
@@ -251,44 +315,54 @@ class PositionRegulator:
         RegulatorStatus
             Also stored in ``status``; ``output``, ``error`` and ``terms`` are written.
         """
+        if type(x_ref) is not _NDARRAY or type(x_actual) is not _NDARRAY \
+                or type(v_ref) is not _NDARRAY or type(a_ref) is not _NDARRAY \
+                or type(j_ref) is not _NDARRAY:
+            x_ref, v_ref, a_ref, j_ref, x_actual = (
+                np.asarray(v, dtype=np.float64) for v in (x_ref, v_ref, a_ref, j_ref,
+                                                          x_actual))
+        if self._latched:
+            np.subtract(x_ref, x_actual, out=self.error)
+            return self._latched
+        code = _regulate(self._par, self._st, x_ref, v_ref, a_ref, j_ref, x_actual,
+                         self.output, self.error, self.terms, self._limit, self._lsb,
+                         self._code_min, self._code_max)
+        if code >= RegulatorStatus.FOLLOWING_ERROR:
+            return self._trip(_STATUS[code])
+        self.status = _STATUS[code]
+        return self.status
+
+    def update_reference(self, x_ref, v_ref, a_ref, j_ref, x_actual) -> RegulatorStatus:
+        """``update`` in plain Python float arithmetic (the reference the compiled path is
+        tested against, operation for operation; same state, same results)."""
+        x_ref, v_ref, a_ref, j_ref, x_actual = (
+            [float(v) for v in seq] for seq in (x_ref, v_ref, a_ref, j_ref, x_actual))
         err = self.error
-        # numpy scalars are slow in float arithmetic: take arrays as lists of Python floats
-        if type(x_ref) is _NDARRAY:
-            x_ref = x_ref.tolist()
-        if type(x_actual) is _NDARRAY:
-            x_actual = x_actual.tolist()
-        if type(v_ref) is _NDARRAY:
-            v_ref = v_ref.tolist()
-        if type(a_ref) is _NDARRAY:
-            a_ref = a_ref.tolist()
-        if type(j_ref) is _NDARRAY:
-            j_ref = j_ref.tolist()
         if self._latched:
             for k in self._axes:
                 err[k] = x_ref[k] - x_actual[k]
             return self._latched
-        out, rows, lsb, limit = self.output, self._rows, self._lsb, self._limit
-        integral, e_prev, h1, h2, h3 = (self._integral, self._e_prev, self._h1, self._h2,
-                                        self._h3)
+        par, st = self._par.tolist(), self._st.tolist()
+        lsb, limit = self._lsb, self._limit
         status = RegulatorStatus.OK
         for k in self._axes:
+            g, s = par[k], st[k]
             xr = x_ref[k]
             e = xr - x_actual[k]
             err[k] = e
-            if not abs(e) <= self._fel[k]:
+            if not abs(e) <= g[_FEL]:
                 return self._trip(RegulatorStatus.FOLLOWING_ERROR if e - e == 0.0
                                   else RegulatorStatus.INVALID_INPUT)
-            p = self._kp[k] * e
-            i_old = integral[k]
-            i = i_old + self._ki_t[k] * e
-            d = self._kd_t[k] * (e - e_prev[k])
-            ff = self._ff1[k] * v_ref[k] + self._ff2[k] * a_ref[k] + self._ff3[k] * j_ref[k]
-            x1, x2 = h1[k], h2[k]
+            p = g[_KP] * e
+            i_old = s[_INT]
+            i = i_old + g[_KI_T] * e
+            d = g[_KD_T] * (e - s[_EPREV])
+            ff = g[_FF1] * v_ref[k] + g[_FF2] * a_ref[k] + g[_FF3] * j_ref[k]
+            x1, x2 = s[_H1], s[_H2]
             d1 = xr - x1
             d1p = x1 - x2
             d2 = d1 - d1p
-            dcu = (self._a1[k] * d1 + self._a2[k] * d2
-                   + self._a3[k] * (d2 - d1p + (x2 - h3[k])))
+            dcu = g[_A1] * d1 + g[_A2] * d2 + g[_A3] * (d2 - d1p + (x2 - s[_H3]))
             u = p + i + d + ff + dcu
             if u - u != 0.0:                       # NaN or inf from a feed-forward input
                 return self._trip(RegulatorStatus.INVALID_INPUT)
@@ -306,18 +380,9 @@ class PositionRegulator:
                 c = math.floor(u / lsb + 0.5)
                 u = lsb * (self._code_max if c > self._code_max else
                            self._code_min if c < self._code_min else c)
-            out[k] = u
-            row = rows[k]
-            row[0] = p
-            row[1] = i
-            row[2] = d
-            row[3] = ff
-            row[4] = dcu
-            integral[k] = i
-            e_prev[k] = e
-            h3[k] = x2
-            h2[k] = x1
-            h1[k] = xr
+            self.output[k] = u
+            self.terms[k] = (p, i, d, ff, dcu)
+            self._st[k] = (i, e, xr, x1, x2)
         self.status = status
         return status
 
@@ -327,6 +392,9 @@ class PositionRegulator:
         self.output[:] = 0.0
         self.terms[:] = 0.0
         return status
+
+
+_STATUS = tuple(RegulatorStatus)
 
 
 # --------------------------------------------------------------------------- gain rules

@@ -16,9 +16,10 @@ Measured like the rig: the coordinate error from the position the controller mea
 motor-shaft encoder), the velocity error from the table speed; "acceleration" is the first
 half of the move up to the middle of the cruise, "deceleration" the rest.
 
-A second table repeats orders 1 and 3 with the plant's drive gain off the controller's model
-(the tacho gain scaled): the DCU coefficients are derived from K_H, and a rig's K_H is known
-only to the tolerance of its drive settings.
+A second table repeats orders 1-3 with the controller's model nominal (``controller_model =
+tomsk_xy``) and the plant's drive gain K_H off by 0, 10, 20 and 30 % (the plant's tacho gain
+scaled): the DCU coefficients are derived from K_H, and a rig's K_H is known only to the
+tolerance of its drive settings. The plant is the pulse-level thyristor drive throughout.
 """
 
 from __future__ import annotations
@@ -29,7 +30,7 @@ from typing import Any
 import numpy as np
 
 from twin.controller.library import spline_line
-from twin.run import RunSpec, axis_models, prepare
+from twin.run import RunSpec, prepare
 from twin.studies.common import percent, run_items
 
 __all__ = ["SEED_TABLE", "run_study"]
@@ -67,13 +68,17 @@ def move_for(machine: str = MACHINE) -> dict[str, float]:
             "jerk": 100.0 * accel, "length": speed * (change + _CRUISE)}
 
 
-def _spec(move: dict[str, float], order: int, overrides: dict[str, Any] | None = None
-          ) -> RunSpec:
+MISMATCH = (0.0, 0.1, 0.2, 0.3)
+"""Errors of the plant's drive gain K_H against the controller's nominal model (1)."""
+
+
+def _spec(move: dict[str, float], order: int, overrides: dict[str, Any] | None = None,
+          controller_model: str | None = None) -> RunSpec:
     sets = {"controller.limits.max_velocity": move["speed"],
             "controller.limits.max_acceleration": move["acceleration"],
             "controller.limits.max_jerk": move["jerk"], **(overrides or {})}
-    return RunSpec(machine=MACHINE, profile="parabolic", planner="lookahead",
-                   dcu_order=order, overrides=sets)
+    return RunSpec(machine=MACHINE, controller_model=controller_model, profile="parabolic",
+                   planner="lookahead", dcu_order=order, overrides=sets)
 
 
 def measure(rec: dict[str, np.ndarray], speed: float) -> dict[str, float]:
@@ -110,8 +115,10 @@ def _with_percentages(rows: dict[int, dict[str, float]]) -> None:
         row["pct_coordinate"] = percent(row["coordinate_error_um"], base["coordinate_error_um"])
 
 
-def run_study(*, quick: bool = False) -> dict[str, Any]:
-    """Orders 0-3 on the seed-sized move (and the K_H mismatch table unless ``quick``).
+def run_study(*, quick: bool = False, errors: tuple[float, ...] | None = None
+              ) -> dict[str, Any]:
+    """Orders 0-3 on the seed-sized move, and the K_H mismatch table for ``errors`` (default
+    ``MISMATCH``; none when ``quick``).
 
     Returns
     -------
@@ -131,13 +138,13 @@ def run_study(*, quick: bool = False) -> dict[str, Any]:
         rows[order] = measure(result.record, move["speed"])
     _with_percentages(rows)
     mismatch = []
-    if not quick:
+    errors = (() if quick else MISMATCH) if errors is None else errors
+    if errors:
         cfg = _spec(move, 0).machine_config()
-        nominal = axis_models(cfg)
-        for error in (0.1, 0.3):
+        for error in errors:
             gain = {"axes.*.tacho.gain": cfg.axes["x"].tacho.gain / (1.0 + error)}
-            for order in (1, 3):
-                result = run_items(_spec(move, order, gain), build, axis_models=nominal)
+            for order in (1, 2, 3):
+                result = run_items(_spec(move, order, gain, controller_model=MACHINE), build)
                 row = measure(result.record, move["speed"])
                 mismatch.append({"drive_gain_error": error, "order": order, **row,
                                  "pct_coordinate": percent(row["coordinate_error_um"],
