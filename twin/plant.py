@@ -37,7 +37,6 @@ import numpy as np
 from twin import plant_loop
 from twin.config import AXES, MachineConfig
 from twin.drive import Drives
-from twin.drive.layout import S_ADC, S_FAULT, S_I, S_VOUT
 from twin.errors import SimulationError
 from twin.model import load_model, passive_parameters, resolve_machine
 from twin.plant_records import (
@@ -110,15 +109,18 @@ class Plant:
 
         axes = [config.axes[a] for a in AXES]
         self._ratio = np.array([ax.transmission.ratio for ax in axes])
-        self._dac = [(2.0 * ax.dac.full_scale / 2**ax.dac.bits, -(2 ** (ax.dac.bits - 1)),
-                      2 ** (ax.dac.bits - 1) - 1, 1.0 + ax.dac.gain_error, ax.dac.offset)
-                     for ax in axes]  # (LSB (V), code range, gain, offset (V))
+        self._dac = np.array([(2.0 * ax.dac.full_scale / 2**ax.dac.bits,
+                               -(2 ** (ax.dac.bits - 1)), 2 ** (ax.dac.bits - 1) - 1,
+                               1.0 + ax.dac.gain_error, ax.dac.offset)
+                              for ax in axes])  # (LSB (V), code range, gain, offset (V))
         self._counts_per_rad = np.array([ax.encoder.counts_per_rev / (2.0 * math.pi)
                                          for ax in axes])
         # two's complement masks: -1 & (2³² − 1) = 2³² − 1; a 64-bit counter stays signed
         self._counter_mask = np.array([(1 << ax.encoder.bits) - 1 if ax.encoder.bits < 64
                                        else -1 for ax in axes], dtype=np.int64)
         self._encoder_noise = np.array([ax.encoder.noise_counts for ax in axes])
+        self._noisy_counts = bool(self.noise and self._encoder_noise.any())
+        """The counters are read with noise (the tacho's is drawn by the drives)."""
         self._travel = [ax.mechanics.travel for ax in axes]
         self._monitors = [AxisMonitor(ax.switches, ax.mechanics.travel) for ax in axes]
         self._intervals: dict[float, int] = {}
@@ -136,8 +138,9 @@ class Plant:
         self._mask = self._counter_mask.tolist()
         self._offset = [0, 0]
         self._ratio_f = self._ratio.tolist()
-        self._snap: list[list[float]] = []
-        self._snap_at = -1
+        self._out = np.zeros(plant_loop.NREADOUT)
+        self._ro: list[float] = [0.0] * plant_loop.NREADOUT
+        """The drive state this period's readers need (``plant_loop.readout``), as floats."""
         self._compiled = plant_loop.available()
         """Run drive intervals in the compiled loop (``twin.plant_loop``)."""
         if self._compiled:
@@ -195,6 +198,8 @@ class Plant:
         if seed is not None:
             self._rng.bit_generator.state = np.random.default_rng(seed).bit_generator.state
         self.drives.reset()
+        plant_loop.readout(self.drives.kernel_arrays()[1], self._out)
+        self._ro = self._out.tolist()
         self._encoder_offset[:] = 0
         self._ring_read = self._ring_n  # samples from before the reset are not drained
         if encoder_preset is not None:
@@ -230,7 +235,10 @@ class Plant:
         ValueError
             If the shapes or ``duration`` are wrong.
         """
-        saturated = self._quantise(dac_volts)
+        dac_in = dac_volts if type(dac_volts) is np.ndarray and dac_volts.dtype == np.float64 \
+            else np.asarray(dac_volts, dtype=np.float64)
+        if dac_in.shape != (2,):
+            raise ValueError(f"dac_volts must have 2 entries, got shape {dac_in.shape}")
         n = self._intervals.get(duration) or self._count_intervals(duration)
         if len(self._samples) < n:
             self._samples = np.empty((n, FINE_WIDTH))
@@ -243,17 +251,22 @@ class Plant:
             block = self._noise_block
             if drives.noisy:
                 block = self._rng.standard_normal((n, *noise.shape))
-            done, status = plant_loop.step_intervals(
-                *self._addresses, n, k, params, state, tables, u, block, log, drives.n_step,
-                drives.dt, drives.enabled, self._passive, self._has_passive,
-                self._drive_torque, sub, scratch, self._torque, self._slide_force, x,
-                self._table_vel,
-                theta, omega, self._ratio, samples, extent, self._ring, self._ring_n)
+            done, status, clip = plant_loop.step_intervals(
+                *self._addresses, n, k, params, state, tables, dac_in, self._dac, u, block,
+                log, drives.n_step, drives.dt, drives.enabled, self._passive,
+                self._has_passive, self._drive_torque, sub, scratch, self._torque,
+                self._slide_force, x, self._table_vel, theta, omega, self._ratio, samples,
+                extent, self._ring, self._ring_n, self._out)
+            if clip < 0:
+                self._not_finite(dac_in)
             drives.advance(done)
             self._ring_n += done
             if status:
                 drives.step(u, omega, theta)  # the checked path raises the named error
         else:
+            clip = plant_loop.quantise(dac_in, self._dac, u)
+            if clip < 0:
+                self._not_finite(dac_in)
             mj_step = mujoco.mj_step
             for i in range(n):
                 drives.step_into(u, omega, self._drive_torque, theta)
@@ -265,6 +278,9 @@ class Plant:
                 plant_loop.record_interval(i, drives.time, state, x, theta, self._ratio,
                                            samples, extent, self._ring, self._ring_n)
             self._ring_n += n
+            plant_loop.readout(state, self._out)
+        saturated = FLAGS[2 * (clip & 1) + (clip >> 1 & 1)]  # x then y
+        self._ro = ro = self._out.tolist()
         self._fine = samples
         warnings = () if self._warning_count.tobytes() == self._warnings_seen \
             else self._new_warnings()
@@ -273,8 +289,7 @@ class Plant:
                                                               for w in warnings):
             raise SimulationError(f"the plant state diverged (not finite) by t = {d.time:.6f} s"
                                   f" (MuJoCo warnings: {', '.join(warnings) or 'none'})")
-        st = self._snapshot()  # shared with read_into and truth_row of this period
-        fault_x, fault_y = st[0][S_FAULT] != 0.0, st[1][S_FAULT] != 0.0
+        fault_x, fault_y = ro[2] != 0.0, ro[3] != 0.0
         mon_x, mon_y = self._monitors
         hit_x, end_x = mon_x.quick(lo_x, hi_x) or mon_x.update(samples[:, 0].tolist(), t0,
                                                                self.drive_dt)
@@ -288,23 +303,19 @@ class Plant:
         """Write the I/O sample into ``inputs`` in place (any object with the
         :class:`Reading` attributes as arrays, e.g. ``controller.io.Inputs``): the cheap path
         of :meth:`read` for a driver's every period (same values, scalar arithmetic)."""
-        if self.noise:
-            r = self.read()
-            inputs.encoder_counts[:] = r.encoder_counts
+        if self._noisy_counts:
+            inputs.encoder_counts[:] = self.read().encoder_counts
         else:
             theta = self._rotor_pos.tolist()
             for k in (0, 1):
                 c = math.floor(theta[k] * self._cpr[k]) + self._offset[k]
                 inputs.encoder_counts[k] = c & self._mask[k]
-        st = self._snapshot()
-        tacho, counts_ok = inputs.tacho_volts, True
+        ro = self._ro
+        tacho = inputs.tacho_volts
+        tacho[0], tacho[1] = ro[0], ro[1]
         for k, mon in enumerate(self._monitors):
-            tacho[k] = st[k][S_ADC]
-            counts_ok = counts_ok and st[k][S_FAULT] == 0.0
             inputs.limit_min[k], inputs.limit_max[k], inputs.home[k] = mon.state
-        if self.noise:
-            tacho[:] = r.tacho_volts
-        inputs.drive_ready = counts_ok
+        inputs.drive_ready = ro[2] == 0.0 and ro[3] == 0.0
         inputs.time = self.data.time
 
     def read(self) -> Reading:
@@ -317,14 +328,6 @@ class Plant:
                        tacho_volts=self.drives.tacho_volts, limit_min=states[:, 0],
                        limit_max=states[:, 1], home=states[:, 2],
                        drive_ready=not self.drives.fault.any(), time=self.time)
-
-    def _snapshot(self) -> list[list[float]]:
-        """The drives' state as lists, taken once per drive update and shared by the
-        per-period readers (``read_into``, ``truth_row``)."""
-        n = self.drives.n_step
-        if self._snap_at != n:
-            self._snap, self._snap_at = self.drives.snapshot(), n
-        return self._snap
 
     @property
     def fine(self) -> np.ndarray:
@@ -351,9 +354,9 @@ class Plant:
         """The ``TRUTH_FIELDS`` of now as one flat row of floats (cheap: for per-tick
         recording)."""
         x, v, th = self._table_pos.tolist(), self._table_vel.tolist(), self._rotor_pos.tolist()
-        r, st = self._ratio_f, self._snapshot()
+        r, ro = self._ratio_f, self._ro
         return (x[0], x[1], v[0], v[1], r[0] * th[0] - x[0], r[1] * th[1] - x[1],
-                st[0][S_I], st[1][S_I], st[0][S_VOUT], st[1][S_VOUT])
+                ro[4], ro[5], ro[6], ro[7])
 
     def truth(self) -> Truth:
         """The full state of the twin (see :class:`Truth`)."""
@@ -367,26 +370,13 @@ class Plant:
                      speed_reference=dr.speed_reference, time=self.time)
 
     # ------------------------------------------------------------------ internals
-    def _quantise(self, dac_volts: np.ndarray) -> np.ndarray:
-        """Write the DAC output into ``self._u``: round to the LSB, clip to the code range,
-        then the DAC's own gain error and offset (``dac.gain_error``, ``dac.offset``: the
-        real output stage, which the controller does not know). Returns which axes were
-        clipped, shape (2,) bool (read-only)."""
-        if len(dac_volts) != 2:
-            raise ValueError(f"dac_volts must have 2 entries, got {len(dac_volts)}")
-        clipped = [False, False]
+    def _not_finite(self, dac_volts: np.ndarray) -> None:
+        """Raise the ``SimulationError`` that names the axis whose request is not finite."""
         for a in (0, 1):
             v = float(dac_volts[a])
             if not math.isfinite(v):
                 raise SimulationError(f"dac_volts[{a}] ({AXES[a]}) must be finite, got {v} at "
                                       f"t = {self.time:.6f} s")
-            lsb, lowest, highest, gain, offset = self._dac[a]
-            code = math.floor(v / lsb + 0.5)
-            if not lowest <= code <= highest:
-                clipped[a] = True
-                code = min(max(code, lowest), highest)
-            self._u[a] = code * lsb * gain + offset
-        return FLAGS[2 * clipped[0] + clipped[1]]
 
     def _count_intervals(self, duration: float) -> int:
         """Drive intervals in ``duration`` (cached), which must be a positive multiple."""

@@ -30,10 +30,14 @@ import numba
 import numpy as np
 
 from twin.drive.kernel import drive_step
-from twin.drive.layout import S_CONDUCT, S_I, S_VOUT
+from twin.drive.layout import S_ADC, S_CONDUCT, S_FAULT, S_I, S_VOUT
 
-__all__ = ["NPASSIVE", "addresses", "apply_forces", "available", "passive_forces",
-           "record_interval", "step_intervals"]
+__all__ = ["NPASSIVE", "NREADOUT", "addresses", "apply_forces", "available",
+           "passive_forces", "quantise", "readout", "record_interval", "step_intervals"]
+
+NREADOUT = 8
+"""The drive state a period's readers need, per axis pair: tacho as the ADC reads it (V),
+the fault flag, the armature current (A), the interval's mean converter voltage (V)."""
 
 NPASSIVE = 7
 """Columns of the per-axis passive-force parameters: slide break-away excess F_s − F_c (N),
@@ -65,6 +69,37 @@ _MJ_STEP = _load_mj_step()
 def available() -> bool:
     """True if the compiled loop can run (MuJoCo's shared library was found)."""
     return _MJ_STEP is not None
+
+
+@numba.njit(cache=True)
+def quantise(dac_in, dac, u):
+    """The plant's DAC output stage: each axis' request (V) rounded to its code, clipped to
+    the code range, then the stage's own gain error and offset (``dac`` rows: LSB (V),
+    lowest and highest code, gain, offset (V)); written into ``u``. Returns a bit mask of
+    the clipped axes, or −1 − axis for a request that is not finite (nothing written)."""
+    for k in range(u.shape[0]):
+        if not math.isfinite(dac_in[k]):
+            return -1 - k
+    clipped = 0
+    for k in range(u.shape[0]):
+        lsb, lowest, highest = dac[k, 0], dac[k, 1], dac[k, 2]
+        code = math.floor(dac_in[k] / lsb + 0.5)
+        if not lowest <= code <= highest:
+            clipped |= 1 << k
+            code = min(max(code, lowest), highest)
+        u[k] = code * lsb * dac[k, 3] + dac[k, 4]
+    return clipped
+
+
+@numba.njit(cache=True)
+def readout(state, out):
+    """Fill ``out`` (``NREADOUT``) from the drive state: ADC tacho, fault, current and mean
+    converter voltage of x and y."""
+    for k in range(2):
+        out[k] = state[k, S_ADC]
+        out[2 + k] = state[k, S_FAULT]
+        out[4 + k] = state[k, S_I]
+        out[6 + k] = state[k, S_VOUT]
 
 
 @numba.njit(cache=True)
@@ -145,23 +180,28 @@ if _MJ_STEP is not None:
     _c_mj_step = _MJ_STEP
 
     @numba.njit
-    def _intervals(m_addr, d_addr, n, substeps, params, state, tables, u, noise, log, n0,
-                   dt, enabled, passive, has_passive, torque, sub_torque, scratch, rotor_frc,
-                   slide_frc, table_pos, table_vel, rotor_pos, rotor_vel, ratio, samples,
-                   extent, ring, ring_n):
+    def _intervals(m_addr, d_addr, n, substeps, params, state, tables, dac_in, dac, u, noise,
+                   log, n0, dt, enabled, passive, has_passive, torque, sub_torque, scratch,
+                   rotor_frc, slide_frc, table_pos, table_vel, rotor_pos, rotor_vel, ratio,
+                   samples, extent, ring, ring_n, out):
+        clipped = quantise(dac_in, dac, u)
+        if clipped < 0:
+            return 0, 0, clipped
         for i in range(n):
             noise_i = noise[i] if noise.shape[0] > 1 else noise[0]
             status = drive_step(params, state, tables, u, rotor_vel, rotor_pos, noise_i, log,
                                 n0 + i, dt, enabled, torque, sub_torque, scratch)
             if status != 0:
-                return i, status
+                readout(state, out)
+                return i, status, clipped
             for s in range(substeps):
                 apply_forces(passive, has_passive, sub_torque, s, rotor_frc, slide_frc,
                              table_pos, table_vel, rotor_pos, rotor_vel)
                 _c_mj_step(m_addr, d_addr)
             record_interval(i, (n0 + i + 1) * dt, state, table_pos, rotor_pos, ratio, samples,
                             extent, ring, ring_n)
-        return n, 0
+        readout(state, out)
+        return n, 0, clipped
 
 
 def addresses(model: mujoco.MjModel, data: mujoco.MjData) -> tuple[int, int]:
@@ -171,15 +211,17 @@ def addresses(model: mujoco.MjModel, data: mujoco.MjData) -> tuple[int, int]:
 
 
 def step_intervals(m_addr: int, d_addr: int, n: int, substeps: int, params: np.ndarray,
-                   state: np.ndarray, tables: np.ndarray, u: np.ndarray, noise: np.ndarray,
+                   state: np.ndarray, tables: np.ndarray, dac_in: np.ndarray,
+                   dac: np.ndarray, u: np.ndarray, noise: np.ndarray,
                    log: np.ndarray, n0: int, dt: float, enabled: bool, passive: np.ndarray,
                    has_passive: bool, torque: np.ndarray, sub_torque: np.ndarray,
                    scratch: np.ndarray, rotor_frc: np.ndarray, slide_frc: np.ndarray,
                    table_pos: np.ndarray, table_vel: np.ndarray, rotor_pos: np.ndarray,
                    rotor_vel: np.ndarray,
                    ratio: np.ndarray, samples: np.ndarray, extent: np.ndarray,
-                   ring: np.ndarray, ring_n: int) -> tuple[int, int]:
-    """Run ``n`` drive intervals: drive kernel, then ``substeps`` × (applied forces,
+                   ring: np.ndarray, ring_n: int, out: np.ndarray) -> tuple[int, int, int]:
+    """Quantise the DAC requests ``dac_in`` into ``u`` (:func:`quantise`), then run ``n``
+    drive intervals: drive kernel, then ``substeps`` × (applied forces,
     ``mj_step``), and the drive-rate samples into ``samples[i]`` (and row ``ring_n + i`` of
     the ring buffer ``ring``) after each; ``extent`` (4,) receives the lowest and highest
     table position of each axis.
@@ -188,11 +230,13 @@ def step_intervals(m_addr: int, d_addr: int, n: int, substeps: int, params: np.n
     arrays are views of the data. ``noise`` is (n, axes, m) standard normal samples (or one
     (1, axes, m) block reused). ``torque`` (axes,) and ``sub_torque`` (axes, substeps) are
     the drive's outputs (interval and per-physics-step averages), ``scratch`` its work
-    space. Returns (intervals done,
-    kernel status): a non-zero status stops before the interval it refers to, with nothing
-    of it applied.
+    space; ``out`` receives the :func:`readout`. Returns (intervals done, kernel status,
+    DAC clip mask): a non-zero status stops before the interval it refers to, with nothing
+    of it applied; a negative clip mask (−1 − axis: a request not finite) stops before
+    anything.
     """
-    return _intervals(m_addr, d_addr, n, substeps, params, state, tables, u, noise, log, n0,
+    return _intervals(m_addr, d_addr, n, substeps, params, state, tables, dac_in, dac, u,
+                      noise, log, n0,
                       dt, enabled, passive, has_passive, torque, sub_torque, scratch,
                       rotor_frc, slide_frc, table_pos, table_vel, rotor_pos, rotor_vel, ratio,
-                      samples, extent, ring, ring_n)
+                      samples, extent, ring, ring_n, out)

@@ -272,6 +272,23 @@ def _sample(pa, st, table, t, active, tacho, log_row):
 
 
 @numba.njit(cache=True)
+def _reverse_biased_throughout(vc, vs, g0, g1, w, h):
+    """True if the driving voltage g(s) = v_c·cos(w·s) + v_s·sin(w·s) + g0 + g1·s stays ≤ 0
+    on [0, h] by a cheap bound (the sinusoid's largest value over the phase span, the ramp's
+    larger end); False means "search": most pieces after an extinction end here."""
+    amp = math.sqrt(vc * vc + vs * vs)
+    if amp == 0.0:
+        return g0 + max(0.0, g1 * h) <= 0.0
+    phi0 = math.atan2(-vs, vc)            # v_c·cos + v_s·sin = amp·cos(w·s + phi0)
+    wh = w * h
+    if -wh <= phi0 <= 0.0:
+        top = amp                         # the crest lies inside the piece
+    else:
+        top = max(vc, vc * math.cos(wh) + vs * math.sin(wh))
+    return top + g0 + max(0.0, g1 * h) <= 0.0
+
+
+@numba.njit(cache=True)
 def _conduct(pa, st, p, t, h, e0, e1, bins, s0, bin_w):
     """Armature over [t, t + h] with the gate pulses on: returns (time advanced, charge in
     the motor's sense, conducting time). Stops early at an ignition, an extinction or the
@@ -290,6 +307,8 @@ def _conduct(pa, st, p, t, h, e0, e1, bins, s0, bin_w):
         dc, ds = vc - oc, vs - os_
         vc, vs = 0.5 * (vc + oc), 0.5 * (vs + os_)
     if j0 <= 0.0:  # not conducting: wait until the pair is forward biased
+        if _reverse_biased_throughout(vc, vs, g0, g1, w, h):
+            return h, 0.0, 0.0
         p[0], p[1], p[2], p[3], p[6] = vc, vs, g0, g1, w
         t_on = first_root(KIND_IGNITION, p, h)
         if t_on < 0.0:
@@ -343,6 +362,7 @@ def advance_pulse(pa, st, table, t0, t_end, w0, slope, theta0, active, u_in, sig
     ∫i dt (A·s) and adds each sub-step's share to ``bins`` (m equal sub-steps of the
     interval). ``p`` is a 12-element scratch array for the root finder."""
     t = t0
+    t_f = t0  # the filters are advanced to here, lazily: only a sample and the end need them
     bin_w = (t_end - t0) / bins.shape[0]
     q_total = 0.0
     k_noise = 0
@@ -353,6 +373,9 @@ def advance_pulse(pa, st, table, t0, t_end, w0, slope, theta0, active, u_in, sig
             _fire(pa, st, t, log_row)
             continue
         if st[S_NEXT] <= t + _EPS:
+            if t > t_f:
+                _filters_to(pa, st, active, u_in, t0, t_f, t, w0, slope, theta0)
+                t_f = t
             tacho = st[S_TACHO] + sigma * noise_row[k_noise]
             if k_noise < noise_row.shape[0] - 2:  # the last sample is the ADC's
                 k_noise += 1
@@ -377,10 +400,22 @@ def advance_pulse(pa, st, table, t0, t_end, w0, slope, theta0, active, u_in, sig
         q_total += q
         st[S_Q] += q
         conducting += on
-        theta_mid = theta0 + w0 * (s + 0.5 * done) + 0.5 * slope * (s + 0.5 * done) ** 2
-        advance_filters(pa, st, active, u_in, w_t, slope, theta_mid, done)
         t += done
         if done >= h and seg_end == t_end:
             break
+    if t_end > t_f:
+        _filters_to(pa, st, active, u_in, t0, t_f, t_end, w0, slope, theta0)
     st[S_CONDUCT] = conducting / (t_end - t0)
     return q_total
+
+
+@numba.njit(cache=True)
+def _filters_to(pa, st, active, u_in, t0, t_a, t_b, w0, slope, theta0):
+    """Reference and tacho filters from t_a to t_b in one exact step (their inputs are a
+    constant and a ramp over the whole interval; the tacho ripple is taken at the span's
+    middle angle)."""
+    s = t_a - t0
+    h = t_b - t_a
+    mid = s + 0.5 * h
+    advance_filters(pa, st, active, u_in, w0 + slope * s, slope,
+                    theta0 + w0 * mid + 0.5 * slope * mid * mid, h)
