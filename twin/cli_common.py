@@ -29,7 +29,7 @@ err = Console(stderr=True)
 
 def fail(exc: BaseException) -> None:
     """Print ``exc`` (which names its place) on stderr and exit with code 2."""
-    err.print(f"[bold red]error:[/] {exc}", highlight=False)
+    err.print(f"[bold red]error:[/] {exc}", highlight=False, soft_wrap=True)
     raise typer.Exit(2)
 
 

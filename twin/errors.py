@@ -5,6 +5,8 @@ from __future__ import annotations
 __all__ = [
     "ConfigError",
     "DriverError",
+    "ExperimentAborted",
+    "FitError",
     "GCodeError",
     "PlanningError",
     "SimulationError",
@@ -71,3 +73,13 @@ class SimulationError(TwinError, RuntimeError):
 
 class DriverError(TwinError, RuntimeError):
     """A hardware driver failed: timeout, lost connection, malformed response."""
+
+
+class ExperimentAborted(TwinError, RuntimeError):
+    """An experiment on the machine was stopped for safety (an end switch, the drives not
+    ready, the table leaving the room the experiment was given, a following error); the
+    machine was brought to a safe stop."""
+
+
+class FitError(TwinError, RuntimeError):
+    """A fit of the twin to measurements did not converge or is not trustworthy."""

@@ -221,6 +221,8 @@ class ConverterConfig(_Validated):
     model: str | None = None
     line_voltage: float = _num(100.0, "V", gt=0, doc="thyristor: line-to-line rms U_LL")
     mains_frequency: float = _num(50.0, "Hz", gt=0)
+    mains_phase: float = _num(0.0, "rad", ge=0, le=2 * math.pi,
+                              doc="phase of the mains at time 0 of the twin's clock")
     pulse_number: int = _num(6, "1", gt=0, doc="6: three-phase bridge; 3: midpoint circuit")
     line_inductance: float = _num(
         0.0, "H", ge=0, doc="commutating inductance per phase (overlap); 0 = instantaneous")

@@ -97,6 +97,10 @@ def _params(d: DriveDesign, axis: AxisConfig, overload_time: float,
     p[L.P_AMAX] = axis.converter.max_firing_angle
     p[L.P_ALPHA_FIX] = math.nan
     p[L.P_DCMG] = DCM_INTEGRAL_GAIN
+    if d.converter == "thyristor":
+        t_p = d.sampling_period
+        p[L.P_T0] = (axis.converter.mains_phase / (2.0 * math.pi * axis.converter.mains_frequency)
+                     ) % t_p
     for k, (harmonic, percent) in enumerate(axis.tacho.ripple):
         p[L.P_RIPPLE + 2 * k] = harmonic
         p[L.P_RIPPLE + 2 * k + 1] = 0.01 * percent

@@ -49,7 +49,8 @@ P_ALPHA_FIX = 32  # NaN: regulated; else fire the forward bridge at this angle (
 P_DCMG = 33      # per-pulse integral gain of the discontinuous-mode current regulator (1)
 P_RIPPLE = 34    # NRIPPLE pairs (harmonic per revolution, amplitude as a fraction)
 NRIPPLE = 4
-NP = P_RIPPLE + 2 * NRIPPLE
+P_T0 = P_RIPPLE + 2 * NRIPPLE  # time of natural commutation point 0 (s): the mains phase
+NP = P_T0 + 1
 
 # ----------------------------------------------------------------- state (per axis)
 S_I = 0          # armature current (A)

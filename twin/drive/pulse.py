@@ -2,9 +2,10 @@
 
 Circuit (``converter.model = "pulse"``)
     A non-circulating pair of line-commutated converters: 6-pulse bridges (``pulse_number =
-    6``) or 3-pulse midpoint circuits (3). The mains phase is fixed: natural commutation
-    point J is at t = J·T_p (T_p = 1/(p·f)), and the pair fired for J applies, in the
-    conducting sense of its converter, u_J(t) = Û·cos(ω·(t − J·T_p) − π/p), the
+    6``) or 3-pulse midpoint circuits (3). Natural commutation point J is at
+    t = J·T_p + t_0 (T_p = 1/(p·f); t_0 from ``converter.mains_phase``, the mains' phase at
+    the twin's time 0), and the pair fired for J applies, in the conducting sense of its
+    converter, u_J(t) = Û·cos(ω·(t − J·T_p − t_0) − π/p), the
     instantaneous line-to-line (bridge) or phase (midpoint) voltage. The converter
     conducts in one sense only: the current stops where it reaches zero and starts again
     where a pair whose gate pulse is on is forward biased (long gate pulses, on until the
@@ -64,6 +65,7 @@ from twin.drive.layout import (
     P_PAUSE,
     P_PN,
     P_R,
+    P_T0,
     P_TIC,
     P_TP,
     P_UHAT,
@@ -110,7 +112,7 @@ _MAX_ZERO_EVENTS = 64  # zero-length events in one interval before a forced 1 ps
 @numba.njit(cache=True)
 def _phasor(pa, t, pair):
     """(v_c, v_s): the voltage of ``pair`` from time t on, as v_c·cos(ω·s) + v_s·sin(ω·s)."""
-    ph = pa[P_WM] * (t - pair * pa[P_TP]) - math.pi / pa[P_PN]
+    ph = pa[P_WM] * (t - pair * pa[P_TP] - pa[P_T0]) - math.pi / pa[P_PN]
     u = pa[P_UHAT]
     return u * math.cos(ph), -u * math.sin(ph)
 
@@ -253,7 +255,7 @@ def _sample(pa, st, table, t, active, tacho, log_row):
             st[S_BRIDGE] = 1.0 if st[S_I] > 0.0 else -1.0
             alpha = pa[P_AMAX]
     w = pa[P_WM]
-    t_nat = j_nat * pa[P_TP]
+    t_nat = j_nat * pa[P_TP] + pa[P_T0]
     if alpha == alpha:
         st[S_ALPHA] = alpha
         st[S_ALAST] = alpha

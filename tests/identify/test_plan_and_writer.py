@@ -1,0 +1,82 @@
+"""The identification plan (its sequence, its room), the log's checks and the machine-file
+writer that ``twin identify`` writes its calibrated file with."""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+
+import numpy as np
+import pytest
+
+from twin.config import AXES, available_machines, load_machine
+from twin.config.writer import machine_to_toml
+from twin.errors import ConfigError, ExperimentAborted
+from twin.hardware.sim import SimDriver
+from twin.identify.experiments import run_plan
+from twin.identify.plan import EXPERIMENTS, Piece, default_plan, excursion, phases, prbs
+from twin.plant import Plant
+
+
+@pytest.mark.parametrize("name", available_machines())
+def test_a_machine_written_back_loads_to_the_same_configuration(name, tmp_path):
+    cfg = load_machine(name)
+    path = tmp_path / f"{name}.toml"
+    path.write_text(machine_to_toml(cfg, header=["a header", "of two lines"]))
+    again = load_machine(str(path))
+    assert dataclasses.replace(again, source="") == dataclasses.replace(cfg, source="")
+    assert path.read_text().startswith("# a header\n# of two lines\n")
+
+
+def test_the_prbs_is_a_maximal_length_sequence():
+    seq = prbs()
+    assert len(seq) == 127 and set(seq) == {-1, 1}
+    assert seq.count(1) == 64                       # m-sequence balance: one more 1
+    # its periodic autocorrelation is 127 at lag 0 and -1 at every other lag
+    s = np.array(seq)
+    for lag in range(1, 127):
+        assert int(s @ np.roll(s, lag)) == -1
+
+
+def test_the_default_plan_runs_every_experiment_within_a_minute():
+    plan = default_plan(0.015, home_width=0.5e-3)
+    assert {p.experiment for p in plan} == set(EXPERIMENTS)
+    assert math.fsum(p.duration for p in plan) <= 60.0
+    assert len(phases(plan)) == 2 and phases(plan)[1][0].kind == "home"
+    with pytest.raises(ConfigError, match="amplitude"):
+        default_plan(0.015, amplitude=1.5)
+
+
+def test_the_excursion_bounds_the_positions_including_a_coast():
+    plan = [Piece("s", "speed", 1.0, 0.01), Piece("c", "coast", 2.0, 0.0),
+            Piece("s", "speed", 0.5, -0.01)]
+    lo, hi = excursion(plan, overshoot=1.0)
+    assert (lo, hi) == (0.0, pytest.approx(0.01))          # the coast taken as a stop
+    lo, hi = excursion(plan, overshoot=1.0, coast_travel=lambda v: 0.5 * v)
+    assert hi == pytest.approx(0.015) and lo == 0.0
+
+
+class _Recording(SimDriver):
+    """The lock-step twin, keeping what was last written."""
+
+    last = None
+
+    def write(self, outputs):
+        self.last = (outputs.dac_volts.copy(), outputs.enable)
+        super().write(outputs)
+
+
+def test_an_experiment_that_leaves_its_room_stops_the_machine_safely():
+    base = load_machine("tomsk_xy")
+    # the real drive is three times faster than the model: the steps overrun their room
+    fast = base.with_overrides({f"axes.{a}.tacho.gain": base.axes[a].tacho.gain / 3.0
+                                for a in AXES})
+    plant = Plant(fast, noise=False)
+    plant.reset()
+    driver = _Recording(plant, base.controller.period)
+    with pytest.raises(ExperimentAborted, match="left the room") as info:
+        run_plan(driver, base, [Piece("steps", "speed", 2.0, 1e-3),
+                                Piece("steps", "speed", 0.5, 0.0)])
+    dac, enable = driver.last
+    assert not enable and np.all(dac == 0.0)
+    assert info.value.log.ticks > 0 and "aborted" in info.value.log.notes

@@ -1,0 +1,174 @@
+"""``twin identify``: calibrate the twin from a machine's own I/O.
+
+Excite the axes through ``MachineIO`` (the controller's port: the twin, or real I/O), fit
+the twin's physical parameters by replaying its own drive and mechanics against what was
+measured, and write BASE with the identified fields replaced.
+
+- ``plan``: the experiments (speed steps, PRBS, coast-downs, slow reversals, closed-loop
+  ramps held out of the fit, home-switch crossings);
+- ``experiments``: running them safely through a driver;
+- ``log``: their record (JSON), checked against the machine it is fitted to;
+- ``replay`` and ``fit``: the twin with candidate parameters and the staged fit;
+- ``report``: the calibrated file, the PNG, the rerun recording;
+- ``identify`` (here): the whole job, as the CLI runs it.
+"""
+
+from __future__ import annotations
+
+import time
+import uuid
+from collections.abc import Callable
+from pathlib import Path
+from typing import Any
+
+from twin.config import AXES, MachineConfig, load_machine
+from twin.errors import ConfigError, ExperimentAborted, FitError
+
+__all__ = ["identify", "open_identification_driver"]
+
+
+def open_identification_driver(url: str, base: MachineConfig, *, noise: bool = True):
+    """The machine I/O ``url`` names and whether it is paced: ``sim`` (the twin of BASE),
+    ``sim:FILE`` (the twin of another machine file or preset: a stand-in for a real one),
+    ``modbus://HOST:PORT`` (real I/O, or the HIL server). Returns (driver, paced, plant)."""
+    from twin.hardware.sim import SimDriver
+    from twin.plant import Plant
+
+    if url == "sim" or url.startswith("sim:"):
+        machine = base if url == "sim" else load_machine(url[4:])
+        if url != "sim":
+            from twin.identify.log import io_signature
+
+            if io_signature(machine) != io_signature(base):
+                raise ConfigError("driver", f"{url}: its I/O (counts per metre, counter "
+                                  f"width, period, DAC range) differs from {base.name}'s")
+        plant = Plant.from_machine(machine, noise=noise)
+        plant.reset()
+        return SimDriver(plant, machine.controller.period), False, plant
+    from twin.hardware.drivers import open_driver
+
+    return open_driver(url, base), True, None
+
+
+def identify(machine: str, output: str | Path, *, driver: str = "sim",
+             controller_model: str | None = None, amplitude: float = 1.0,
+             from_log: str | Path | None = None, out_dir: str | Path = "runs",
+             noise: bool = True, rt_priority: int = 0,
+             progress: Callable[[str], None] | None = None) -> dict[str, Any]:
+    """Run (or read) the experiments, fit, and write the calibrated machine file.
+
+    Parameters
+    ----------
+    machine : str
+        BASE: preset name or TOML file; the model the plan is scaled with and whose fields
+        the fit replaces.
+    output : path
+        The calibrated machine file (written only when the fit converged).
+    driver : str
+        ``sim``, ``sim:FILE`` or ``modbus://HOST:PORT``.
+    controller_model : str, optional
+        The controller's model for the closed-loop experiments (default BASE).
+    amplitude : float
+        Scales every experiment's speeds (0, 1].
+    from_log : path, optional
+        Fit the experiments recorded in this directory (or file) instead of running them.
+    out_dir : path
+        Where the experiments' record directory ``identify-<id>/`` goes.
+    noise : bool
+        ``sim`` drivers: the machine file's sensor noise.
+    rt_priority : int
+        Real I/O: SCHED_FIFO priority of the experiments' loop (best effort; 0: none).
+    progress : callable(str), optional
+
+    Returns
+    -------
+    dict
+        The figures (``report.summary``) and the paths written.
+
+    Raises
+    ------
+    ConfigError
+        Bad options, or a log of another machine or an incomplete one.
+    ExperimentAborted
+        A safety stop during the experiments (the partial log is kept).
+    FitError
+        The fit did not converge; nothing is written under ``output``.
+    """
+    from twin.identify import report
+    from twin.identify.experiments import run_plan
+    from twin.identify.fit import fit
+    from twin.identify.log import IdentLog
+    from twin.identify.plan import default_plan
+
+    say = progress or (lambda _m: None)
+    base = load_machine(machine)
+    output = Path(output)
+    if output.suffix.lower() != ".toml":
+        raise ConfigError("output", f"the calibrated machine file must end in .toml, got "
+                          f"{str(output)!r}")
+    if not output.parent.is_dir():
+        raise ConfigError("output", f"no directory {str(output.parent)!r} for {output.name}")
+    if from_log is not None:
+        log = IdentLog.load(from_log)
+        log.check(base)
+        where = Path(from_log)
+        where = where if where.is_dir() else where.parent
+    else:
+        belief = load_machine(controller_model) if controller_model else base
+        plan = default_plan(min(base.controller.limits.max_velocity,
+                                *(base.axes[a].limits.max_velocity for a in AXES)),
+                            amplitude=amplitude,
+                            home_width=max(base.axes[a].switches.home_width for a in AXES))
+        io, paced, _plant = open_identification_driver(driver, base, noise=noise)
+        where = Path(out_dir) / (time.strftime("identify-%Y%m%d-%H%M%S-")
+                                 + uuid.uuid4().hex[:6])
+        where.mkdir(parents=True, exist_ok=False)
+        say(f"experiments on {driver} ({'paced' if paced else 'lock-step'}), "
+            f"record in {where}")
+        from twin.hardware.realtime import fifo_priority
+
+        try:
+            with fifo_priority(rt_priority if paced else 0):
+                log = run_plan(io, base, plan, belief=belief, paced=paced,
+                               driver_name=driver)
+        except ExperimentAborted as exc:
+            partial = getattr(exc, "log", None)
+            if partial is not None:
+                partial.save(where / "experiments.aborted.json")
+            raise
+        finally:
+            io.close()
+        log.save(where / "experiments.json")
+        say(f"experiments: {log.ticks * base.controller.period:.1f} s of machine time")
+    try:
+        result = fit(base, log, progress=say)
+    except FitError:
+        if from_log is None:
+            report.record(log, base, where / "experiments.rrd")
+        raise
+    if from_log is None:
+        report.record(log, base, where / "experiments.rrd", result)
+    text = report.calibrated_toml(result, base, log, str(where))
+    load_check = _reload(text, output)
+    png = report.plot_report(result, log, where / "fit.png")
+    out = report.summary(result, base, log)
+    out.update({"calibrated": str(output), "record": str(where), "report": str(png),
+                "calibrated_name": load_check.name})
+    import json
+
+    report.write_atomic(where / "fit.json", json.dumps(out, indent=1, default=float) + "\n")
+    return out
+
+
+def _reload(text: str, output: Path) -> MachineConfig:
+    """Write the calibrated file atomically after checking it loads back."""
+    from twin.identify.report import write_atomic
+
+    probe = output.with_name(output.name + ".check.toml")
+    try:
+        probe.write_text(text, encoding="utf-8")
+        cfg = load_machine(str(probe))
+    finally:
+        probe.unlink(missing_ok=True)
+    write_atomic(output, text)
+    return cfg

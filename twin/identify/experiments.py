@@ -1,0 +1,288 @@
+"""Run the identification plan on a machine through ``MachineIO``, the controller's own port.
+
+The same code runs on the twin (``SimDriver``, lock-step) and on real I/O (a Modbus module,
+paced by ``RealTimeLoop``). Before the experiments each axis is moved, by the controller's
+own planned jog, to a start point with room for the plan's excursion (``plan.excursion``)
+inside the work zone. During them every tick is checked, and the run stops safely — outputs
+zero, drives disabled — on:
+
+- an end limit switch, or the drives reporting not ready;
+- the table leaving the room it was given (the start ± the excursion, 1 mm inside the
+  switches);
+- a following error of the closed-loop pieces beyond the machine's limit.
+
+Positions are the encoder counts over the model's counts per metre, taken as absolute as
+``twin run`` does behind real I/O (a machine is homed first).
+"""
+
+from __future__ import annotations
+
+import time
+from collections.abc import Callable, Sequence
+
+import numpy as np
+
+from twin.config import AXES, MachineConfig
+from twin.controller.controller import Controller, ControllerStatus
+from twin.controller.encoder import EncoderUnwrapper
+from twin.controller.io import MachineIO, Outputs
+from twin.controller.regulator import PositionRegulator, RegulatorStatus
+from twin.errors import ConfigError, ExperimentAborted
+from twin.hardware.realtime import RealTimeLoop
+from twin.identify.log import COLUMNS, IdentLog, io_signature
+from twin.identify.plan import Piece, excursion, phases
+from twin.run import model_options
+
+__all__ = ["MARGIN", "run_plan"]
+
+MARGIN = 1e-3
+"""Room kept between the experiments and the end switches (m)."""
+
+
+class _Runner:
+    """The per-tick logic of one part of the plan (shared by lock-step and paced loops)."""
+
+    def __init__(self, driver: MachineIO, base: MachineConfig, belief: MachineConfig,
+                 pieces: Sequence[tuple[int, Piece]], window: Sequence[tuple[float, float]],
+                 rows: list):
+        self.driver, self.base = driver, base
+        self.pieces = [p for p in pieces if p[1].kind != "home"]
+        self.period = base.controller.period
+        ctrl = Controller.from_machine(base, None, **model_options(belief))
+        self.regulator = PositionRegulator(ctrl.gains, self.period)
+        # one update now: the compiled update is loaded (or compiled) here, not inside the
+        # first closed-loop tick, where a paced loop would miss its deadline (and a real
+        # module's watchdog would trip)
+        zero = np.zeros(2)
+        self.regulator.update(zero, zero, zero, zero, zero)
+        self.regulator.reset(zero)
+        self.encoder = EncoderUnwrapper([base.axes[a].counts_per_metre for a in AXES],
+                                        bits=[base.axes[a].encoder.bits for a in AXES])
+        self.volts_per_speed = np.array([belief.axes[a].volts_per_speed for a in AXES])
+        self.window = list(window)
+        ticks = [max(1, round(p.duration / self.period)) for _, p in self.pieces]
+        self.piece_of_tick = np.repeat(np.arange(len(self.pieces)), ticks)
+        self.rows = rows
+        self.t0 = rows[-1][0] + self.period if rows else 0.0
+        self.out = Outputs()
+        self.held = np.zeros(2)
+        self.ref = np.zeros(2)
+        self.last_kind = ""
+        self.t_ref = 0.0
+
+    def tick(self, k: int, t: float) -> bool:
+        """Read, check, compute and write one tick; False when the part is done."""
+        if k >= len(self.piece_of_tick):
+            return False
+        inputs = self.driver.read()
+        pos = self.encoder.update(inputs.encoder_counts)
+        index, piece = self.pieces[int(self.piece_of_tick[k])]
+        self._check(inputs, pos, piece)
+        enable = piece.kind != "coast"
+        if piece.kind == "speed":
+            dac = piece.value * self.volts_per_speed
+            self.last_kind = "speed"
+        elif piece.kind == "coast":
+            dac = np.zeros(2)
+            self.last_kind = "coast"
+        else:
+            if self.last_kind != "ramp":  # a ramp starts from where the table is
+                self.ref[:] = pos
+                self.regulator.reset(pos)
+                self.held[:] = 0.0
+                self.t_ref = t
+            self.last_kind = "ramp"
+            vel = np.full(2, piece.value)
+            # the reference advances with the clock (a paced loop may skip a late slot)
+            self.ref += vel * (t + self.period - self.t_ref)
+            self.t_ref = t + self.period
+            status = self.regulator.update(self.ref, vel, np.zeros(2), np.zeros(2), pos)
+            if status >= RegulatorStatus.FOLLOWING_ERROR:
+                raise ExperimentAborted(
+                    f"{piece.experiment}: following error beyond the limit at t = {t:.3f} s "
+                    f"(x {1e6 * self.regulator.error[0]:.1f} µm, y "
+                    f"{1e6 * self.regulator.error[1]:.1f} µm)")
+            dac = self.held.copy()          # compute ahead, as the controller does
+            self.held[:] = self.regulator.output
+        self.out.dac_volts[:] = dac
+        self.out.enable = enable
+        self.driver.write(self.out)
+        self.rows.append((self.t0 + t, dac[0], dac[1], float(enable), inputs.encoder_counts[0],
+                          inputs.encoder_counts[1], inputs.tacho_volts[0],
+                          inputs.tacho_volts[1], float(inputs.home[0]), float(inputs.home[1]),
+                          float(bool(np.any(inputs.limit_min) or np.any(inputs.limit_max))),
+                          float(bool(inputs.drive_ready)), index))
+        return True
+
+    def _check(self, inputs, pos, piece: Piece) -> None:
+        where = f"{piece.experiment} at x {1e3 * pos[0]:.3f} mm, y {1e3 * pos[1]:.3f} mm"
+        if np.any(inputs.limit_min) or np.any(inputs.limit_max):
+            raise ExperimentAborted(f"an end limit switch closed during {where}")
+        if not inputs.drive_ready and piece.kind != "coast":
+            raise ExperimentAborted(f"the drives reported not ready during {where}")
+        for k, (lo, hi) in enumerate(self.window):
+            if not lo <= pos[k] <= hi:
+                raise ExperimentAborted(
+                    f"axis {AXES[k]} left the room given to the experiments "
+                    f"({1e3 * lo:.3f} … {1e3 * hi:.3f} mm) during {where}")
+
+    def stop(self) -> None:
+        """Safe stop: outputs zero, drives disabled."""
+        self.out.dac_volts[:] = 0.0
+        self.out.enable = False
+        try:
+            self.driver.write(self.out)
+        except Exception:  # the stop is best effort; the caller reports what failed
+            pass
+
+
+def _position(driver: MachineIO, base: MachineConfig) -> np.ndarray:
+    counts = driver.read().encoder_counts
+    out = np.empty(2)
+    for k, a in enumerate(AXES):
+        bits = base.axes[a].encoder.bits
+        c = int(counts[k]) & ((1 << bits) - 1)
+        out[k] = (c - (1 << bits) if c >= 1 << (bits - 1) else c) \
+            / base.axes[a].counts_per_metre
+    return out
+
+
+def _room(base: MachineConfig, part: Sequence[Piece], here: np.ndarray
+          ) -> tuple[np.ndarray, list[tuple[float, float]]]:
+    """Where a part of the plan starts and each axis' window: a ``home`` piece's point, or
+    the point nearest ``here`` with room for the part's excursion inside the switches."""
+    target = here.copy()
+    window = []
+    for k, a in enumerate(AXES):
+        lo, hi = excursion(list(part), coast_travel=_coast_bound(base, a))
+        sw = base.axes[a].switches
+        safe_lo, safe_hi = sw.limit_min + MARGIN, sw.limit_max - MARGIN
+        if part and part[0].kind == "home":
+            target[k] = sw.home - 0.5 * sw.home_width + part[0].value
+        elif safe_hi - safe_lo < hi - lo:
+            raise ConfigError("amplitude", f"axis {a}: the experiments need "
+                              f"{1e3 * (hi - lo):.1f} mm, the work zone holds "
+                              f"{1e3 * (safe_hi - safe_lo):.1f} mm; lower --amplitude")
+        else:
+            target[k] = min(max(here[k], safe_lo - lo), safe_hi - hi)
+        window.append((max(target[k] + lo - 0.5 * MARGIN, sw.limit_min),
+                       min(target[k] + hi + 0.5 * MARGIN, sw.limit_max)))
+    return target, window
+
+
+def _coast_bound(base: MachineConfig, axis: str) -> Callable[[float], float]:
+    """How far axis ``axis``'s table may coast from table speed v (m/s) with its drive
+    disabled: the rotor's energy against the model's Coulomb friction alone (viscous
+    friction only shortens it), J·v²/(2·T_c·r), doubled for a machine whose friction is half
+    the model's."""
+    ax = base.axes[axis]
+    m, r = ax.mechanics, ax.transmission.ratio
+    inertia = m.rotor_inertia + m.carriage_mass * r * r
+    torque = m.rotor_coulomb + r * m.slide_coulomb
+    if torque <= 0.0:
+        return lambda v: 0.5 * float(np.diff(m.travel)[0])
+    return lambda v: 2.0 * inertia * v * v / (2.0 * torque * r)
+
+
+def _move_to(driver: MachineIO, base: MachineConfig, belief: MachineConfig,
+             target: np.ndarray, paced: bool) -> None:
+    """The controller's own planned jog to ``target`` (m), run to FINISHED."""
+    here = _position(driver, base)
+    if np.allclose(here, target, atol=2.0 / min(base.axes[a].counts_per_metre for a in AXES)):
+        return
+    ctrl = Controller.from_machine(base, None, start=here, **model_options(belief))
+    ctrl.jog(list(target))
+
+    def step(_k: int, _t: float) -> bool:
+        if ctrl.done:
+            return False
+        driver.write(ctrl.tick(driver.read()))
+        return True
+
+    limit = round(120.0 / base.controller.period)  # two minutes: a jog never needs more
+    if paced:
+        RealTimeLoop(base.controller.period).run(step, max_ticks=limit)
+    else:
+        k = 0
+        while step(k, 0.0) and k < limit:
+            k += 1
+    if ctrl.status != ControllerStatus.FINISHED:
+        raise ExperimentAborted(f"the move to the experiments' start point ended "
+                                f"{ctrl.status.name}: {ctrl.error or ''}".rstrip(": "))
+
+
+def run_plan(driver: MachineIO, base: MachineConfig, plan: Sequence[Piece], *,
+             belief: MachineConfig | None = None, paced: bool = False,
+             driver_name: str = "sim", progress: Callable[[float], None] | None = None
+             ) -> IdentLog:
+    """Run ``plan`` on both axes through ``driver`` and return the log.
+
+    Parameters
+    ----------
+    driver : MachineIO
+        The machine (opened; the caller closes it).
+    base : MachineConfig
+        The model the plan is scaled with, and the machine's I/O and limits.
+    plan : sequence of Piece
+    belief : MachineConfig, optional
+        The controller's model for the closed-loop pieces and the jogs; default ``base``.
+    paced : bool
+        Real I/O: one tick per period of wall time (``RealTimeLoop``).
+    driver_name : str
+        Recorded in the log.
+    progress : callable(seconds done), optional
+
+    Raises
+    ------
+    ExperimentAborted
+        A safety stop; the machine was stopped (its outputs zero, drives disabled). The
+        partial log is attached as ``exc.log``.
+    ConfigError
+        The work zone has no room for the plan.
+    """
+    belief = belief or base
+    rows: list[tuple] = []
+    notes: dict = {}
+    start = _position(driver, base)
+    t_wall = time.perf_counter()
+    index = 0
+    for part in phases(list(plan)):
+        numbered = list(enumerate(part, start=index))
+        index += len(part)
+        here = _position(driver, base)
+        target, window = _room(base, part, here)
+        _move_to(driver, base, belief, target, paced)
+        runner = _Runner(driver, base, belief, numbered, window, rows)
+        if not rows:
+            start = _position(driver, base)
+        runner.encoder.reset(driver.read().encoder_counts, position=_position(driver, base))
+        runner.stop()  # a clean enable edge: the drives start from their reset state
+        try:
+            if paced:
+                stats = RealTimeLoop(base.controller.period).run(runner.tick)
+                notes.setdefault("deadlines", []).append(stats.to_dict())
+            else:
+                k = 0
+                while runner.tick(k, k * base.controller.period):
+                    k += 1
+                    if progress is not None and k % 200 == 0:
+                        progress(len(rows) * base.controller.period)
+        except ExperimentAborted as exc:
+            runner.stop()
+            exc.log = _log(rows, base, plan, start, driver_name, {"aborted": str(exc)})
+            raise
+        except BaseException:
+            runner.stop()
+            raise
+        runner.stop()
+    notes["wall_time_s"] = time.perf_counter() - t_wall
+    notes["machine_time_s"] = len(rows) * base.controller.period
+    return _log(rows, base, plan, start, driver_name, notes)
+
+
+def _log(rows: list[tuple], base: MachineConfig, plan: Sequence[Piece], start: np.ndarray,
+         driver_name: str, notes: dict) -> IdentLog:
+    table = np.array(rows, dtype=float).reshape(-1, len(COLUMNS))
+    data = {c: table[:, i].copy() for i, c in enumerate(COLUMNS)}
+    return IdentLog(base.name, io_signature(base), driver_name, list(plan), data,
+                    [float(v) for v in start], notes)

@@ -1,0 +1,177 @@
+"""The twin with candidate parameters, replaying a log: what the fit compares with the
+measurements.
+
+``candidate`` turns one ``AxisParams`` per axis into a machine configuration (BASE with the
+identified fields replaced); ``replay`` runs that machine's plant — the same drive kernel and
+MuJoCo mechanics as every run — under the DAC volts the log recorded, tick by tick, and
+returns what its encoders and tachos would have read. Positions are taken relative to the
+first tick (a real machine's counters have an arbitrary origin), and the replay starts at
+rest in the middle of the travel (the switches play no part in the experiments).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import asdict, dataclass, fields, replace
+
+import numpy as np
+
+from twin.config import AXES, MachineConfig
+from twin.controller.encoder import EncoderUnwrapper
+from twin.controller.io import Inputs
+from twin.identify.log import IdentLog
+from twin.plant import Plant
+
+__all__ = ["AxisParams", "base_params", "candidate", "measured", "replay"]
+
+
+@dataclass(frozen=True)
+class AxisParams:
+    """The physical parameters ``twin identify`` fits, of one axis (SI).
+
+    Attributes
+    ----------
+    tacho_gain : float
+        K_C (V·s/rad): the tacho's volts per rad/s, and the drive's speed scaling.
+    gain_error, offset : float
+        The DAC output stage (1, V): the drive gets (1 + gain_error)·U + offset; with
+        K_C they make K_H = r·(1 + gain_error)/K_C (table speed per volt).
+    inertia : float
+        Rotor (and gear) inertia at the motor shaft (kg·m²).
+    coulomb, viscous : float
+        Multipliers of BASE's Coulomb and viscous friction, rotor and slide together
+        (motor signals see only their sum at the motor: BASE's split is kept).
+    breakaway : float
+        Break-away over Coulomb friction (≥ 1; 1: none).
+    backlash : float
+        Lost motion of gear and nut (m).
+    resistance, inductance : float
+        Armature R (Ω) and L (H).
+    """
+
+    tacho_gain: float
+    gain_error: float
+    offset: float
+    inertia: float
+    coulomb: float
+    viscous: float
+    breakaway: float
+    backlash: float
+    resistance: float
+    inductance: float
+
+    def to_dict(self) -> dict[str, float]:
+        """Plain dict."""
+        return asdict(self)
+
+    def with_(self, **changes: float) -> AxisParams:
+        """A copy with some values changed."""
+        return replace(self, **changes)
+
+
+NAMES = tuple(f.name for f in fields(AxisParams))
+
+
+def base_params(base: MachineConfig) -> dict[str, AxisParams]:
+    """The parameters BASE has (the fit's starting point)."""
+    out = {}
+    for a in AXES:
+        ax = base.axes[a]
+        m = ax.mechanics
+        ratio = m.breakaway("rotor") / m.rotor_coulomb if m.rotor_coulomb > 0 else 1.0
+        out[a] = AxisParams(tacho_gain=ax.tacho.gain, gain_error=ax.dac.gain_error,
+                            offset=ax.dac.offset, inertia=m.rotor_inertia, coulomb=1.0,
+                            viscous=1.0, breakaway=max(ratio, 1.0),
+                            backlash=ax.transmission.backlash,
+                            resistance=ax.motor.armature_resistance,
+                            inductance=ax.motor.armature_inductance)
+    return out
+
+
+def candidate(base: MachineConfig, params: dict[str, AxisParams]) -> MachineConfig:
+    """BASE with every field ``params`` sets replaced (validated as any machine file)."""
+    sets: dict[str, float] = {}
+    for a in AXES:
+        p, m = params[a], base.axes[a].mechanics
+        pre = f"axes.{a}"
+        rotor_c, slide_c = p.coulomb * m.rotor_coulomb, p.coulomb * m.slide_coulomb
+        sets.update({
+            f"{pre}.tacho.gain": p.tacho_gain,
+            f"{pre}.dac.gain_error": p.gain_error,
+            f"{pre}.dac.offset": p.offset,
+            f"{pre}.mechanics.rotor_inertia": p.inertia,
+            f"{pre}.mechanics.rotor_coulomb": rotor_c,
+            f"{pre}.mechanics.slide_coulomb": slide_c,
+            f"{pre}.mechanics.rotor_viscous": p.viscous * m.rotor_viscous,
+            f"{pre}.mechanics.slide_viscous": p.viscous * m.slide_viscous,
+            f"{pre}.mechanics.rotor_breakaway": p.breakaway * rotor_c
+            if p.breakaway > 1.0 else 0.0,
+            f"{pre}.mechanics.slide_breakaway": p.breakaway * slide_c
+            if p.breakaway > 1.0 else 0.0,
+            f"{pre}.transmission.backlash": p.backlash,
+            f"{pre}.motor.armature_resistance": p.resistance,
+            f"{pre}.motor.armature_inductance": p.inductance,
+        })
+    return base.with_overrides(sets)
+
+
+def measured(log: IdentLog, base: MachineConfig) -> tuple[np.ndarray, np.ndarray]:
+    """The log's positions (relative to its first tick, m) and tacho volts, (ticks, 2)."""
+    enc = EncoderUnwrapper([base.axes[a].counts_per_metre for a in AXES],
+                           bits=[base.axes[a].encoder.bits for a in AXES])
+    counts = np.column_stack([log.data["counts_x"], log.data["counts_y"]]).astype(np.int64)
+    pos = np.empty((len(counts), 2))
+    enc.reset(counts[0])
+    for k, c in enumerate(counts):
+        pos[k] = enc.update(c)
+    tacho = np.column_stack([log.data["tacho_x"], log.data["tacho_y"]])
+    return pos, tacho
+
+
+def replay(cfg: MachineConfig, log: IdentLog, *, until: int | None = None,
+           mains_phase: float | None = None) -> tuple[np.ndarray, np.ndarray]:
+    """The plant of ``cfg`` under the log's DAC volts: positions relative to the first tick
+    (m) and tacho volts, shape (ticks, 2), for the first ``until`` ticks (default all).
+
+    Each tick reads the sensors, then applies the tick's DAC volts and enable until the next
+    tick's time (a paced run may have skipped a slot); the drives start from rest, as the
+    experiments start from a disabled drive. ``mains_phase`` (rad) places the
+    mains of a thyristor drive relative to the log's first tick: a real machine's is
+    unknown, and the fit estimates it (``fit.mains_phase``).
+    """
+    n = log.ticks if until is None else min(until, log.ticks)
+    if mains_phase is not None and any(cfg.axes[a].converter.kind == "thyristor"
+                                       for a in AXES):
+        cfg = cfg.with_overrides({"axes.*.converter.mains_phase": float(mains_phase)})
+    plant = Plant(cfg, noise=False)  # the measurement has the noise; the replay is its mean
+    mid = np.array([0.5 * sum(cfg.axes[a].mechanics.travel) for a in AXES])
+    plant.reset(positions=mid)
+    enc = EncoderUnwrapper([cfg.axes[a].counts_per_metre for a in AXES],
+                           bits=[cfg.axes[a].encoder.bits for a in AXES])
+    period = cfg.controller.period
+    dt = plant.drive_dt
+    t = log.data["t"]
+    steps = np.diff(t, append=t[-1] + period)
+    steps = np.maximum(np.round(steps / dt), 1) * dt
+    dac = np.column_stack([log.data["dac_x"], log.data["dac_y"]])
+    enable = log.data["enable"] != 0.0
+    inputs = Inputs()
+    pos = np.empty((n, 2))
+    tacho = np.empty((n, 2))
+    plant.read_into(inputs)
+    enc.reset(inputs.encoder_counts)
+    enabled = True
+    for k in range(n):
+        plant.read_into(inputs)
+        pos[k] = enc.update(inputs.encoder_counts)
+        tacho[k] = inputs.tacho_volts
+        if enable[k] != enabled:
+            enabled = bool(enable[k])
+            plant.enable(enabled)
+        plant.step(dac[k], float(steps[k]))
+    return pos, tacho
+
+
+def finite_params(params: dict[str, AxisParams]) -> bool:
+    """Every value finite (a fit that ran away is caught before it reaches a machine)."""
+    return all(math.isfinite(v) for p in params.values() for v in asdict(p).values())
