@@ -19,14 +19,23 @@ from twin.errors import ConfigError
 from twin.hardware.realtime import TickStats
 from twin.telemetry.sink import NullSink, Sink
 
-__all__ = ["make_sink", "parse_command", "run_summary", "ticks_dict", "write_json_atomic"]
+__all__ = ["make_sink", "parse_command", "run_summary", "ticks_dict", "write_json_atomic",
+           "write_text_atomic"]
 
 
-def write_json_atomic(path: Path, obj: Any) -> None:
-    """Write JSON to ``path`` via a temporary file and ``os.replace``."""
+def write_text_atomic(path: str | Path, text: str) -> Path:
+    """Write ``text`` to ``path`` via a temporary file and ``os.replace``: a reader sees the
+    old file or the whole new one, never half of it."""
+    path = Path(path)
     tmp = path.with_name(path.name + ".partial")
-    tmp.write_text(json.dumps(obj, indent=2, default=_json_default) + "\n", encoding="utf-8")
+    tmp.write_text(text, encoding="utf-8")
     os.replace(tmp, path)
+    return path
+
+
+def write_json_atomic(path: Path, obj: Any, *, indent: int | None = 2) -> None:
+    """Write JSON to ``path`` atomically (``write_text_atomic``)."""
+    write_text_atomic(path, json.dumps(obj, indent=indent, default=_json_default) + "\n")
 
 
 def _json_default(obj: Any) -> Any:

@@ -23,6 +23,7 @@ from typing import Any
 
 from twin.config import AXES, MachineConfig, load_machine
 from twin.errors import ConfigError, ExperimentAborted, FitError
+from twin.runrecord import write_json_atomic, write_text_atomic
 
 __all__ = ["identify", "open_identification_driver"]
 
@@ -154,21 +155,17 @@ def identify(machine: str, output: str | Path, *, driver: str = "sim",
     out = report.summary(result, base, log)
     out.update({"calibrated": str(output), "record": str(where), "report": str(png),
                 "calibrated_name": load_check.name})
-    import json
-
-    report.write_atomic(where / "fit.json", json.dumps(out, indent=1, default=float) + "\n")
+    write_json_atomic(where / "fit.json", out)
     return out
 
 
 def _reload(text: str, output: Path) -> MachineConfig:
     """Write the calibrated file atomically after checking it loads back."""
-    from twin.identify.report import write_atomic
-
     probe = output.with_name(output.name + ".check.toml")
     try:
         probe.write_text(text, encoding="utf-8")
         cfg = load_machine(str(probe))
     finally:
         probe.unlink(missing_ok=True)
-    write_atomic(output, text)
+    write_text_atomic(output, text)
     return cfg

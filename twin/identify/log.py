@@ -12,7 +12,6 @@ from __future__ import annotations
 
 import json
 import math
-import os
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -22,6 +21,7 @@ import numpy as np
 from twin.config import AXES, MachineConfig
 from twin.errors import ConfigError
 from twin.identify.plan import EXPERIMENTS, Piece
+from twin.runrecord import write_text_atomic
 
 __all__ = ["COLUMNS", "FORMAT", "IdentLog", "io_signature"]
 
@@ -90,10 +90,7 @@ class IdentLog:
                "driver": self.driver, "start": list(self.start), "notes": self.notes,
                "plan": [p.to_dict() for p in self.plan],
                "data": {k: self.data[k].tolist() for k in COLUMNS}}
-        tmp = path.with_name(path.name + ".partial")
-        tmp.write_text(json.dumps(doc) + "\n", encoding="utf-8")
-        os.replace(tmp, path)
-        return path
+        return write_text_atomic(path, json.dumps(doc) + "\n")
 
     @classmethod
     def load(cls, path: str | Path) -> IdentLog:

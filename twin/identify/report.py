@@ -26,8 +26,7 @@ from twin.identify.fit import NOT_IDENTIFIABLE, Estimate, Identification
 from twin.identify.log import IdentLog
 from twin.identify.plan import HELD_OUT, REPLAYED
 
-__all__ = ["FIELDS", "calibrated_toml", "plot_report", "record", "summary",
-           "write_atomic"]
+__all__ = ["FIELDS", "calibrated_toml", "plot_report", "record", "summary"]
 
 FIELDS = {
     "tacho_gain": ("tacho.gain", "V·s/rad", 1.0),
@@ -90,19 +89,6 @@ def calibrated_toml(result: Identification, base: MachineConfig, log: IdentLog,
                               description=f"{base.description} Calibrated by twin identify "
                                           f"from {log_path}.".strip())
     return machine_to_toml(cfg, header=header_lines(result, base, log, log_path))
-
-
-def write_atomic(path: str | Path, text: str | bytes) -> Path:
-    """Write ``text`` to ``path`` through a temporary file and a rename: a reader sees the
-    old file or the whole new one."""
-    path = Path(path)
-    tmp = path.with_name(path.name + ".partial")
-    if isinstance(text, bytes):
-        tmp.write_bytes(text)
-    else:
-        tmp.write_text(text, encoding="utf-8")
-    os.replace(tmp, path)
-    return path
 
 
 def summary(result: Identification, base: MachineConfig, log: IdentLog) -> dict[str, Any]:
