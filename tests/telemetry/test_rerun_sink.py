@@ -43,6 +43,7 @@ def test_served_recording_listens_on_loopback_only(tmp_path):
     finally:
         stop_rerun()
     assert not running_rerun()
+    assert _listening_addresses(port) == set()     # the server itself, not only its launcher
     chunks = rc.RrdReader(tmp_path / "r.rrd").stream().to_chunks()
     assert "/axes/x/position/actual" in {c.entity_path for c in chunks}
 
