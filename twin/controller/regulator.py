@@ -277,7 +277,13 @@ class PositionRegulator:
         self.output = np.zeros(n)
         self.error = np.zeros(n)
         self.terms = np.zeros((n, len(TERMS)))
-        self.reset(np.zeros(n))
+        # one update here, at rest: the compiled update is loaded (or compiled) now, not in
+        # the first tick of a paced loop, which would miss its deadline (and a real I/O
+        # module's watchdog would trip)
+        zero = np.zeros(n)
+        self.reset(zero)
+        self.update(zero, zero, zero, zero, zero)
+        self.reset(zero)
 
     @property
     def tripped(self) -> bool:
