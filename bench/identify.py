@@ -25,7 +25,8 @@ import numpy as np
 from twin.config import AXES, load_machine
 from twin.config.writer import machine_to_toml
 from twin.identify import identify
-from twin.identify.perturb import perturbed_machine, truth_figures
+from twin.identify.perturb import perturbed_machine
+from twin.identify.replay import axis_figures
 from twin.run import RunSpec, run
 
 BASE = "tomsk_xy"
@@ -45,7 +46,7 @@ def one(seed: int, where: Path, transfer: bool) -> dict:
     t0 = time.perf_counter()
     res = identify(BASE, out, driver=f"sim:{path}", out_dir=where / "runs")
     wall = time.perf_counter() - t0
-    truth = truth_figures(true)
+    truth = axis_figures(true)
     row: dict = {"seed": seed, "machine_time_s": res["machine_time_s"],
                  "fit_wall_time_s": round(res["fit_wall_time_s"], 1),
                  "total_wall_time_s": round(wall, 1),

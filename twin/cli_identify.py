@@ -8,10 +8,10 @@ import sys
 from pathlib import Path
 
 import typer
-from rich.console import Console
 from rich.table import Table
 
 from twin.cli_common import CONTROLLER_MODEL_HELP, err, fail
+from twin.config import AXES
 from twin.errors import ExperimentAborted, FitError, TwinError
 
 __all__ = ["register"]
@@ -69,10 +69,9 @@ def identify(
     if as_json:
         sys.stdout.write(json.dumps(result, default=float) + "\n")
         return
-    console = Console(stderr=True)
     from twin.identify.report import FIELDS
 
-    for a in ("x", "y"):
+    for a in AXES:
         table = Table(title=f"axis {a}: identified (details: the file's header)")
         for col in ("parameter", "value", "95 % interval", "unit"):
             table.add_column(col, justify="left" if col in ("parameter", "unit")
@@ -85,12 +84,12 @@ def identify(
             table.add_row(name.replace("_", " "), value, interval, unit)
         d = result["derived"][a]
         table.add_row("K_H (derived)", f"{1e3 * d['K_H']:.5g}", "", "mm/(s·V)")
-        console.print(table)
+        err.print(table)
     worst = max(max(v.values()) for v in result["nrmse"].values())
-    console.print(f"held-out ramps: NRMSE {100 * worst:.2f} %; machine time "
+    err.print(f"held-out ramps: NRMSE {100 * worst:.2f} %; machine time "
                   f"{result['machine_time_s']:.1f} s; fit {result['fit_wall_time_s']:.1f} s",
                   highlight=False)
-    console.print(f"calibrated machine: {result['calibrated']}\nreport: {result['report']}",
+    err.print(f"calibrated machine: {result['calibrated']}\nreport: {result['report']}",
                   highlight=False)
 
 

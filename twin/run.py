@@ -47,8 +47,9 @@ from twin.runrecord import (
 from twin.telemetry.channels import TelemetryWriter
 from twin.telemetry.sink import Sink
 
-__all__ = ["Prepared", "RunResult", "RunSpec", "axis_models", "load_program", "model_options",
-           "prepare", "run", "run_summary", "write_json_atomic"]
+__all__ = ["Prepared", "RunResult", "RunSpec", "axis_models", "load_program",
+           "measured_position", "model_options", "prepare", "run", "run_summary",
+           "write_json_atomic"]
 
 
 @dataclass(frozen=True)
@@ -224,7 +225,7 @@ def prepare(spec: RunSpec) -> Prepared:
         from twin.hardware.drivers import open_driver
 
         driver = open_driver(spec.driver, cfg)
-        start = _measured_position(driver.read().encoder_counts, cfg)
+        start = measured_position(driver.read().encoder_counts, cfg)
     try:
         items = load_program(spec, cfg, start)
         controller = Controller.from_machine(cfg, items or None, **model_options(belief),
@@ -235,7 +236,7 @@ def prepare(spec: RunSpec) -> Prepared:
     return Prepared(cfg, items, program_path(items), plant, controller, driver, belief)
 
 
-def _measured_position(counts: np.ndarray, cfg: MachineConfig) -> np.ndarray:
+def measured_position(counts: np.ndarray, cfg: MachineConfig) -> np.ndarray:
     """Table position (m) of raw counter values read as signed numbers of their width."""
     out = np.empty(2)
     for k, a in enumerate(AXES):

@@ -30,7 +30,8 @@ from twin.cli_hil import spawn_hil_server
 from twin.config import AXES, load_machine
 from twin.config.writer import machine_to_toml
 from twin.identify import identify
-from twin.identify.perturb import perturbed_machine, truth_figures
+from twin.identify.perturb import perturbed_machine
+from twin.identify.replay import axis_figures
 from twin.run import RunSpec, run
 
 CI = os.environ.get("CI") == "true"
@@ -52,7 +53,7 @@ def _twin(*args: str, timeout: float = 900.0) -> subprocess.CompletedProcess:
 
 
 def _assert_identified(result: dict, true) -> None:
-    truth = truth_figures(true)
+    truth = axis_figures(true)
     for a in AXES:
         d, e, t = result["derived"][a], result["estimates"][a], truth[a]
         where = f"axis {a} of {true.name}"

@@ -16,13 +16,14 @@ measured, and write BASE with the identified fields replaced.
 from __future__ import annotations
 
 import time
+import tomllib
 import uuid
 from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
-from twin.config import AXES, MachineConfig, load_machine
-from twin.errors import ConfigError, ExperimentAborted, FitError
+from twin.config import AXES, MachineConfig, load_machine, machine_from_toml_dict
+from twin.errors import ConfigError, ExperimentAborted
 from twin.runrecord import write_json_atomic, write_text_atomic
 
 __all__ = ["identify", "open_identification_driver"]
@@ -31,7 +32,7 @@ __all__ = ["identify", "open_identification_driver"]
 def open_identification_driver(url: str, base: MachineConfig, *, noise: bool = True):
     """The machine I/O ``url`` names and whether it is paced: ``sim`` (the twin of BASE),
     ``sim:FILE`` (the twin of another machine file or preset: a stand-in for a real one),
-    ``modbus://HOST:PORT`` (real I/O, or the HIL server). Returns (driver, paced, plant)."""
+    ``modbus://HOST:PORT`` (real I/O, or the HIL server). Returns (driver, paced)."""
     from twin.hardware.sim import SimDriver
     from twin.plant import Plant
 
@@ -45,10 +46,10 @@ def open_identification_driver(url: str, base: MachineConfig, *, noise: bool = T
                                   f"width, period, DAC range) differs from {base.name}'s")
         plant = Plant.from_machine(machine, noise=noise)
         plant.reset()
-        return SimDriver(plant, machine.controller.period), False, plant
+        return SimDriver(plant, machine.controller.period), False
     from twin.hardware.drivers import open_driver
 
-    return open_driver(url, base), True, None
+    return open_driver(url, base), True
 
 
 def identify(machine: str, output: str | Path, *, driver: str = "sim",
@@ -95,6 +96,7 @@ def identify(machine: str, output: str | Path, *, driver: str = "sim",
     FitError
         The fit did not converge; nothing is written under ``output``.
     """
+    from twin.hardware.realtime import fifo_priority
     from twin.identify import report
     from twin.identify.experiments import run_plan
     from twin.identify.fit import fit
@@ -110,8 +112,7 @@ def identify(machine: str, output: str | Path, *, driver: str = "sim",
     if not output.parent.is_dir():
         raise ConfigError("output", f"no directory {str(output.parent)!r} for {output.name}")
     if from_log is not None:
-        log = IdentLog.load(from_log)
-        log.check(base)
+        log = IdentLog.load(from_log)   # checked against BASE by the fit
         where = Path(from_log)
         where = where if where.is_dir() else where.parent
     else:
@@ -120,14 +121,12 @@ def identify(machine: str, output: str | Path, *, driver: str = "sim",
                                 *(base.axes[a].limits.max_velocity for a in AXES)),
                             amplitude=amplitude,
                             home_width=max(base.axes[a].switches.home_width for a in AXES))
-        io, paced, _plant = open_identification_driver(driver, base, noise=noise)
+        io, paced = open_identification_driver(driver, base, noise=noise)
         where = Path(out_dir) / (time.strftime("identify-%Y%m%d-%H%M%S-")
                                  + uuid.uuid4().hex[:6])
         where.mkdir(parents=True, exist_ok=False)
         say(f"experiments on {driver} ({'paced' if paced else 'lock-step'}), "
             f"record in {where}")
-        from twin.hardware.realtime import fifo_priority
-
         try:
             with fifo_priority(rt_priority if paced else 0):
                 log = run_plan(io, base, plan, belief=belief, paced=paced,
@@ -141,16 +140,14 @@ def identify(machine: str, output: str | Path, *, driver: str = "sim",
             io.close()
         log.save(where / "experiments.json")
         say(f"experiments: {log.ticks * base.controller.period:.1f} s of machine time")
+    result = None
     try:
         result = fit(base, log, progress=say)
-    except FitError:
-        if from_log is None:
-            report.record(log, base, where / "experiments.rrd")
-        raise
-    if from_log is None:
-        report.record(log, base, where / "experiments.rrd", result)
+    finally:
+        if from_log is None:   # the experiments' recording, with the fitted twin if it fit
+            report.record(log, base, where / "experiments.rrd", result)
     text = report.calibrated_toml(result, base, log, str(where))
-    load_check = _reload(text, output)
+    load_check = _write_checked(text, output)
     png = report.plot_report(result, log, where / "fit.png")
     out = report.summary(result, base, log)
     out.update({"calibrated": str(output), "record": str(where), "report": str(png),
@@ -159,13 +156,9 @@ def identify(machine: str, output: str | Path, *, driver: str = "sim",
     return out
 
 
-def _reload(text: str, output: Path) -> MachineConfig:
-    """Write the calibrated file atomically after checking it loads back."""
-    probe = output.with_name(output.name + ".check.toml")
-    try:
-        probe.write_text(text, encoding="utf-8")
-        cfg = load_machine(str(probe))
-    finally:
-        probe.unlink(missing_ok=True)
+def _write_checked(text: str, output: Path) -> MachineConfig:
+    """Check that the calibrated file's text reads back to a valid machine, then write it
+    atomically."""
+    cfg = machine_from_toml_dict(tomllib.loads(text), source=str(output))
     write_text_atomic(output, text)
     return cfg

@@ -26,12 +26,14 @@ from twin.config import AXES, MachineConfig
 from twin.controller.controller import Controller, ControllerStatus
 from twin.controller.encoder import EncoderUnwrapper
 from twin.controller.io import MachineIO, Outputs
+from twin.controller.loop_defaults import loop_gains
 from twin.controller.regulator import PositionRegulator, RegulatorStatus
+from twin.drive.design import axis_inertia, moving_masses
 from twin.errors import ConfigError, ExperimentAborted
 from twin.hardware.realtime import RealTimeLoop
 from twin.identify.log import COLUMNS, IdentLog, io_signature
 from twin.identify.plan import Piece, excursion, phases
-from twin.run import model_options
+from twin.run import axis_models, measured_position, model_options
 
 __all__ = ["MARGIN", "run_plan"]
 
@@ -48,14 +50,9 @@ class _Runner:
         self.driver, self.base = driver, base
         self.pieces = [p for p in pieces if p[1].kind != "home"]
         self.period = base.controller.period
-        ctrl = Controller.from_machine(base, None, **model_options(belief))
-        self.regulator = PositionRegulator(ctrl.gains, self.period)
-        # one update now: the compiled update is loaded (or compiled) here, not inside the
-        # first closed-loop tick, where a paced loop would miss its deadline (and a real
-        # module's watchdog would trip)
-        zero = np.zeros(2)
-        self.regulator.update(zero, zero, zero, zero, zero)
-        self.regulator.reset(zero)
+        gains = loop_gains(base.controller, [base.axes[a] for a in AXES], axis_models(belief),
+                           base.controller.regulator.dcu_order)
+        self.regulator = PositionRegulator(gains, self.period)
         self.encoder = EncoderUnwrapper([base.axes[a].counts_per_metre for a in AXES],
                                         bits=[base.axes[a].encoder.bits for a in AXES])
         self.volts_per_speed = np.array([belief.axes[a].volts_per_speed for a in AXES])
@@ -137,14 +134,7 @@ class _Runner:
 
 
 def _position(driver: MachineIO, base: MachineConfig) -> np.ndarray:
-    counts = driver.read().encoder_counts
-    out = np.empty(2)
-    for k, a in enumerate(AXES):
-        bits = base.axes[a].encoder.bits
-        c = int(counts[k]) & ((1 << bits) - 1)
-        out[k] = (c - (1 << bits) if c >= 1 << (bits - 1) else c) \
-            / base.axes[a].counts_per_metre
-    return out
+    return measured_position(driver.read().encoder_counts, base)
 
 
 def _room(base: MachineConfig, part: Sequence[Piece], here: np.ndarray
@@ -177,7 +167,7 @@ def _coast_bound(base: MachineConfig, axis: str) -> Callable[[float], float]:
     the model's."""
     ax = base.axes[axis]
     m, r = ax.mechanics, ax.transmission.ratio
-    inertia = m.rotor_inertia + m.carriage_mass * r * r
+    inertia = axis_inertia(ax, moving_masses(base)[axis])
     torque = m.rotor_coulomb + r * m.slide_coulomb
     if torque <= 0.0:
         return lambda v: 0.5 * float(np.diff(m.travel)[0])
@@ -249,13 +239,14 @@ def run_plan(driver: MachineIO, base: MachineConfig, plan: Sequence[Piece], *,
     for part in phases(list(plan)):
         numbered = list(enumerate(part, start=index))
         index += len(part)
-        here = _position(driver, base)
-        target, window = _room(base, part, here)
+        target, window = _room(base, part, _position(driver, base))
         _move_to(driver, base, belief, target, paced)
         runner = _Runner(driver, base, belief, numbered, window, rows)
+        counts = driver.read().encoder_counts
+        here = measured_position(counts, base)
         if not rows:
-            start = _position(driver, base)
-        runner.encoder.reset(driver.read().encoder_counts, position=_position(driver, base))
+            start = here
+        runner.encoder.reset(counts, position=here)
         runner.stop()  # a clean enable edge: the drives start from their reset state
         try:
             if paced:

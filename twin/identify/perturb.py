@@ -9,11 +9,13 @@ limits and everything the signals cannot see stay BASE's.
 
 from __future__ import annotations
 
+import dataclasses
+
 import numpy as np
 
 from twin.config import AXES, MachineConfig
 
-__all__ = ["RANGES", "perturbed_machine", "truth_figures"]
+__all__ = ["RANGES", "perturbed_machine"]
 
 RANGES = {"tacho_gain": (0.8, 1.2), "inertia": (0.7, 1.5), "coulomb": (0.5, 3.0),
           "viscous": (0.5, 3.0), "breakaway": (1.0, 1.5), "resistance": (0.7, 1.3),
@@ -46,21 +48,4 @@ def perturbed_machine(base: MachineConfig, rng: np.random.Generator, *,
             * ax.motor.armature_inductance,
             f"{pre}.transmission.backlash": f["backlash"],
         })
-    import dataclasses
-
     return dataclasses.replace(base.with_overrides(sets), name=name)
-
-
-def truth_figures(cfg: MachineConfig) -> dict[str, dict[str, float]]:
-    """What the identification is judged on, per axis (SI): K_H, tacho gain, rotor
-    inertia, Coulomb and viscous friction at the motor, lost motion."""
-    out = {}
-    for a in AXES:
-        ax = cfg.axes[a]
-        m, r = ax.mechanics, ax.transmission.ratio
-        out[a] = {"K_H": r * (1.0 + ax.dac.gain_error) / ax.tacho.gain,
-                  "tacho_gain": ax.tacho.gain, "inertia": m.rotor_inertia,
-                  "coulomb_at_motor": m.rotor_coulomb + r * m.slide_coulomb,
-                  "viscous_at_motor": m.rotor_viscous + r * r * m.slide_viscous,
-                  "backlash": ax.transmission.backlash}
-    return out

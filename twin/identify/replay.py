@@ -22,7 +22,8 @@ from twin.controller.io import Inputs
 from twin.identify.log import IdentLog
 from twin.plant import Plant
 
-__all__ = ["AxisParams", "base_params", "candidate", "measured", "replay"]
+__all__ = ["SIGMA_POSITION", "SIGMA_TACHO", "AxisParams", "Problem", "axis_figures",
+           "base_params", "candidate", "measured", "replay"]
 
 
 @dataclass(frozen=True)
@@ -175,3 +176,56 @@ def replay(cfg: MachineConfig, log: IdentLog, *, until: int | None = None,
 def finite_params(params: dict[str, AxisParams]) -> bool:
     """Every value finite (a fit that ran away is caught before it reaches a machine)."""
     return all(math.isfinite(v) for p in params.values() for v in asdict(p).values())
+
+
+SIGMA_POSITION = 5e-6
+"""Position residual scale (m): the replay's own floor (unknown mains phase)."""
+SIGMA_TACHO = 0.02
+"""Tacho residual scale (V)."""
+
+
+class Problem:
+    """A log and BASE: the measured positions and tacho volts, and the residuals of replays
+    of candidate parameters against them (counting the replays; ``mains_phase`` is the
+    thyristor mains phase the replays use, once the fit has estimated it)."""
+
+    def __init__(self, base: MachineConfig, log: IdentLog):
+        self.base, self.log = base, log
+        self.pos, self.tacho = measured(log, base)
+        self.replays = 0
+        self.mains_phase: float | None = None
+
+    def simulate(self, params: dict[str, AxisParams], until: int
+                 ) -> tuple[np.ndarray, np.ndarray]:
+        self.replays += 1
+        return replay(candidate(self.base, params), self.log, until=until,
+                      mains_phase=self.mains_phase)
+
+    def residuals(self, params: dict[str, AxisParams], mask: np.ndarray
+                  ) -> dict[str, np.ndarray]:
+        """Per axis: scaled position and tacho residuals over the ticks of ``mask``."""
+        until = int(np.flatnonzero(mask)[-1]) + 1
+        pos, tacho = self.simulate(params, until)
+        m = mask[:until]
+        out = {}
+        for k, a in enumerate(AXES):
+            dp = (pos[m, k] - self.pos[:until][m, k]) / SIGMA_POSITION
+            dt = (tacho[m, k] - self.tacho[:until][m, k]) / SIGMA_TACHO
+            out[a] = np.concatenate([dp, dt])
+        return out
+
+
+def axis_figures(cfg: MachineConfig) -> dict[str, dict[str, float]]:
+    """What identification results are quoted in, per axis (SI): K_H = r·(1 + g)/K_C,
+    the tacho gain, the rotor inertia, the Coulomb and viscous friction at the motor (rotor
+    plus slide) and the lost motion."""
+    out = {}
+    for a in AXES:
+        ax = cfg.axes[a]
+        m, r = ax.mechanics, ax.transmission.ratio
+        out[a] = {"K_H": r * (1.0 + ax.dac.gain_error) / ax.tacho.gain,
+                  "tacho_gain": ax.tacho.gain, "inertia": m.rotor_inertia,
+                  "coulomb_at_motor": m.rotor_coulomb + r * m.slide_coulomb,
+                  "viscous_at_motor": m.rotor_viscous + r * r * m.slide_viscous,
+                  "backlash": ax.transmission.backlash}
+    return out

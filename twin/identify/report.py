@@ -13,6 +13,7 @@
 
 from __future__ import annotations
 
+import dataclasses
 import math
 import os
 from pathlib import Path
@@ -59,7 +60,7 @@ def header_lines(result: Identification, base: MachineConfig, log: IdentLog,
              "BASE with the identified fields replaced; every other field is BASE's.",
              "",
              "Identified (value  [95 % confidence interval]  unit  <- experiment):"]
-    derived = result.derived(base)
+    derived = result.derived()
     for a in AXES:
         lines.append(f"axis {a}:")
         for name, (where, unit, scale) in FIELDS.items():
@@ -83,8 +84,6 @@ def header_lines(result: Identification, base: MachineConfig, log: IdentLog,
 def calibrated_toml(result: Identification, base: MachineConfig, log: IdentLog,
                     log_path: str) -> str:
     """The text of the calibrated machine file."""
-    import dataclasses
-
     cfg = dataclasses.replace(result.calibrated, name=f"{base.name}_calibrated",
                               description=f"{base.description} Calibrated by twin identify "
                                           f"from {log_path}.".strip())
@@ -99,7 +98,7 @@ def summary(result: Identification, base: MachineConfig, log: IdentLog) -> dict[
         "estimates": {a: {k: {"value": e.value, "low": e.low, "high": e.high,
                               "identifiable": e.identifiable, "source": e.source}
                           for k, e in result.estimates[a].items()} for a in AXES},
-        "derived": result.derived(base),
+        "derived": result.derived(),
         "nrmse": result.nrmse,
         "residual": result.residual,
         "mains_phase_rad": result.mains_phase,
