@@ -30,6 +30,8 @@ def identify(
                                "or twin hil-server)."),
     controller_model: str | None = typer.Option(None, "--controller-model",
                                                 help=CONTROLLER_MODEL_HELP),
+    axes: str = typer.Option("xy", "--axes", help="The axes to identify: x, y or xy (the "
+                             "other is held in position and keeps BASE's values)."),
     amplitude: float = typer.Option(1.0, "--amplitude", help="Scale of every experiment's "
                                     "speeds, (0, 1]: lower it on a machine with little room."),
     from_log: Path | None = typer.Option(None, "--from-log", help="Fit the experiments "
@@ -55,7 +57,7 @@ def identify(
         result = run_identify(machine, output, driver=driver,
                               controller_model=controller_model, amplitude=amplitude,
                               from_log=from_log, out_dir=out, noise=noise,
-                              rt_priority=rt_priority, progress=say)
+                              rt_priority=rt_priority, axes=axes, progress=say)
     except ExperimentAborted as exc:
         err.print(f"[bold red]experiments aborted, the machine was stopped:[/] {exc}",
                   highlight=False, soft_wrap=True)
@@ -72,6 +74,9 @@ def identify(
     from twin.identify.report import FIELDS
 
     for a in AXES:
+        if a not in result["axes"]:
+            err.print(f"axis {a}: not excited, BASE's values kept", highlight=False)
+            continue
         table = Table(title=f"axis {a}: identified (details: the file's header)")
         for col in ("parameter", "value", "95 % interval", "unit"):
             table.add_column(col, justify="left" if col in ("parameter", "unit")
@@ -80,7 +85,9 @@ def identify(
             e = result["estimates"][a][name]
             interval = "—" if not (math.isfinite(e["low"]) and math.isfinite(e["high"])) \
                 else f"{scale * e['low']:.4g} … {scale * e['high']:.4g}"
-            value = f"{scale * e['value']:.5g}" + ("" if e["identifiable"] else " (BASE)")
+            value = f"{scale * e['value']:.5g}" + ("" if e["identifiable"] else
+                                                 " (BASE)" if e["kept"] == "base" else
+                                                 " (loose)")
             table.add_row(name.replace("_", " "), value, interval, unit)
         d = result["derived"][a]
         table.add_row("K_H (derived)", f"{1e3 * d['K_H']:.5g}", "", "mm/(s·V)")

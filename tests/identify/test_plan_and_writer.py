@@ -14,7 +14,15 @@ from twin.config.writer import machine_to_toml
 from twin.errors import ConfigError, ExperimentAborted
 from twin.hardware.sim import SimDriver
 from twin.identify.experiments import run_plan
-from twin.identify.plan import EXPERIMENTS, Piece, default_plan, excursion, phases, prbs
+from twin.identify.plan import (
+    EXPERIMENTS,
+    Piece,
+    default_plan,
+    excursion,
+    parse_axes,
+    phases,
+    prbs,
+)
 from twin.plant import Plant
 
 
@@ -80,3 +88,15 @@ def test_an_experiment_that_leaves_its_room_stops_the_machine_safely():
     dac, enable = driver.last
     assert not enable and np.all(dac == 0.0)
     assert info.value.log.ticks > 0 and "aborted" in info.value.log.notes
+
+
+@pytest.mark.parametrize(("text", "axes"), [("x", ("x",)), ("Y", ("y",)), ("xy", ("x", "y")),
+                                            ("yx", ("x", "y")), (" y ", ("y",))])
+def test_the_axes_option_names_the_axes_in_machine_order(text, axes):
+    assert parse_axes(text) == axes
+
+
+@pytest.mark.parametrize("text", ["", "z", "xx", "xyz", "x,y"])
+def test_a_bad_axes_option_names_the_option(text):
+    with pytest.raises(ConfigError, match="axes"):
+        parse_axes(text)

@@ -55,7 +55,7 @@ def open_identification_driver(url: str, base: MachineConfig, *, noise: bool = T
 def identify(machine: str, output: str | Path, *, driver: str = "sim",
              controller_model: str | None = None, amplitude: float = 1.0,
              from_log: str | Path | None = None, out_dir: str | Path = "runs",
-             noise: bool = True, rt_priority: int = 0,
+             noise: bool = True, rt_priority: int = 0, axes: str = "xy",
              progress: Callable[[str], None] | None = None) -> dict[str, Any]:
     """Run (or read) the experiments, fit, and write the calibrated machine file.
 
@@ -80,6 +80,10 @@ def identify(machine: str, output: str | Path, *, driver: str = "sim",
         ``sim`` drivers: the machine file's sensor noise.
     rt_priority : int
         Real I/O: SCHED_FIFO priority of the experiments' loop (best effort; 0: none).
+    axes : str
+        The axes to identify (``x``, ``y``, ``xy``); the other is held in position and
+        keeps BASE's values. A log says which axes it excited: with ``from_log`` this
+        must name them or a subset of them.
     progress : callable(str), optional
 
     Returns
@@ -101,9 +105,10 @@ def identify(machine: str, output: str | Path, *, driver: str = "sim",
     from twin.identify.experiments import run_plan
     from twin.identify.fit import fit
     from twin.identify.log import IdentLog
-    from twin.identify.plan import default_plan
+    from twin.identify.plan import default_plan, parse_axes
 
     say = progress or (lambda _m: None)
+    chosen = parse_axes(axes)
     base = load_machine(machine)
     output = Path(output)
     if output.suffix.lower() != ".toml":
@@ -113,6 +118,11 @@ def identify(machine: str, output: str | Path, *, driver: str = "sim",
         raise ConfigError("output", f"no directory {str(output.parent)!r} for {output.name}")
     if from_log is not None:
         log = IdentLog.load(from_log)   # checked against BASE by the fit
+        absent = [a for a in chosen if a not in log.axes]
+        if absent and chosen != tuple(AXES):
+            raise ConfigError("axes", f"the log did not excite axis {', '.join(absent)} "
+                              f"(it holds {''.join(log.axes)})")
+        log.axes = [a for a in log.axes if a in chosen] or log.axes
         where = Path(from_log)
         where = where if where.is_dir() else where.parent
     else:
@@ -130,7 +140,7 @@ def identify(machine: str, output: str | Path, *, driver: str = "sim",
         try:
             with fifo_priority(rt_priority if paced else 0):
                 log = run_plan(io, base, plan, belief=belief, paced=paced,
-                               driver_name=driver)
+                               driver_name=driver, axes=chosen)
         except ExperimentAborted as exc:
             partial = getattr(exc, "log", None)
             if partial is not None:

@@ -35,6 +35,8 @@ def regress_gains(problem: Problem, base: MachineConfig
     pieces = log.data["piece"].astype(int)
     values, halfs = {}, {}
     for k, a in enumerate(AXES):
+        if a not in problem.axes:
+            continue
         r = base.axes[a].transmission.ratio
         rows = []
         for i, piece in enumerate(log.plan):
@@ -87,6 +89,8 @@ def coast_regression(problem: Problem, params: dict[str, AxisParams]
     carriage, at_motor = _carriage_inertia(base), axis_figures(base)
     out = {}
     for k, a in enumerate(AXES):
+        if a not in problem.axes:
+            continue
         ax = base.axes[a]
         m, r = ax.mechanics, ax.transmission.ratio
         rows, rhs = [], []
@@ -130,6 +134,8 @@ def limit_inertia(problem: Problem, params: dict[str, AxisParams]) -> dict[str, 
                       default=0.0)
     out = {}
     for k, a in enumerate(AXES):
+        if a not in problem.axes:
+            continue
         ax = base.axes[a]
         p = params[a]
         j_total = p.inertia + carriage[a]
@@ -175,6 +181,8 @@ def lost_motion(problem: Problem, params: dict[str, AxisParams]
                 default=0.0)
     out = {}
     for k, a in enumerate(AXES):
+        if a not in problem.axes:
+            continue
         home = log.data[f"home_{a}"]
         pos = problem.pos[:, k]
 

@@ -35,10 +35,12 @@ from twin.identify.log import COLUMNS, IdentLog, io_signature
 from twin.identify.plan import Piece, excursion, phases
 from twin.run import axis_models, measured_position, model_options
 
-__all__ = ["MARGIN", "run_plan"]
+__all__ = ["HOLD", "MARGIN", "run_plan"]
 
 MARGIN = 1e-3
 """Room kept between the experiments and the end switches (m)."""
+HOLD = 0.1e-3
+"""How far an axis that is not excited may move from where it is held (m)."""
 
 
 class _Runner:
@@ -46,7 +48,7 @@ class _Runner:
 
     def __init__(self, driver: MachineIO, base: MachineConfig, belief: MachineConfig,
                  pieces: Sequence[tuple[int, Piece]], window: Sequence[tuple[float, float]],
-                 rows: list):
+                 rows: list, moving: Sequence[bool] = (True, True)):
         self.driver, self.base = driver, base
         self.pieces = [p for p in pieces if p[1].kind != "home"]
         self.period = base.controller.period
@@ -56,6 +58,7 @@ class _Runner:
         self.encoder = EncoderUnwrapper([base.axes[a].counts_per_metre for a in AXES],
                                         bits=[base.axes[a].encoder.bits for a in AXES])
         self.volts_per_speed = np.array([belief.axes[a].volts_per_speed for a in AXES])
+        self.moving = np.array(moving, dtype=bool)
         self.window = list(window)
         ticks = [max(1, round(p.duration / self.period)) for _, p in self.pieces]
         self.piece_of_tick = np.repeat(np.arange(len(self.pieces)), ticks)
@@ -64,11 +67,25 @@ class _Runner:
         self.out = Outputs()
         self.held = np.zeros(2)
         self.ref = np.zeros(2)
+        self.vel = np.zeros(2)
+        self.zero = np.zeros(2)
         self.last_kind = ""
         self.t_ref = 0.0
 
+    def start(self, counts, here: np.ndarray) -> None:
+        """Take the table's position as the start: the encoder origin and the position
+        loop's reference (an axis not excited is held there)."""
+        self.encoder.reset(counts, position=here)
+        self.ref[:] = here
+        self.regulator.reset(here)
+
     def tick(self, k: int, t: float) -> bool:
-        """Read, check, compute and write one tick; False when the part is done."""
+        """Read, check, compute and write one tick; False when the part is done.
+
+        The position loop runs every tick: it drives the ramps, and it holds an axis that
+        is not excited (``moving`` False) where it started, through every piece. An
+        excited axis takes the open-loop pieces' volts, its reference following the table
+        so that the loop picks it up without a jump at the next ramp."""
         if k >= len(self.piece_of_tick):
             return False
         inputs = self.driver.read()
@@ -76,31 +93,34 @@ class _Runner:
         index, piece = self.pieces[int(self.piece_of_tick[k])]
         self._check(inputs, pos, piece)
         enable = piece.kind != "coast"
-        if piece.kind == "speed":
-            dac = piece.value * self.volts_per_speed
-            self.last_kind = "speed"
-        elif piece.kind == "coast":
-            dac = np.zeros(2)
-            self.last_kind = "coast"
-        else:
+        moving = self.moving
+        if piece.kind == "ramp":
             if self.last_kind != "ramp":  # a ramp starts from where the table is
-                self.ref[:] = pos
-                self.regulator.reset(pos)
-                self.held[:] = 0.0
+                self.ref[moving] = pos[moving]
+                if moving.all():
+                    self.regulator.reset(pos)
+                    self.held[:] = 0.0
                 self.t_ref = t
-            self.last_kind = "ramp"
-            vel = np.full(2, piece.value)
+            self.vel[:] = np.where(moving, piece.value, 0.0)
             # the reference advances with the clock (a paced loop may skip a late slot)
-            self.ref += vel * (t + self.period - self.t_ref)
+            self.ref += self.vel * (t + self.period - self.t_ref)
             self.t_ref = t + self.period
-            status = self.regulator.update(self.ref, vel, np.zeros(2), np.zeros(2), pos)
-            if status >= RegulatorStatus.FOLLOWING_ERROR:
-                raise ExperimentAborted(
-                    f"{piece.experiment}: following error beyond the limit at t = {t:.3f} s "
-                    f"(x {1e6 * self.regulator.error[0]:.1f} µm, y "
-                    f"{1e6 * self.regulator.error[1]:.1f} µm)")
-            dac = self.held.copy()          # compute ahead, as the controller does
-            self.held[:] = self.regulator.output
+        else:
+            self.ref[moving] = pos[moving]
+            self.vel[:] = 0.0
+        self.last_kind = piece.kind
+        status = self.regulator.update(self.ref, self.vel, self.zero, self.zero, pos)
+        if status >= RegulatorStatus.FOLLOWING_ERROR:
+            raise ExperimentAborted(
+                f"{piece.experiment}: following error beyond the limit at t = {t:.3f} s "
+                f"(x {1e6 * self.regulator.error[0]:.1f} µm, y "
+                f"{1e6 * self.regulator.error[1]:.1f} µm)")
+        dac = self.held.copy()          # compute ahead, as the controller does
+        self.held[:] = self.regulator.output
+        if piece.kind == "speed":
+            dac[moving] = piece.value * self.volts_per_speed[moving]
+        elif piece.kind == "coast":
+            dac[:] = 0.0
         self.out.dac_volts[:] = dac
         self.out.enable = enable
         self.driver.write(self.out)
@@ -137,13 +157,18 @@ def _position(driver: MachineIO, base: MachineConfig) -> np.ndarray:
     return measured_position(driver.read().encoder_counts, base)
 
 
-def _room(base: MachineConfig, part: Sequence[Piece], here: np.ndarray
+def _room(base: MachineConfig, part: Sequence[Piece], here: np.ndarray,
+          moving: Sequence[bool] = (True, True)
           ) -> tuple[np.ndarray, list[tuple[float, float]]]:
     """Where a part of the plan starts and each axis' window: a ``home`` piece's point, or
-    the point nearest ``here`` with room for the part's excursion inside the switches."""
+    the point nearest ``here`` with room for the part's excursion inside the switches. An
+    axis not excited stays where it is, its window ``HOLD`` either side."""
     target = here.copy()
     window = []
     for k, a in enumerate(AXES):
+        if not moving[k]:
+            window.append((here[k] - HOLD, here[k] + HOLD))
+            continue
         lo, hi = excursion(list(part), coast_travel=_coast_bound(base, a))
         sw = base.axes[a].switches
         safe_lo, safe_hi = sw.limit_min + MARGIN, sw.limit_max - MARGIN
@@ -203,9 +228,10 @@ def _move_to(driver: MachineIO, base: MachineConfig, belief: MachineConfig,
 
 def run_plan(driver: MachineIO, base: MachineConfig, plan: Sequence[Piece], *,
              belief: MachineConfig | None = None, paced: bool = False,
-             driver_name: str = "sim", progress: Callable[[float], None] | None = None
-             ) -> IdentLog:
-    """Run ``plan`` on both axes through ``driver`` and return the log.
+             driver_name: str = "sim", progress: Callable[[float], None] | None = None,
+             axes: Sequence[str] = AXES) -> IdentLog:
+    """Run ``plan`` on the axes ``axes`` through ``driver`` and return the log; the other
+    axis is held in position by the loop (within ``HOLD``).
 
     Parameters
     ----------
@@ -221,6 +247,8 @@ def run_plan(driver: MachineIO, base: MachineConfig, plan: Sequence[Piece], *,
     driver_name : str
         Recorded in the log.
     progress : callable(seconds done), optional
+    axes : sequence of str
+        The axes to excite (both by default).
 
     Raises
     ------
@@ -231,6 +259,7 @@ def run_plan(driver: MachineIO, base: MachineConfig, plan: Sequence[Piece], *,
         The work zone has no room for the plan.
     """
     belief = belief or base
+    moving = [a in axes for a in AXES]
     rows: list[tuple] = []
     notes: dict = {}
     start = _position(driver, base)
@@ -239,14 +268,14 @@ def run_plan(driver: MachineIO, base: MachineConfig, plan: Sequence[Piece], *,
     for part in phases(list(plan)):
         numbered = list(enumerate(part, start=index))
         index += len(part)
-        target, window = _room(base, part, _position(driver, base))
+        target, window = _room(base, part, _position(driver, base), moving)
         _move_to(driver, base, belief, target, paced)
-        runner = _Runner(driver, base, belief, numbered, window, rows)
+        runner = _Runner(driver, base, belief, numbered, window, rows, moving)
         counts = driver.read().encoder_counts
         here = measured_position(counts, base)
         if not rows:
             start = here
-        runner.encoder.reset(counts, position=here)
+        runner.start(counts, here)
         runner.stop()  # a clean enable edge: the drives start from their reset state
         try:
             if paced:
@@ -260,7 +289,7 @@ def run_plan(driver: MachineIO, base: MachineConfig, plan: Sequence[Piece], *,
                         progress(len(rows) * base.controller.period)
         except ExperimentAborted as exc:
             runner.stop()
-            exc.log = _log(rows, base, plan, start, driver_name, {"aborted": str(exc)})
+            exc.log = _log(rows, base, plan, start, driver_name, {"aborted": str(exc)}, axes)
             raise
         except BaseException:
             runner.stop()
@@ -268,12 +297,12 @@ def run_plan(driver: MachineIO, base: MachineConfig, plan: Sequence[Piece], *,
         runner.stop()
     notes["wall_time_s"] = time.perf_counter() - t_wall
     notes["machine_time_s"] = len(rows) * base.controller.period
-    return _log(rows, base, plan, start, driver_name, notes)
+    return _log(rows, base, plan, start, driver_name, notes, axes)
 
 
 def _log(rows: list[tuple], base: MachineConfig, plan: Sequence[Piece], start: np.ndarray,
-         driver_name: str, notes: dict) -> IdentLog:
+         driver_name: str, notes: dict, axes: Sequence[str]) -> IdentLog:
     table = np.array(rows, dtype=float).reshape(-1, len(COLUMNS))
     data = {c: table[:, i].copy() for i, c in enumerate(COLUMNS)}
     return IdentLog(base.name, io_signature(base), driver_name, list(plan), data,
-                    [float(v) for v in start], notes)
+                    [float(v) for v in start], notes, [a for a in AXES if a in axes])

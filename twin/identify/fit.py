@@ -28,8 +28,10 @@ carries its parameters, then all of them together:
    loop the drive's own design compensates) in one last Levenberg-Marquardt on all replayed
    experiments, whose Jacobian gives the 95 % confidence intervals, widened for the
    residuals' correlation in time. A parameter whose interval is too wide (``TOLERANCE``)
-   is reported as not identifiable: it is set back to BASE's value and the others are
-   fitted again around it.
+   is reported as not identifiable: if BASE's value lies inside the interval it is set
+   back to it and the others are fitted again around it; if the data reject BASE's value,
+   the fit's is kept (forcing BASE's would push its error into the others: a viscous
+   friction twice BASE's, reset, comes back as a Coulomb friction 27 % high).
 
 The axes are uncoupled, so each replay moves both: a finite-difference column of x and the
 same column of y come from one simulation. The held-out experiment (``ramps``, closed loop)
@@ -65,9 +67,16 @@ from twin.identify.lm import (
 )
 from twin.identify.log import IdentLog
 from twin.identify.plan import FIT_EXPERIMENTS, HELD_OUT
-from twin.identify.replay import AxisParams, Problem, axis_figures, base_params, candidate
+from twin.identify.replay import (
+    NAMES,
+    AxisParams,
+    Problem,
+    axis_figures,
+    base_params,
+    candidate,
+)
 
-__all__ = ["NOT_IDENTIFIABLE", "TOLERANCE", "Estimate", "Identification", "fit"]
+__all__ = ["NOT_EXCITED", "NOT_IDENTIFIABLE", "TOLERANCE", "Estimate", "Identification", "fit"]
 
 TOLERANCE = {"inertia": math.log(1.25), "coulomb": math.log(1.25),
              "viscous": math.log(1.5), "breakaway": 0.5, "backlash": 3e-6,
@@ -86,6 +95,9 @@ NOT_IDENTIFIABLE = {
     "converter (line voltage, mains, firing limits)": "no signal of the converter's own",
 }
 """Fields the encoder, tacho and DAC cannot recover, and why; kept from BASE."""
+
+NOT_EXCITED = "not excited (held in position: --axes left it out); BASE's value kept"
+"""The source of every value of an axis the experiments did not excite."""
 
 _SOURCE = {"tacho_gain": "steps (steady speeds)", "gain_error": "steps (steady speeds)",
            "offset": "steps (steady speeds)", "inertia": "steps (current limit), prbs",
@@ -106,9 +118,15 @@ class Estimate:
     low, high : float
         Its 95 % confidence interval.
     identifiable : bool
-        False: the data do not pin it down; BASE's value is kept.
+        False: the data do not pin it down (its interval is wider than ``TOLERANCE``).
     source : str
         The experiment(s) it comes from.
+    kept : str
+        Where the value comes from: ``"fit"``, or ``"base"`` when it is not identifiable
+        and BASE's value lies inside its interval (the data cannot tell it from BASE). A
+        loose parameter whose interval excludes BASE keeps the fit's value: BASE's would be
+        a value the data reject, and the parameters fitted around it would absorb the
+        difference.
     """
 
     value: float
@@ -116,6 +134,7 @@ class Estimate:
     high: float
     identifiable: bool
     source: str
+    kept: str = "fit"
 
 
 @dataclass
@@ -131,9 +150,11 @@ class Identification:
     calibrated : MachineConfig
         BASE with the identified fields replaced.
     nrmse : dict
-        Held-out normalised RMS errors ``{axis: {"position": ., "tacho": .}}``.
+        Held-out normalised RMS errors ``{axis: {"position": ., "tacho": .}}`` of the
+        excited axes.
     residual : dict
-        RMS residual of the fit experiments ``{axis: {"position_um": ., "tacho_v": .}}``.
+        RMS residual of the fit experiments ``{axis: {"position_um": ., "tacho_v": .}}``
+        of the excited axes.
     replays : int
         Simulations the fit ran.
     curves : dict of ndarray
@@ -176,21 +197,22 @@ def fit(base: MachineConfig, log: IdentLog, *,
     say = progress or (lambda _msg: None)
     log.check(base)
     problem = Problem(base, log)
+    axes = problem.axes   # the others were held still: BASE's values are kept
     start = base_params(base)
     # 1. gains by regression (they do not depend on the mains phase)
     gains, gain_halfs = regress_gains(problem, base)
-    params = {a: start[a].with_(**gains[a]) for a in AXES}
-    say("gains: " + ", ".join(f"{a} K_C {gains[a]['tacho_gain']:.5g}" for a in AXES))
+    params = {a: start[a].with_(**gains[a]) if a in axes else start[a] for a in AXES}
+    say("gains: " + ", ".join(f"{a} K_C {gains[a]['tacho_gain']:.5g}" for a in axes))
     # 2. friction over inertia from the coast-downs (linear regression), the inertia from
     #    the current-limited reversals with them; then the inertia (friction in proportion)
     #    and the armature resistance from the replayed steps, the phase again once near
     ratios = coast_regression(problem, params)
-    for a in AXES:
+    for a in axes:
         c, v = ratios[a]
         if math.isfinite(c) and c > 0.0 and math.isfinite(v) and v > 0.0:
             params[a] = params[a].with_(coulomb=c, viscous=v)
     inertia = limit_inertia(problem, params)
-    for a in AXES:
+    for a in axes:
         if math.isfinite(inertia[a]) and inertia[a] > 0.0:
             f = inertia[a] / params[a].inertia
             p = params[a]
@@ -201,40 +223,50 @@ def fit(base: MachineConfig, log: IdentLog, *,
     params, _, _ = levenberg_marquardt(problem, params, ["scale", "resistance"], steps, start,
                                        iterations=8)
     scan_mains_phase(problem, params)
-    say("inertia: " + ", ".join(f"{a} {params[a].inertia:.4g} kg·m²" for a in AXES))
+    say("inertia: " + ", ".join(f"{a} {params[a].inertia:.4g} kg·m²" for a in axes))
     # 3. friction: the coast-downs (friction alone), then with the speed loop's data
     coast = log.experiment_mask("coast")
     params, _, _ = levenberg_marquardt(problem, params, ["coulomb", "viscous", "breakaway"],
                                        coast, start, iterations=5)
     # 4. lost motion from the home switch
     lost = lost_motion(problem, params)
-    for a in AXES:
+    for a in axes:
         if math.isfinite(lost[a][0]):
             params[a] = params[a].with_(backlash=lost[a][0])
-    say("lost motion: " + ", ".join(f"{a} {1e6 * params[a].backlash:.1f} µm" for a in AXES))
+    say("lost motion: " + ", ".join(f"{a} {1e6 * params[a].backlash:.1f} µm" for a in axes))
     # 5. everything the replay carries, together
     fit_mask = log.experiment_mask(FIT_EXPERIMENTS)
     names = ["inertia", "coulomb", "viscous", "breakaway", "resistance", "inductance"]
     params, jac, res = levenberg_marquardt(problem, params, names, fit_mask, start,
                                            iterations=3)
     coords = [c for c in COORDS if c[0] in names]
-    # a parameter whose interval is too wide is not pinned down: BASE's value is kept and
-    # the others are fitted again around it
-    halfs = {a: half_intervals(jac[a], res[a]) for a in AXES}
+    # a parameter whose interval is too wide is not pinned down: if BASE's value lies in
+    # that interval it is kept, and the others are fitted again around it; if the data
+    # reject BASE's value, the fit's stays (flagged loose, not identifiable)
+    halfs = {a: half_intervals(jac[a], res[a]) for a in axes}
+    wide = {a: {c[0] for c, h in zip(coords, halfs[a], strict=True)
+                if not h <= TOLERANCE[c[0]]} for a in axes}
     loose = {a: {c[0] for c, h in zip(coords, halfs[a], strict=True)
-                 if not h <= TOLERANCE[c[0]]} for a in AXES}
+                 if c[0] in wide[a] and abs(coordinate(params[a], start[a], c[0], c[1])
+                                            - coordinate(start[a], start[a], c[0], c[1]))
+                 <= h} for a in axes}
     fitted = dict(params)
-    if any(loose.values()):
-        params = {a: params[a].with_(**{n: getattr(start[a], n) for n in loose[a]})
-                  for a in AXES}
+    if any(wide.values()):   # fitted again: around BASE's values, or on from the first fit
+        params = {**params, **{a: params[a].with_(**{n: getattr(start[a], n)
+                                                     for n in loose[a]}) for a in axes}}
         params, jac, res = levenberg_marquardt(problem, params, names, fit_mask, start,
                                                iterations=3, frozen=loose)
-        for a in AXES:
+        for a in axes:
             on = np.array([c[0] not in loose[a] for c in coords])
             halfs[a][on] = half_intervals(jac[a][:, on], res[a])
     estimates: dict[str, dict[str, Estimate]] = {}
     final = {}
     for a in AXES:
+        if a not in axes:
+            estimates[a] = {name: Estimate(getattr(start[a], name), math.nan, math.nan,
+                                           False, NOT_EXCITED, "base") for name in NAMES}
+            final[a] = start[a]
+            continue
         half = halfs[a]
         est: dict[str, Estimate] = {}
         p = params[a]
@@ -242,20 +274,22 @@ def fit(base: MachineConfig, log: IdentLog, *,
             v, h = getattr(p, name), gain_halfs[a][name]
             est[name] = Estimate(v, v - h, v + h, True, _SOURCE[name])
         for i, (name, kind, _h) in enumerate(coords):
-            ok = name not in loose[a]
-            at = p if ok else fitted[a]   # a loose one's interval is about its fitted value
+            reset = name in loose[a]
+            at = fitted[a] if reset else p  # a reset one's interval is about its fit
             x = coordinate(at, start[a], name, kind)
             span = half[i] if math.isfinite(half[i]) else 1e9
             lo = with_coordinate(at, start[a], name, kind, max(x - span, BOUNDS[name][0]))
             hi = with_coordinate(at, start[a], name, kind, min(x + span, BOUNDS[name][1]))
-            est[name] = Estimate(getattr(p, name), getattr(lo, name), getattr(hi, name), ok,
-                                 _SOURCE[name])
+            est[name] = Estimate(getattr(p, name), getattr(lo, name), getattr(hi, name),
+                                 name not in wide[a], _SOURCE[name],
+                                 "base" if reset else "fit")
         b, h = lost[a]
         ok = math.isfinite(b) and h <= TOLERANCE["backlash"]
         if not ok:
             p = p.with_(backlash=start[a].backlash)
         est["backlash"] = Estimate(p.backlash, max(b - h, 0.0) if ok else math.nan,
-                                   b + h if ok else math.nan, ok, _SOURCE["backlash"])
+                                   b + h if ok else math.nan, ok, _SOURCE["backlash"],
+                                   "fit" if ok else "base")
         estimates[a] = est
         final[a] = p
     if not all(math.isfinite(v) for p in final.values() for v in p.to_dict().values()):
@@ -268,6 +302,8 @@ def fit(base: MachineConfig, log: IdentLog, *,
     residual, nrmse = {}, {}
     fm, hm = fit_mask[:n], held[:n]
     for k, a in enumerate(AXES):
+        if a not in axes:
+            continue
         residual[a] = {
             "position_um": float(np.sqrt(np.mean((pos[fm, k] - problem.pos[:n][fm, k]) ** 2))
                                  * 1e6),

@@ -67,29 +67,30 @@ def levenberg_marquardt(problem: Problem, params: dict[str, AxisParams], names: 
         mask: np.ndarray, start: dict[str, AxisParams], *, iterations: int = 8,
         frozen: dict[str, set[str]] | None = None
         ) -> tuple[dict[str, AxisParams], dict[str, np.ndarray], dict[str, np.ndarray]]:
-    """Levenberg-Marquardt on the coordinates ``names`` of both axes at once (but those
-    ``frozen[axis]`` holds for that axis); returns the parameters, each axis' Jacobian
+    """Levenberg-Marquardt on the coordinates ``names`` of the problem's axes at once (but
+    those ``frozen[axis]`` holds for that axis); returns the parameters, each axis' Jacobian
     (residuals × coordinates) at the solution and its residual vector."""
     coords = [c for c in COORDS if c[0] in names]
     frozen = frozen or {}
-    active = {a: np.array([c[0] not in frozen.get(a, ()) for c in coords]) for a in AXES}
-    lam = {a: 1e-2 for a in AXES}
+    axes = problem.axes
+    active = {a: np.array([c[0] not in frozen.get(a, ()) for c in coords]) for a in axes}
+    lam = {a: 1e-2 for a in axes}
     res = problem.residuals(params, mask)
-    sse = {a: float(res[a] @ res[a]) for a in AXES}
+    sse = {a: float(res[a] @ res[a]) for a in axes}
     jac: dict[str, np.ndarray] = {}
     for _ in range(iterations):
-        jac = {a: np.empty((len(res[a]), len(coords))) for a in AXES}
+        jac = {a: np.empty((len(res[a]), len(coords))) for a in axes}
         for i, (name, kind, h) in enumerate(coords):
-            trial, steps = {}, {}
-            for a in AXES:
+            trial, steps = dict(params), {}
+            for a in axes:
                 x = coordinate(params[a], start[a], name, kind)
                 steps[a] = h if x + h <= BOUNDS[name][1] else -h
                 trial[a] = with_coordinate(params[a], start[a], name, kind, x + steps[a])
             r2 = problem.residuals(trial, mask)
-            for a in AXES:
+            for a in axes:
                 jac[a][:, i] = (r2[a] - res[a]) / steps[a]
-        proposal = {}
-        for a in AXES:
+        proposal = dict(params)
+        for a in axes:
             j, r = jac[a], res[a]
             jtj = j.T @ j
             g = j.T @ r
@@ -108,7 +109,7 @@ def levenberg_marquardt(problem: Problem, params: dict[str, AxisParams], names: 
             proposal[a] = p
         trial_res = problem.residuals(proposal, mask)
         improved = False
-        for a in AXES:
+        for a in axes:
             new = float(trial_res[a] @ trial_res[a])
             if new < sse[a]:
                 if (sse[a] - new) > 1e-4 * sse[a]:

@@ -62,6 +62,8 @@ class IdentLog:
         Table position when the experiments began (m, as measured).
     notes : dict
         Anything else worth keeping (wall times, the driver's deadline report).
+    axes : list of str
+        The axes the experiments excited (the other was held in position).
     """
 
     machine: str
@@ -71,6 +73,7 @@ class IdentLog:
     data: dict[str, np.ndarray]
     start: list[float] = field(default_factory=lambda: [0.0, 0.0])
     notes: dict[str, Any] = field(default_factory=dict)
+    axes: list[str] = field(default_factory=lambda: list(AXES))
 
     @property
     def ticks(self) -> int:
@@ -88,6 +91,7 @@ class IdentLog:
         path = Path(path)
         doc = {"format": FORMAT, "machine": self.machine, "signature": self.signature,
                "driver": self.driver, "start": list(self.start), "notes": self.notes,
+               "axes": list(self.axes),
                "plan": [p.to_dict() for p in self.plan],
                "data": {k: self.data[k].tolist() for k in COLUMNS}}
         return write_text_atomic(path, json.dumps(doc) + "\n")
@@ -131,9 +135,14 @@ class IdentLog:
         for c, a in arrays.items():
             if not np.all(np.isfinite(a)):
                 raise ConfigError(str(p), f"column {c} holds values that are not finite")
+        axes = doc.get("axes", list(AXES))
+        if not (isinstance(axes, list) and axes and set(axes) <= set(AXES)
+                and len(set(axes)) == len(axes)):
+            raise ConfigError(str(p), f"axes: must name some of {', '.join(AXES)} once each, "
+                              f"got {axes!r}")
         return cls(str(doc["machine"]), dict(doc["signature"]), str(doc.get("driver", "")),
                    plan, arrays, list(doc.get("start", [0.0, 0.0])),
-                   dict(doc.get("notes", {})))
+                   dict(doc.get("notes", {})), [a for a in AXES if a in axes])
 
     def check(self, base: MachineConfig) -> None:
         """Refuse a log that does not fit ``base``: other I/O or period, or experiments that

@@ -3,7 +3,8 @@
 Every piece is either an open-loop speed reference (the DAC drives the speed loop directly)
 or a closed-loop ramp of the position loop; levels are table speeds (m/s), turned into each
 axis' DAC volts with the model's K_H when the plan runs. The default plan (``default_plan``)
-has four experiments, run on both axes at once (the axes are uncoupled):
+has these experiments, run on every axis identified at once (the axes are uncoupled; an
+axis left out is held in position meanwhile):
 
 ``steps``
     Open-loop speed steps of both signs at four levels (3.3 %, 13 %, 60 % and 95 % of the
@@ -44,10 +45,11 @@ import math
 from collections.abc import Callable
 from dataclasses import asdict, dataclass
 
+from twin.config import AXES
 from twin.errors import ConfigError
 
 __all__ = ["CROSSING_RUN", "CROSSING_SPEED", "EXPERIMENTS", "FIT_EXPERIMENTS", "HELD_OUT",
-           "REPLAYED", "Piece", "default_plan", "excursion", "phases", "prbs"]
+           "REPLAYED", "Piece", "default_plan", "excursion", "parse_axes", "phases", "prbs"]
 
 EXPERIMENTS = ("steps", "prbs", "coast", "reversals", "ramps", "crossings")
 FIT_EXPERIMENTS = ("steps", "prbs", "coast", "reversals")
@@ -88,6 +90,21 @@ class Piece:
     def to_dict(self) -> dict:
         """Plain dict for the log."""
         return asdict(self)
+
+
+def parse_axes(text: str) -> tuple[str, ...]:
+    """The axes an ``--axes`` value names (``x``, ``y``, ``xy``; order and case free), in
+    the machine's axis order.
+
+    Raises
+    ------
+    ConfigError
+        Naming the option, for anything else (unknown or repeated letters, nothing)."""
+    letters = list(str(text).strip().lower())
+    if not letters or any(c not in AXES for c in letters) or len(set(letters)) != len(letters):
+        raise ConfigError("axes", f"must name the axes to identify as x, y or xy, got "
+                          f"{text!r}")
+    return tuple(a for a in AXES if a in letters)
 
 
 def prbs(bits: int = 7, seed: int = 1) -> list[int]:

@@ -22,7 +22,7 @@ from twin.controller.io import Inputs
 from twin.identify.log import IdentLog
 from twin.plant import Plant
 
-__all__ = ["SIGMA_POSITION", "SIGMA_TACHO", "AxisParams", "Problem", "axis_figures",
+__all__ = ["NAMES", "SIGMA_POSITION", "SIGMA_TACHO", "AxisParams", "Problem", "axis_figures",
            "base_params", "candidate", "measured", "replay"]
 
 
@@ -71,6 +71,7 @@ class AxisParams:
 
 
 NAMES = tuple(f.name for f in fields(AxisParams))
+"""The fitted parameters' names, in ``AxisParams`` order."""
 
 
 def base_params(base: MachineConfig) -> dict[str, AxisParams]:
@@ -187,10 +188,12 @@ SIGMA_TACHO = 0.02
 class Problem:
     """A log and BASE: the measured positions and tacho volts, and the residuals of replays
     of candidate parameters against them (counting the replays; ``mains_phase`` is the
-    thyristor mains phase the replays use, once the fit has estimated it)."""
+    thyristor mains phase the replays use, once the fit has estimated it). ``axes`` are the
+    axes the log excited: the only ones with residuals, and the only ones fitted."""
 
     def __init__(self, base: MachineConfig, log: IdentLog):
         self.base, self.log = base, log
+        self.axes = tuple(a for a in AXES if a in log.axes)
         self.pos, self.tacho = measured(log, base)
         self.replays = 0
         self.mains_phase: float | None = None
@@ -203,12 +206,15 @@ class Problem:
 
     def residuals(self, params: dict[str, AxisParams], mask: np.ndarray
                   ) -> dict[str, np.ndarray]:
-        """Per axis: scaled position and tacho residuals over the ticks of ``mask``."""
+        """Per excited axis: scaled position and tacho residuals over the ticks of
+        ``mask``."""
         until = int(np.flatnonzero(mask)[-1]) + 1
         pos, tacho = self.simulate(params, until)
         m = mask[:until]
         out = {}
         for k, a in enumerate(AXES):
+            if a not in self.axes:
+                continue
             dp = (pos[m, k] - self.pos[:until][m, k]) / SIGMA_POSITION
             dt = (tacho[m, k] - self.tacho[:until][m, k]) / SIGMA_TACHO
             out[a] = np.concatenate([dp, dt])

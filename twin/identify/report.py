@@ -62,10 +62,16 @@ def header_lines(result: Identification, base: MachineConfig, log: IdentLog,
              "Identified (value  [95 % confidence interval]  unit  <- experiment):"]
     derived = result.derived()
     for a in AXES:
+        if a not in log.axes:
+            lines.append(f"axis {a}: not excited (held in position; --axes "
+                         f"{''.join(log.axes)}): every value is BASE's.")
+            continue
         lines.append(f"axis {a}:")
         for name, (where, unit, scale) in FIELDS.items():
             e = result.estimates[a][name]
-            mark = "" if e.identifiable else "   NOT IDENTIFIABLE: BASE's value kept"
+            mark = "" if e.identifiable else (
+                "   NOT IDENTIFIABLE: BASE's value kept" if e.kept == "base" else
+                "   LOOSE: the fit's value kept (the data reject BASE's)")
             lines.append(f"  {where} = {_quote(e, scale)} {unit}  <- {e.source}{mark}")
         d = derived[a]
         lines.append(f"  => K_H {1e3 * d['K_H']:.5g} mm/(s·V), Coulomb at the motor "
@@ -75,7 +81,7 @@ def header_lines(result: Identification, base: MachineConfig, log: IdentLog,
     lines.extend(f"  {k}: {why}" for k, why in NOT_IDENTIFIABLE.items())
     lines.append("Fit quality: held-out " + HELD_OUT + " normalised RMS error " + ", ".join(
         f"{a} position {100 * result.nrmse[a]['position']:.2f} % tacho "
-        f"{100 * result.nrmse[a]['tacho']:.2f} %" for a in AXES) + ".")
+        f"{100 * result.nrmse[a]['tacho']:.2f} %" for a in result.nrmse) + ".")
     lines.append("Intervals are the fit's own (linearised, widened for correlated "
                  "residuals); a model error of the twin itself is not in them.")
     return lines
@@ -95,8 +101,10 @@ def summary(result: Identification, base: MachineConfig, log: IdentLog) -> dict[
     return {
         "machine": base.name,
         "driver": log.driver,
+        "axes": list(log.axes),
         "estimates": {a: {k: {"value": e.value, "low": e.low, "high": e.high,
-                              "identifiable": e.identifiable, "source": e.source}
+                              "identifiable": e.identifiable, "source": e.source,
+                              "kept": e.kept}
                           for k, e in result.estimates[a].items()} for a in AXES},
         "derived": result.derived(),
         "nrmse": result.nrmse,
