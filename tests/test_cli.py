@@ -107,7 +107,7 @@ def test_end_switch_trips_the_drive_and_keeps_the_record(tmp_path):
              "--out", str(tmp_path), "--json")
     assert r.returncode == 1
     d = json.loads(r.stdout)
-    assert d["status"] == "LIMIT_TRIP"
+    assert d["status"] == "FAULT" and d["fault"] == "LIMIT_TRIP"
     assert Path(d["recording"]).exists()
     assert d["final_position_mm"]["x"] < 2.5           # stopped near the 2 mm switch
 

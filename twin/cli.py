@@ -62,7 +62,7 @@ def _run(program: Path | None, machine: str, profile: str | None, planner: str |
          driver: str = "sim", rt_priority: int = 0, set_file: Path | None = None,
          controller_model: str | None = None) -> None:
     from twin.overrides import parse_sets, set_file_overrides
-    from twin.run import RunSpec, run
+    from twin.run import RunInterrupted, RunSpec, run
 
     try:
         spec = RunSpec(machine=machine, controller_model=controller_model,
@@ -79,11 +79,21 @@ def _run(program: Path | None, machine: str, profile: str | None, planner: str |
                 bar.update(task, description=f"{t:.1f} s")
 
             result = run(spec, out_dir=out, rerun=rerun, progress=progress)
+    except RunInterrupted as exc:   # the record was complete: report it, then stop
+        _report(exc.result.summary, out, as_json)
+        raise typer.Exit(128 + exc.signum) from None
     except TwinError as exc:
         fail(exc)
     summary = result.summary
     if rerun == "serve":
         _keep_serving()
+    _report(summary, out, as_json)
+    if summary["status"] != "FINISHED":
+        raise typer.Exit(1)
+
+
+def _report(summary: dict, out: Path, as_json: bool) -> None:
+    """Print a run's summary: one JSON object, or the table and the deadline report."""
     if as_json:
         _emit({k: v for k, v in summary.items() if k not in ("config", "spec")}, True)
     else:
@@ -98,8 +108,6 @@ def _run(program: Path | None, machine: str, profile: str | None, planner: str |
                           f"{t['jitter_p50_us']:.0f}/{t['jitter_p99_us']:.0f}/"
                           f"{t['jitter_max_us']:.0f} µs", highlight=False)
         console.print(f"record: {out / (summary['run_id'] + '.json')}", highlight=False)
-    if summary.get("aborted") or summary["status"] not in ("FINISHED",):
-        raise typer.Exit(1)
 
 
 def _keep_serving() -> None:

@@ -44,7 +44,8 @@ METRIC_ROWS = (
 """The error rows every run table shows: label, summary key (or (key, axis)), unit."""
 
 RUN_ROWS = (
-    ("status", "status", ""), ("cycle time", "cycle_time_s", "s"),
+    ("status", "status", ""), ("fault", "fault", ""), ("aborted", "aborted", ""),
+    ("timeout", "timeout", ""), ("cycle time", "cycle_time_s", "s"),
     ("path length", "path_length_mm", "mm"),
     *METRIC_ROWS,
     ("elastic oscillation", "elastic_oscillation_um", "µm"),

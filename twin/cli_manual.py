@@ -98,8 +98,9 @@ def _manual(commands: list[str], machine: str, out: Path, as_json: bool,
         Console().print(summary_table({"value": s}, RUN_ROWS, title=' ; '.join(commands),
                                       skip_missing=True))
         Console().print(f"final position: X {pos[0] * 1e3:.4f} mm, Y {pos[1] * 1e3:.4f} mm")
-    if s["status"] not in ("FINISHED", "IDLE"):
-        err.print(f"[bold red]stopped:[/] {s['status']}")
+    if s["status"] != "FINISHED":
+        why = s.get("fault") or s.get("aborted") or s.get("timeout") or ""
+        err.print(f"[bold red]stopped:[/] {s['status']} {why}".rstrip())
         raise typer.Exit(1)
 
 

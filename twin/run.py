@@ -47,9 +47,9 @@ from twin.runrecord import (
 from twin.telemetry.channels import TelemetryWriter
 from twin.telemetry.sink import Sink
 
-__all__ = ["Prepared", "RunResult", "RunSpec", "axis_models", "load_program",
-           "measured_position", "model_options", "prepare", "run", "run_summary",
-           "write_json_atomic"]
+__all__ = ["STOP_SIGNALS", "Prepared", "RunInterrupted", "RunResult", "RunSpec", "Terminated",
+           "axis_models", "final_status", "load_program", "measured_position",
+           "model_options", "prepare", "run", "run_summary", "write_json_atomic"]
 
 
 @dataclass(frozen=True)
@@ -256,9 +256,12 @@ def run(spec: RunSpec, *, out_dir: str | Path = "runs", rerun: str = "file",
 
     On the twin (``driver="sim"``) the loop runs in lock-step, as fast as the machine allows;
     behind real I/O it is paced by ``RealTimeLoop`` and the deadline report goes into the
-    summary. A driver fault (``DriverError``) or Ctrl-C stops the machine (outputs zero,
-    drives disabled) and the run ends ``aborted`` with its record intact; any other error
-    does the same and is then raised.
+    summary. A driver fault (``DriverError``) or a stop signal (Ctrl-C, SIGTERM, SIGHUP)
+    stops the machine (outputs zero, drives disabled) and the run ends ABORTED with its
+    record intact; any other error does the same and is then raised. The summary
+    (``.json``) is written before the recording gets its final name. A stop signal that
+    arrives while the record is written is held until it is complete, then raised as
+    ``RunInterrupted`` carrying the result.
 
     Parameters
     ----------
@@ -295,10 +298,12 @@ def run(spec: RunSpec, *, out_dir: str | Path = "runs", rerun: str = "file",
     loop = _Loop(p, sink, spec.max_time, pending, progress, spec.rt_priority, keep_fine)
     aborted = None
     t_wall = time.perf_counter()
+    late: list[int] = []
     try:
-        loop.run_lockstep() if p.plant is not None else loop.run_paced()
-    except KeyboardInterrupt:
-        aborted = "interrupted (Ctrl-C)"
+        with _stop_signals():
+            loop.run_lockstep() if p.plant is not None else loop.run_paced()
+    except KeyboardInterrupt as exc:
+        aborted = f"interrupted ({_signal_name(exc)})"
     except DriverError as exc:
         aborted = f"driver fault: {exc}"
     except Exception as exc:
@@ -306,8 +311,10 @@ def run(spec: RunSpec, *, out_dir: str | Path = "runs", rerun: str = "file",
         raise
     finally:
         wall = time.perf_counter() - t_wall
-        with _deferred_interrupt():  # a second Ctrl-C must not lose the record
+        with _deferred_interrupt(late):  # a second signal must not lose the record
             result = loop.finish(spec, run_id, out, recording, wall, aborted)
+    if late:
+        raise RunInterrupted(result, late[0])
     return result
 
 
@@ -435,7 +442,11 @@ class _Loop:
         p.driver.close()
         self.drain()
         self.writer.flush(ctrl.record, status_names=self.names)
-        self.sink.close()
+        # the recording is completed, but published under its final name only after the
+        # summary is written: a .rrd never stands without its .json
+        finish = getattr(self.sink, "finish", None)
+        if finish is not None:
+            finish()
         rec = ctrl.record.as_arrays()
         if self.truth is not None:
             rec.update(self.truth.as_arrays())
@@ -444,8 +455,9 @@ class _Loop:
         schedule = getattr(p.driver, "schedule", None)
         stats = self.stats or (schedule.stats() if schedule is not None
                                else TickStats.lockstep(self.period, self.ticks))
-        summary: dict[str, Any] = {"run_id": run_id, "status": ctrl.status.name,
-                                   "aborted": aborted, "machine": p.cfg.name,
+        summary: dict[str, Any] = {"run_id": run_id,
+                                   **final_status(ctrl.status, aborted, self.max_time),
+                                   "machine": p.cfg.name,
                                    "controller_model": (p.belief or p.cfg).name,
                                    "driver": spec.driver,
                                    "machine_file": machine_identity(p.cfg),
@@ -469,6 +481,7 @@ class _Loop:
         if ctrl.error is not None:
             summary["error"] = str(ctrl.error)
         write_json_atomic(out / f"{run_id}.json", summary)
+        self.sink.close()
         fine = None
         if self.kept is not None:
             rows = np.concatenate(self.kept) if self.kept else np.zeros((0, FINE_WIDTH))
@@ -494,17 +507,85 @@ BATCH_WALL = 0.25
 """Wall time between telemetry batches (s)."""
 
 
+STOP_SIGNALS = tuple(getattr(signal, n) for n in ("SIGINT", "SIGTERM", "SIGHUP")
+                     if hasattr(signal, n))
+"""The signals that stop a run the one way: Ctrl-C, ``kill``/systemd/``docker stop``
+(SIGTERM), a closed terminal (SIGHUP)."""
+
+
+class Terminated(KeyboardInterrupt):
+    """SIGTERM or SIGHUP, raised in the main thread where Ctrl-C raises KeyboardInterrupt:
+    the run takes the same path (safe stop, record written)."""
+
+    def __init__(self, signum: int):
+        super().__init__(signal.Signals(signum).name)
+        self.signum = signum
+
+
+class RunInterrupted(KeyboardInterrupt):
+    """A stop signal arrived while the run record was being written. The record is
+    complete (``result``); the caller reports it, then honours the signal (``signum``)."""
+
+    def __init__(self, result: RunResult, signum: int):
+        super().__init__(signal.Signals(signum).name)
+        self.result, self.signum = result, signum
+
+
+def _signal_name(exc: BaseException) -> str:
+    return "Ctrl-C" if not isinstance(exc, Terminated) else signal.Signals(exc.signum).name
+
+
+def final_status(status: ControllerStatus, aborted: str | None, max_time: float
+                 ) -> dict[str, Any]:
+    """How a run ended, for its record: ``status`` is FINISHED, ABORTED (``aborted`` says
+    why: a signal, a driver fault, an error), FAULT (``fault`` names the controller's
+    latched fault) or TIMEOUT (``timeout`` says which limit); never a state in progress.
+    ``controller_status`` keeps the controller's own last state."""
+    out: dict[str, Any] = {"status": "FINISHED", "aborted": aborted,
+                           "controller_status": status.name}
+    if aborted is not None:
+        out["status"] = "ABORTED"
+    elif status >= ControllerStatus.LIMIT_TRIP:
+        out["status"] = "FAULT"
+        out["fault"] = status.name
+    elif status not in _READY:
+        out["status"] = "TIMEOUT"
+        out["timeout"] = (f"max_time ({max_time:g} s) reached while the controller was "
+                          f"{status.name}")
+    return out
+
+
 @contextlib.contextmanager
-def _deferred_interrupt() -> Iterator[None]:
-    """Hold SIGINT while the run record is written; re-raise it afterwards."""
+def _stop_signals() -> Iterator[None]:
+    """SIGTERM and SIGHUP raise ``Terminated`` in the main thread while the loop runs (SIGINT
+    raises KeyboardInterrupt already); the previous handlers come back afterwards."""
     if threading.current_thread() is not threading.main_thread():
         yield
         return
-    caught: list[int] = []
-    previous = signal.signal(signal.SIGINT, lambda sig, frame: caught.append(sig))
+
+    def stop(signum: int, _frame: Any) -> None:
+        raise Terminated(signum)
+
+    previous = {s: signal.signal(s, stop) for s in STOP_SIGNALS if s != signal.SIGINT}
     try:
         yield
     finally:
-        signal.signal(signal.SIGINT, previous)
-    if caught:
-        raise KeyboardInterrupt
+        for s, handler in previous.items():
+            signal.signal(s, handler)
+
+
+@contextlib.contextmanager
+def _deferred_interrupt(caught: list[int]) -> Iterator[None]:
+    """Hold the stop signals while the run record is written; those that arrived are
+    appended to ``caught`` (the caller raises ``RunInterrupted`` once the record is
+    complete)."""
+    if threading.current_thread() is not threading.main_thread():
+        yield
+        return
+    previous = {s: signal.signal(s, lambda sig, frame: caught.append(sig))
+                for s in STOP_SIGNALS}
+    try:
+        yield
+    finally:
+        for s, handler in previous.items():
+            signal.signal(s, handler)

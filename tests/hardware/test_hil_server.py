@@ -204,7 +204,7 @@ def test_a_limit_switch_during_a_run_disables_the_drive_and_keeps_the_record(tmp
             coil = c.read_coils(0, count=1, device_id=UNIT).bits[0]
             limit = c.read_discrete_inputs(1, count=1, device_id=UNIT).bits[0]
     s = json.loads((tmp_path / "limit.json").read_text())
-    assert s["status"] == "LIMIT_TRIP" and s["aborted"] is None
+    assert s["status"] == "FAULT" and s["fault"] == "LIMIT_TRIP" and s["aborted"] is None
     assert coil is False and limit is True
     rec = result.record
     assert rec["enable"][-1] == 0                        # the controller disabled the drive

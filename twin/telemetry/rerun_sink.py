@@ -86,7 +86,7 @@ class RerunSink:
             self._rec.send_blueprint(default_blueprint())
         elif blueprint:
             self._rec.send_blueprint(blueprint)
-        self._closed = False
+        self._closed = self._finished = False
 
     # -- Sink protocol ------------------------------------------------------------------
     def static_path(self, entity: str, points: np.ndarray, *,
@@ -126,13 +126,21 @@ class RerunSink:
             kwargs["colors"] = [color]
         self._rec.log(entity, rr.SeriesLines(**kwargs), static=True)
 
-    def close(self) -> None:
-        """Flush and finish the file: rename ``.partial`` to the final name (atomic)."""
-        if self._closed:
+    def finish(self) -> None:
+        """Flush and complete the file, still under its ``.partial`` name (a run writes its
+        summary between this and :meth:`close`)."""
+        if self._finished:
             return
-        self._closed = True
+        self._finished = True
         self._rec.flush()
         self._rec.disconnect()
+
+    def close(self) -> None:
+        """Finish the file and publish it: rename ``.partial`` to the final name (atomic)."""
+        if self._closed:
+            return
+        self.finish()
+        self._closed = True
         if self._partial is not None and self.path is not None and self._partial.exists():
             os.replace(self._partial, self.path)
 

@@ -39,7 +39,11 @@ class Sink(Protocol):
         ...
 
     def close(self) -> None:
-        """Flush everything; the recording is complete and readable afterwards."""
+        """Flush everything; the recording is complete and readable afterwards.
+
+        A sink that writes a file may also have ``finish()``: complete the recording
+        without publishing it under its final name. A run calls it, writes its summary,
+        then calls ``close()``, so that a recording never stands without its summary."""
         ...
 
 

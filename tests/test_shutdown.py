@@ -1,0 +1,111 @@
+"""One shutdown path: Ctrl-C, SIGTERM and SIGHUP stop a run the same way (machine stopped,
+summary with a final status, a recording that reads back); the summary is written before the
+recording is published; a signal during the writing is held until the record is complete;
+a record never says RUNNING."""
+
+from __future__ import annotations
+
+import json
+import os
+import signal
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import pytest
+import rerun.chunk as rc
+
+from twin.controller.controller import ControllerStatus
+from twin.run import RunInterrupted, RunSpec, final_status, run
+from twin.telemetry.sink import NullSink
+
+# a long dwell: the run is still going when the signal comes (the twin simulates it)
+LONG = "G91 G1 X1 Y1 F600\nG4 P3000\nM30\n"
+
+
+@pytest.mark.parametrize(("signum", "named"), [(signal.SIGTERM, "SIGTERM"),
+                                               (signal.SIGHUP, "SIGHUP"),
+                                               (signal.SIGINT, "Ctrl-C")])
+def test_a_stop_signal_ends_the_run_aborted_with_its_whole_record(signum, named, tmp_path):
+    program = tmp_path / "long.ngc"
+    program.write_text(LONG)
+    out = tmp_path / "runs"
+    proc = subprocess.Popen([sys.executable, "-m", "twin.cli", "run", str(program), "--out",
+                             str(out), "--json"], stdout=subprocess.PIPE,
+                            stderr=subprocess.PIPE, text=True,
+                            env={**os.environ, "RERUN_ANALYTICS": "0"})
+    try:
+        deadline = time.monotonic() + 60.0
+        while not list(out.glob("*.rrd.partial")):   # the loop has started
+            assert proc.poll() is None, proc.stderr.read() if proc.stderr else ""
+            assert time.monotonic() < deadline, "the run never started"
+            time.sleep(0.05)
+        time.sleep(1.0)
+        proc.send_signal(signum)
+        stdout, stderr = proc.communicate(timeout=60.0)
+    finally:
+        if proc.poll() is None:
+            proc.kill()
+    assert proc.returncode == 1, stderr
+    printed = json.loads(stdout)
+    assert printed["status"] == "ABORTED" and named in printed["aborted"]
+    run_id = printed["run_id"]
+    written = json.loads((out / f"{run_id}.json").read_text())
+    assert written["status"] == "ABORTED" and written["aborted"] == printed["aborted"]
+    assert written["controller_status"] == "DWELLING"   # where the signal found it
+    assert not list(out.glob("*.partial"))
+    chunks = list(rc.RrdReader(out / f"{run_id}.rrd").stream().to_chunks())
+    assert chunks, "the recording reads back"
+
+
+class _OrderSink(NullSink):
+    """Checks that the summary exists when the recording is published."""
+
+    def __init__(self, summary: Path, on_finish=None):
+        self.summary, self.on_finish, self.calls = summary, on_finish, []
+
+    def finish(self) -> None:
+        self.calls.append(("finish", self.summary.exists()))
+        if self.on_finish is not None:
+            self.on_finish()
+
+    def close(self) -> None:
+        self.calls.append(("close", self.summary.exists()))
+
+
+def test_the_summary_is_written_before_the_recording_is_published(tmp_path):
+    sink = _OrderSink(tmp_path / "order.json")
+    result = run(RunSpec(builtin="spline_line"), out_dir=tmp_path, run_id="order", sink=sink)
+    assert result.summary["status"] == "FINISHED"
+    assert sink.calls == [("finish", False), ("close", True)]
+
+
+def test_a_signal_while_the_record_is_written_waits_for_it(tmp_path):
+    sink = _OrderSink(tmp_path / "late.json",
+                      on_finish=lambda: os.kill(os.getpid(), signal.SIGTERM))
+    with pytest.raises(RunInterrupted) as caught:
+        run(RunSpec(builtin="spline_line"), out_dir=tmp_path, run_id="late", sink=sink)
+    assert caught.value.signum == signal.SIGTERM
+    summary = caught.value.result.summary
+    assert summary["status"] == "FINISHED"           # the run itself had ended
+    assert json.loads((tmp_path / "late.json").read_text()) == json.loads(
+        json.dumps(summary, default=str))
+    assert sink.calls[-1] == ("close", True)
+    assert signal.getsignal(signal.SIGTERM) is signal.SIG_DFL   # handlers given back
+
+
+def test_a_run_cut_by_max_time_says_timeout(tmp_path):
+    s = run(RunSpec(max_time=1.0), out_dir=tmp_path, rerun="none").summary
+    assert s["status"] == "TIMEOUT" and "max_time (1 s)" in s["timeout"]
+    assert s["controller_status"] == "RUNNING"
+
+
+@pytest.mark.parametrize("status", list(ControllerStatus))
+def test_a_record_never_says_a_state_in_progress(status):
+    out = final_status(status, None, 10.0)
+    assert out["status"] in ("FINISHED", "FAULT", "TIMEOUT")
+    assert out["controller_status"] == status.name
+    if status >= ControllerStatus.LIMIT_TRIP:
+        assert out["status"] == "FAULT" and out["fault"] == status.name
+    assert final_status(status, "interrupted (SIGTERM)", 10.0)["status"] == "ABORTED"
