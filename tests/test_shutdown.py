@@ -17,6 +17,7 @@ import pytest
 import rerun.chunk as rc
 
 from twin.controller.controller import ControllerStatus
+from twin.jsonio import json_text
 from twin.run import RunInterrupted, RunSpec, final_status, run
 from twin.telemetry.sink import NullSink
 
@@ -89,8 +90,7 @@ def test_a_signal_while_the_record_is_written_waits_for_it(tmp_path):
     assert caught.value.signum == signal.SIGTERM
     summary = caught.value.result.summary
     assert summary["status"] == "FINISHED"           # the run itself had ended
-    assert json.loads((tmp_path / "late.json").read_text()) == json.loads(
-        json.dumps(summary, default=str))
+    assert json.loads((tmp_path / "late.json").read_text()) == json.loads(json_text(summary))
     assert sink.calls[-1] == ("close", True)
     assert signal.getsignal(signal.SIGTERM) is signal.SIG_DFL   # handlers given back
 

@@ -11,7 +11,6 @@ Every method leaves the same files in ``spec.out_dir``:
 from __future__ import annotations
 
 import dataclasses
-import json
 import math
 import time
 from collections.abc import Callable
@@ -26,6 +25,7 @@ from tuning.evaluator import Evaluator, Trial
 from tuning.report import comparison, plot_convergence, table_markdown, write_overrides
 from twin.config import MachineConfig, load_machine
 from twin.errors import ConfigError
+from twin.jsonio import write_json_atomic
 
 __all__ = ["METHODS", "TuneResult", "TuneSpec", "tune"]
 
@@ -215,7 +215,5 @@ def tune(spec: TuneSpec, *, on_trial: Callable[[Trial], None] | None = None,
     result = TuneResult(spec, baseline, best, list(trials), files,
                         time.perf_counter() - start)
     doc = {**result.summary(), "trials": [t.to_dict() for t in trials]}
-    tmp = files["result"].with_name("result.json.partial")
-    tmp.write_text(json.dumps(doc, indent=1, default=str) + "\n", encoding="utf-8")
-    tmp.replace(files["result"])
+    write_json_atomic(files["result"], doc, indent=1)
     return result

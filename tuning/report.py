@@ -13,7 +13,6 @@ to check the file reproduces the tuned run).
 from __future__ import annotations
 
 import math
-import tomllib
 from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
@@ -23,6 +22,7 @@ import numpy as np
 from envs.evaluation import METRICS
 from envs.space import TuningSettings
 from tuning.evaluator import Trial
+from twin.config import read_toml
 from twin.controller.regulator import RegulatorGains
 from twin.errors import ConfigError
 
@@ -68,8 +68,8 @@ def read_overrides(path: Path, base: RegulatorGains) -> TuningSettings:
     ConfigError
         A missing key or a malformed value (naming it).
     """
+    doc = read_toml(path)
     try:
-        doc = tomllib.loads(Path(path).read_text(encoding="utf-8"))
         reg = doc["controller"]["regulator"]
         jerk = doc["controller"]["limits"]["max_jerk"]
         gains = RegulatorGains(kp=tuple(reg["kp"]), ki=tuple(reg["ki"]),
@@ -79,8 +79,6 @@ def read_overrides(path: Path, base: RegulatorGains) -> TuningSettings:
     except (KeyError, TypeError) as exc:
         raise ConfigError(str(path), f"not a tuning override file: missing or bad {exc}") \
             from None
-    except tomllib.TOMLDecodeError as exc:
-        raise ConfigError(str(path), f"invalid TOML: {exc}") from None
     return TuningSettings(gains, float(jerk))
 
 

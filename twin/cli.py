@@ -7,7 +7,6 @@ the place (G-code line and column, config field).
 
 from __future__ import annotations
 
-import json
 import os
 import shutil
 import subprocess
@@ -23,6 +22,7 @@ from rich.table import Table
 from twin.cli_common import CONTROLLER_MODEL_HELP, RUN_ROWS, err, fail, summary_table
 from twin.config import available_machines, diff_machines, field_unit, load_machine
 from twin.errors import TwinError
+from twin.jsonio import json_text
 
 __all__ = ["app"]
 
@@ -43,7 +43,7 @@ def main() -> None:
 
 def _emit(obj: dict[str, Any], as_json: bool) -> None:
     if as_json:
-        sys.stdout.write(json.dumps(obj, default=str) + "\n")
+        sys.stdout.write(json_text(obj) + "\n")
 
 
 def _progress() -> Progress:
@@ -85,6 +85,8 @@ def _run(program: Path | None, machine: str, profile: str | None, planner: str |
     except TwinError as exc:
         fail(exc)
     summary = result.summary
+    for note in summary.get("input_warnings", ()):
+        err.print(f"[yellow]warning:[/] {note}", highlight=False, soft_wrap=True)
     if rerun == "serve":
         _keep_serving()
     _report(summary, out, as_json)

@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-import json
 import sys
 from pathlib import Path
 from typing import Any
@@ -13,6 +12,7 @@ from rich.table import Table
 
 from twin.cli_common import CONTROLLER_MODEL_HELP, METRIC_ROWS, err, fail, summary_table
 from twin.errors import ConfigError, TwinError
+from twin.jsonio import json_text
 
 __all__ = ["ROWS", "register"]
 
@@ -94,7 +94,7 @@ def compare_cmd(
     except TwinError as exc:
         fail(exc)
     if as_json:
-        sys.stdout.write(json.dumps(result, default=str) + "\n")
+        sys.stdout.write(json_text(result) + "\n")
         return
     console = Console()
     if sweep is None:

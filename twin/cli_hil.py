@@ -26,6 +26,7 @@ from rich.table import Table
 from twin.cli_common import err, fail
 from twin.errors import ConfigError, TwinError
 from twin.hardware.realtime import fifo_priority, set_fifo_priority
+from twin.jsonio import json_text
 from twin.processes import stop_process
 
 __all__ = ["HilProcess", "fifo_priority", "hil_server", "register", "set_fifo_priority",
@@ -96,7 +97,7 @@ def hil_server(
                 "watchdog_ms": watchdog_ms, "drive_interval_s": plant.drive_dt,
                 "register_map": rmap.source}
         if as_json:
-            sys.stdout.write(json.dumps(info) + "\n")
+            sys.stdout.write(json_text(info) + "\n")
             sys.stdout.flush()
             return
         table = Table(title=f"register map ({rmap.source})")
@@ -114,7 +115,7 @@ def hil_server(
                       output_window=window_ms * 1e-3,
                       on_ready=ready)
     if as_json:  # stdout carried the one ready object; the statistics go to stderr
-        sys.stderr.write(json.dumps({"hil_stats": dataclasses.asdict(stats)}) + "\n")
+        sys.stderr.write(json_text({"hil_stats": dataclasses.asdict(stats)}) + "\n")
         return
     err.print(f"served {stats.requests} requests; {stats.sim_time:.3f} s of physics in "
               f"{stats.wall_time:.3f} s; most drive intervals caught up at once: "

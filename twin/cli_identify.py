@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-import json
 import math
 import sys
 from pathlib import Path
@@ -13,6 +12,7 @@ from rich.table import Table
 from twin.cli_common import CONTROLLER_MODEL_HELP, err, fail
 from twin.config import AXES
 from twin.errors import ExperimentAborted, FitError, TwinError
+from twin.jsonio import json_text
 
 __all__ = ["register"]
 
@@ -69,7 +69,7 @@ def identify(
     except TwinError as exc:
         fail(exc)
     if as_json:
-        sys.stdout.write(json.dumps(result, default=float) + "\n")
+        sys.stdout.write(json_text(result) + "\n")
         return
     from twin.identify.report import FIELDS
 

@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-import json
 import math
 import sys
 from pathlib import Path
@@ -13,6 +12,7 @@ from rich.table import Table
 
 from twin.cli_common import CONTROLLER_MODEL_HELP, RUN_ROWS, err, fail, summary_table
 from twin.errors import ConfigError, TwinError
+from twin.jsonio import json_text
 
 __all__ = ["register"]
 
@@ -59,7 +59,7 @@ def experiment(
             sink.close()
     report = result.to_report()
     if as_json:
-        sys.stdout.write(json.dumps(report) + "\n")
+        sys.stdout.write(json_text(report) + "\n")
         return
     table = Table(title=f"{kind} response, axis {axis}, {'open' if open_loop else 'closed'}"
                         " loop")
@@ -92,8 +92,8 @@ def _manual(commands: list[str], machine: str, out: Path, as_json: bool,
     pos = result.record["position"][-1] if len(result.record["t"]) else [math.nan] * 2
     s["final_position_mm"] = {"x": pos[0] * 1e3, "y": pos[1] * 1e3}
     if as_json:
-        sys.stdout.write(json.dumps({k: v for k, v in s.items()
-                                     if k not in ("config", "spec")}, default=str) + "\n")
+        sys.stdout.write(json_text({k: v for k, v in s.items()
+                                    if k not in ("config", "spec")}) + "\n")
     else:
         Console().print(summary_table({"value": s}, RUN_ROWS, title=' ; '.join(commands),
                                       skip_missing=True))

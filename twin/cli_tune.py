@@ -4,7 +4,6 @@ settings are written as ``best.toml``, which ``twin run --set-file best.toml`` a
 
 from __future__ import annotations
 
-import json
 import sys
 import time
 from pathlib import Path
@@ -16,6 +15,7 @@ from rich.progress import BarColumn, Progress, TextColumn, TimeElapsedColumn
 
 from twin.cli_common import CONTROLLER_MODEL_HELP, err, fail
 from twin.errors import TwinError
+from twin.jsonio import json_text
 
 __all__ = ["register"]
 
@@ -80,7 +80,7 @@ def tune(
         fail(exc)
     summary = result.summary()
     if as_json:
-        sys.stdout.write(json.dumps(summary, default=str) + "\n")
+        sys.stdout.write(json_text(summary) + "\n")
         return
     from rich.table import Table
 

@@ -14,6 +14,7 @@ from collections.abc import Iterable
 from pathlib import Path
 from typing import Any
 
+from twin.config import read_toml
 from twin.errors import ConfigError
 
 __all__ = ["SHORT_KEYS", "parse_sets", "resolve_key", "set_file_overrides"]
@@ -83,10 +84,7 @@ def set_file_overrides(path: str | Path) -> dict[str, Any]:
     p = Path(path)
     if not p.is_file():
         raise ConfigError("set_file", f"no such file: {path}")
-    try:
-        doc = tomllib.loads(p.read_text(encoding="utf-8"))
-    except tomllib.TOMLDecodeError as exc:
-        raise ConfigError(str(p), f"invalid TOML: {exc}") from None
+    doc = read_toml(p)
     out: dict[str, Any] = {}
 
     def walk(node: dict[str, Any], prefix: str) -> None:

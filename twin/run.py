@@ -26,7 +26,7 @@ import numpy as np
 
 from twin.config import AXES, MachineConfig, load_machine, machine_identity
 from twin.controller.controller import Controller, ControllerStatus
-from twin.controller.gcode import parse
+from twin.controller.gcode import decode_program, parse
 from twin.controller.library import build_program, program_path
 from twin.controller.linear import LinearAxisModel
 from twin.controller.metrics import OscillationMeter
@@ -182,9 +182,11 @@ def model_options(belief: MachineConfig) -> dict[str, Any]:
     return {"axis_models": axis_models(belief), "model_axes": belief.axes}
 
 
-def load_program(spec: RunSpec, cfg: MachineConfig, start: np.ndarray) -> list[Any]:
+def load_program(spec: RunSpec, cfg: MachineConfig, start: np.ndarray,
+                 notes: list[str] | None = None) -> list[Any]:
     """Parse the G-code file (``GCodeError`` with line and column before any motion) or
-    build the built-in program from ``start``."""
+    build the built-in program from ``start``. Bytes of the file that are not UTF-8 are
+    read as U+FFFD, each place noted in ``notes`` (``gcode.decode_program``)."""
     if spec.program is None:
         if spec.builtin == "none":
             return []
@@ -192,7 +194,10 @@ def load_program(spec: RunSpec, cfg: MachineConfig, start: np.ndarray) -> list[A
     path = Path(spec.program)
     if not path.is_file():
         raise ConfigError("program", f"no such file: {spec.program}")
-    return list(parse(path.read_text(encoding="utf-8"), start=tuple(start.tolist())))
+    text, found = decode_program(path.read_bytes())
+    if notes is not None:
+        notes.extend(f"{path.name}: {n}" for n in found)
+    return list(parse(text, start=tuple(start.tolist())))
 
 
 @dataclass
@@ -207,6 +212,8 @@ class Prepared:
     driver: Any
     belief: MachineConfig | None = None
     """The controller's model of the machine (None: ``cfg`` itself)."""
+    notes: list[str] = field(default_factory=list)
+    """What was read but is worth a look (bytes of the program that are not UTF-8)."""
 
 
 def prepare(spec: RunSpec) -> Prepared:
@@ -226,14 +233,15 @@ def prepare(spec: RunSpec) -> Prepared:
 
         driver = open_driver(spec.driver, cfg)
         start = measured_position(driver.read().encoder_counts, cfg)
+    notes: list[str] = []
     try:
-        items = load_program(spec, cfg, start)
+        items = load_program(spec, cfg, start, notes)
         controller = Controller.from_machine(cfg, items or None, **model_options(belief),
                                              mode=spec.mode, start=start)
     except BaseException:
         driver.close()
         raise
-    return Prepared(cfg, items, program_path(items), plant, controller, driver, belief)
+    return Prepared(cfg, items, program_path(items), plant, controller, driver, belief, notes)
 
 
 def measured_position(counts: np.ndarray, cfg: MachineConfig) -> np.ndarray:
@@ -480,6 +488,8 @@ class _Loop:
             summary["controller_model_config"] = dataclasses.asdict(p.belief)
         if ctrl.error is not None:
             summary["error"] = str(ctrl.error)
+        if p.notes:
+            summary["input_warnings"] = list(p.notes)
         write_json_atomic(out / f"{run_id}.json", summary)
         self.sink.close()
         fine = None

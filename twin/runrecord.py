@@ -1,11 +1,9 @@
-"""The parts of a run record: the metric summary, atomic JSON files, the telemetry sink a
-``--rerun`` option names, the deadline report, and manual-mode commands."""
+"""The parts of a run record: the metric summary, atomic JSON files (``twin.jsonio``,
+re-exported), the telemetry sink a ``--rerun`` option names, the deadline report, and
+manual-mode commands."""
 
 from __future__ import annotations
 
-import dataclasses
-import json
-import os
 from collections.abc import Callable, Mapping
 from pathlib import Path
 from typing import Any
@@ -17,37 +15,11 @@ from twin.controller.controller import Controller
 from twin.controller.summary import summarize
 from twin.errors import ConfigError
 from twin.hardware.realtime import TickStats
+from twin.jsonio import json_text, plain, write_json_atomic, write_text_atomic
 from twin.telemetry.sink import NullSink, Sink
 
-__all__ = ["make_sink", "parse_command", "run_summary", "ticks_dict", "write_json_atomic",
-           "write_text_atomic"]
-
-
-def write_text_atomic(path: str | Path, text: str) -> Path:
-    """Write ``text`` to ``path`` via a temporary file and ``os.replace``: a reader sees the
-    old file or the whole new one, never half of it."""
-    path = Path(path)
-    tmp = path.with_name(path.name + ".partial")
-    tmp.write_text(text, encoding="utf-8")
-    os.replace(tmp, path)
-    return path
-
-
-def write_json_atomic(path: Path, obj: Any, *, indent: int | None = 2) -> None:
-    """Write JSON to ``path`` atomically (``write_text_atomic``)."""
-    write_text_atomic(path, json.dumps(obj, indent=indent, default=_json_default) + "\n")
-
-
-def _json_default(obj: Any) -> Any:
-    if isinstance(obj, np.generic):
-        return obj.item()
-    if isinstance(obj, np.ndarray):
-        return obj.tolist()
-    if dataclasses.is_dataclass(obj):
-        return dataclasses.asdict(obj)
-    if isinstance(obj, Path):
-        return str(obj)
-    raise TypeError(f"not JSON serialisable: {type(obj).__name__}")
+__all__ = ["json_text", "make_sink", "parse_command", "plain", "run_summary", "ticks_dict",
+           "write_json_atomic", "write_text_atomic"]
 
 
 def make_sink(rerun: str, out: Path, run_id: str) -> tuple[Sink, str | None]:

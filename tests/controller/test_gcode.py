@@ -21,6 +21,7 @@ from twin.controller.gcode import (
 )
 from twin.controller.gcode import arcs as arcs_module
 from twin.controller.gcode import interpreter as interpreter_module
+from twin.controller.gcode.lexer import lex
 from twin.errors import ConfigError, GCodeError
 
 MM = 1e-3
@@ -387,3 +388,15 @@ def test_items_and_options_validate_their_fields(build, field):
 def test_docstring_examples(module):
     result = doctest.testmod(module)
     assert result.failed == 0
+
+
+@pytest.mark.parametrize("blanks", [1, 4096, 1 << 20])
+def test_words_across_long_blank_runs_and_comments_keep_their_columns(blanks):
+    # the lexer finds words by their letters: linear in the line (bench/lexer.py times it)
+    gap = " " * blanks
+    line = f"G1 X1{gap}(note{gap}){gap}Y-2.5{gap};{gap}"
+    y_at = len(f"G1 X1{gap}(note{gap}){gap}") + 1
+    assert lex(line) == [("G", 1.0, 1), ("X", 1.0, 4), ("Y", -2.5, y_at)]
+    with pytest.raises(GCodeError) as caught:
+        lex(f"G1 X1{gap}?")
+    assert caught.value.column == 6 + blanks and caught.value.code == "syntax"

@@ -21,6 +21,7 @@ from twin.errors import ConfigError, DriverError
 from twin.hardware.drivers import open_driver, parse_driver_url
 from twin.hardware.modbus import ModbusDriver
 from twin.hardware.register_map import DEFAULT_MAP, volts_to_word
+from twin.jsonio import json_text
 from twin.run import RunSpec, run
 
 
@@ -295,7 +296,7 @@ def test_a_garbled_answer_mid_run_stops_safely_with_the_record_intact(tmp_path):
     finally:
         module.close()
     s = json.loads((tmp_path / "garbled.json").read_text())
-    assert s == json.loads(json.dumps(result.summary, default=str))
+    assert s == json.loads(json_text(result.summary))
     assert s["aborted"].startswith("driver fault: modbus://127.0.0.1:")
     assert "garbled response to read_input_registers(0, count=6)" in s["aborted"]
     # 1 read by prepare, then 38 good ticks; the 39th tick's read failed (a due tick that

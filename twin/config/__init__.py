@@ -21,6 +21,7 @@ from twin.config.loader import (
     load_machine,
     machine_from_toml_dict,
     machine_identity,
+    read_toml,
 )
 from twin.config.schema import (
     AXES,
@@ -70,4 +71,5 @@ __all__ = [
     "load_machine",
     "machine_from_toml_dict",
     "machine_identity",
+    "read_toml",
 ]

@@ -22,7 +22,7 @@ from twin.config.schema import AXES, MachineConfig
 from twin.errors import ConfigError
 
 __all__ = ["MACHINES_DIR", "available_machines", "diff_machines", "flatten", "from_dict",
-           "load_machine", "machine_from_toml_dict", "machine_identity"]
+           "load_machine", "machine_from_toml_dict", "machine_identity", "read_toml"]
 
 MACHINES_DIR = Path(__file__).resolve().parent.parent / "machines"
 
@@ -169,11 +169,34 @@ def load_machine(name_or_path: str | Path) -> MachineConfig:
     if not p.is_file():
         raise ConfigError("machine", f"no machine file {str(name_or_path)!r}; presets: "
                           f"{', '.join(available_machines())}")
+    return machine_from_toml_dict(read_toml(p), source=str(p))
+
+
+def read_toml(path: str | Path, field: str | None = None) -> dict[str, Any]:
+    """Parse a TOML file (machine, register map, set-file, best.toml).
+
+    Raises
+    ------
+    ConfigError
+        Naming ``field`` (default: the file) for bytes that are not UTF-8 (with the byte
+        offset, line and column of the first) and for invalid TOML; TOML is UTF-8 by
+        definition, so nothing is guessed.
+    """
+    p = Path(path)
+    where = field or str(p)
+    data = p.read_bytes()
     try:
-        doc = tomllib.loads(p.read_text(encoding="utf-8"))
+        text = data.decode("utf-8")
+    except UnicodeDecodeError as exc:
+        line = data.count(b"\n", 0, exc.start) + 1
+        column = exc.start - (data.rfind(b"\n", 0, exc.start) + 1) + 1
+        raise ConfigError(where, f"{p}: not UTF-8 text: byte {exc.start} (line {line}, "
+                          f"column {column}) is 0x{data[exc.start]:02x}") from None
+    try:
+        return tomllib.loads(text)
     except tomllib.TOMLDecodeError as exc:
-        raise ConfigError(str(p), f"invalid TOML: {exc}") from None
-    return machine_from_toml_dict(doc, source=str(p))
+        raise ConfigError(where, f"{p}: invalid TOML: {exc}" if field else
+                          f"invalid TOML: {exc}") from None
 
 
 def machine_from_toml_dict(doc: dict[str, Any], *, source: str = "<dict>") -> MachineConfig:

@@ -26,12 +26,11 @@ Typical use::
 from __future__ import annotations
 
 import math
-import tomllib
 from dataclasses import dataclass, field, fields
 from pathlib import Path
 from typing import Any
 
-from twin.config import AXES, from_dict
+from twin.config import AXES, from_dict, read_toml
 from twin.errors import ConfigError
 
 __all__ = [
@@ -282,11 +281,7 @@ def load_register_map(path: str | Path | None = None) -> RegisterMap:
     p = DEFAULT_MAP if path is None else Path(path)
     if not p.is_file():
         raise ConfigError("register_map", f"no such file: {str(p)!r}")
-    try:
-        doc = tomllib.loads(p.read_text(encoding="utf-8"))
-    except tomllib.TOMLDecodeError as exc:
-        raise ConfigError("register_map", f"{p}: invalid TOML: {exc}") from None
-    return register_map_from_dict(doc, source=str(p))
+    return register_map_from_dict(read_toml(p, "register_map"), source=str(p))
 
 
 # ---------------------------------------------------------------------------- encodings

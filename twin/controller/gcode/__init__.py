@@ -75,6 +75,7 @@ __all__ = [
     "Program",
     "ProgramEnd",
     "arc_sweep",
+    "decode_program",
     "iter_items",
     "parse",
     "read_file",
@@ -151,6 +152,37 @@ def parse(text: str, *, start: tuple[float, float] = (0.0, 0.0),
     """
     lines = io.StringIO(text, newline=None)
     return Program(tuple(iter_items(lines, start=start, arc_tolerance=arc_tolerance)), text)
+
+
+def decode_program(data: bytes, encoding: str = "utf-8") -> tuple[str, list[str]]:
+    """A program's text from its bytes, and a note for every run of bytes that are not valid
+    in ``encoding``: those become U+FFFD (harmless in a comment, a ``syntax`` error with its
+    place anywhere else), and each note says where they were::
+
+        line 3, column 12 (byte 57): 1 byte not UTF-8 (0xe9), read as U+FFFD
+
+    At most 20 notes (then how many more)."""
+    notes: list[str] = []
+    pos, total = 0, 0
+    while True:
+        try:
+            data[pos:].decode(encoding)
+            break
+        except UnicodeDecodeError as exc:
+            start, end = pos + exc.start, pos + exc.end
+            total += 1
+            if len(notes) < 20:
+                line = data.count(b"\n", 0, start) + 1
+                column = start - (data.rfind(b"\n", 0, start) + 1) + 1
+                n = end - start
+                notes.append(f"line {line}, column {column} (byte {start}): {n} byte"
+                             f"{'s' if n > 1 else ''} not {encoding.upper()} "
+                             f"({data[start:end].hex(' ', 1) if n > 1 else hex(data[start])}), "
+                             "read as U+FFFD")
+            pos = end
+    if total > len(notes):
+        notes.append(f"… and {total - len(notes)} more such places")
+    return data.decode(encoding, errors="replace"), notes
 
 
 def read_file(path: str | os.PathLike[str], *, start: tuple[float, float] = (0.0, 0.0),

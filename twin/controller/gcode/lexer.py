@@ -10,6 +10,8 @@ Syntax decisions (RS-274/NGC §3.3):
 * ``( ... )`` is a comment (no nesting); ``;`` comments out the rest of the line.
 * A leading ``/`` (block delete) is accepted and ignored: the block-delete switch is off.
 
+Lexing is linear in the line's length, blank runs and comments included.
+
 Columns are 1-based positions in the original line, so an error points at the word's letter.
 """
 
@@ -36,6 +38,11 @@ _NUMBER = (rf"[+-]?{_BLANKS}(?:[0-9](?:{_BLANKS}[0-9])*+(?:{_BLANKS}\.(?:{_BLANK
            rf"|\.(?:{_BLANKS}[0-9])++)")
 _WORD = re.compile(rf"{_BLANKS}([A-Z]){_BLANKS}({_NUMBER})")
 _WORDS = re.compile(rf"(?:{_BLANKS}[A-Z]{_BLANKS}{_NUMBER})*+{_BLANKS}")
+# The words of a line _WORDS has accepted, found by their letters (a number holds none). A
+# pattern that starts with the blanks would be tried at every position of a blank run, each
+# try crossing the rest of the run: quadratic in its length (a 64 KiB comment, blanked,
+# took 3 s).
+_LETTER_WORD = re.compile(rf"([A-Z]){_BLANKS}({_NUMBER})")
 _SPECIAL = re.compile(r"[();]")
 
 
@@ -117,7 +124,7 @@ def lex(text: str, line: int = 1) -> list[Word]:
     if _WORDS.fullmatch(code) is None:
         raise _diagnose(code, line, text)
     words: list[Word] = []
-    for found in _WORD.finditer(code):
+    for found in _LETTER_WORD.finditer(code):
         letter, number = found.group(1, 2)
         if " " in number or "\t" in number:
             number = number.replace(" ", "").replace("\t", "")

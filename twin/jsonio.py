@@ -1,0 +1,63 @@
+"""Writing records: strict JSON and atomic files.
+
+Light on purpose (the standard library only): the CLI imports it at start-up to print
+``--json`` output, and every run, identification and tuning record goes through it.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import json
+import math
+import os
+import sys
+from collections.abc import Mapping
+from pathlib import Path
+from typing import Any
+
+__all__ = ["json_text", "plain", "write_json_atomic", "write_text_atomic"]
+
+
+def write_text_atomic(path: str | Path, text: str) -> Path:
+    """Write ``text`` to ``path`` via a temporary file and ``os.replace``: a reader sees the
+    old file or the whole new one, never half of it."""
+    path = Path(path)
+    tmp = path.with_name(path.name + ".partial")
+    tmp.write_text(text, encoding="utf-8")
+    os.replace(tmp, path)
+    return path
+
+
+def write_json_atomic(path: str | Path, obj: Any, *, indent: int | None = 2) -> Path:
+    """Write ``obj`` as strict JSON (``json_text``) to ``path`` atomically
+    (``write_text_atomic``)."""
+    return write_text_atomic(path, json_text(obj, indent=indent) + "\n")
+
+
+def json_text(obj: Any, *, indent: int | None = None) -> str:
+    """``obj`` as strict JSON (RFC 8259): NaN and ±inf become ``null`` (Python's ``json``
+    would write ``NaN``, which strict parsers refuse); numpy scalars and arrays, dataclasses
+    and paths become plain values; anything else its ``str``."""
+    return json.dumps(plain(obj), indent=indent, allow_nan=False, ensure_ascii=False)
+
+
+def plain(obj: Any) -> Any:
+    """``obj`` with only JSON's own types: dict (str keys), list, str, int, float (finite),
+    bool, None."""
+    if obj is None or isinstance(obj, (bool, str, int)):
+        return obj
+    if isinstance(obj, float):
+        return obj if math.isfinite(obj) else None
+    if isinstance(obj, Mapping):
+        return {str(k): plain(v) for k, v in obj.items()}
+    if isinstance(obj, (list, tuple, set, frozenset)):
+        return [plain(v) for v in obj]
+    np = sys.modules.get("numpy")   # no numpy value can exist unless numpy was imported
+    if np is not None:
+        if isinstance(obj, np.ndarray):
+            return plain(obj.tolist())
+        if isinstance(obj, np.generic):
+            return plain(obj.item())
+    if dataclasses.is_dataclass(obj) and not isinstance(obj, type):
+        return plain(dataclasses.asdict(obj))
+    return str(obj)
