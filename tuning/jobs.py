@@ -66,6 +66,10 @@ class TuneSpec:
         PPO/SAC: tuning runs to train for.
     policy_runs : int
         Tuning runs a policy gets on the target machine.
+    resume : bool
+        PPO/SAC: continue training from the newest checkpoint this job wrote in
+        ``out_dir/checkpoints`` (checked against its SHA-256 manifest); otherwise training
+        starts afresh and loads nothing it finds there.
     weights : dict
         Cost weights by metric (``envs.evaluation.Weights``).
     """
@@ -84,6 +88,7 @@ class TuneSpec:
     policy: Path | None = None
     train_steps: int = 4096
     policy_runs: int = 5
+    resume: bool = False
     weights: dict[str, float] = field(default_factory=dict)
 
     def __post_init__(self) -> None:
@@ -166,7 +171,7 @@ def _search(spec: TuneSpec, ev: Evaluator, files: dict[str, Path],
         policy = train(spec.method, machine=ev.tuning.cfg, program=spec.program,
                        out_dir=spec.out_dir / "checkpoints", total_steps=spec.train_steps,
                        budget_s=spec.budget_s, n_envs=spec.workers, seed=spec.seed,
-                       weights=ev.tuning.weights, progress=progress)
+                       weights=ev.tuning.weights, progress=progress, resume=spec.resume)
         files["policy"] = policy
     trials, _ = apply_policy(policy, ev.tuning.cfg, program=spec.program,
                              runs=spec.policy_runs, weights=ev.tuning.weights,

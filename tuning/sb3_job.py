@@ -1,20 +1,27 @@
 """Learned tuning: PPO or SAC (stable-baselines3) on ``XYTable-GainTuning-v0``.
 
 ``train`` learns a tuning policy on randomised machines (``envs.randomize``) with
-vectorised environments (``SubprocVecEnv`` for more than one), saves checkpoints every
-``checkpoint_steps`` and resumes from the newest checkpoint in its directory, so an
-interrupted training run continues where it stopped. ``apply_policy`` runs a trained policy
-on a machine for a few tuning runs and keeps the best.
+vectorised environments (``SubprocVecEnv`` for more than one) and saves checkpoints every
+``checkpoint_steps``; asked to (``resume=True``, ``twin tune --resume``) it continues from the
+newest checkpoint it wrote, so an interrupted training run goes on where it stopped.
+``apply_policy`` runs a trained policy on a machine for a few tuning runs and keeps the best.
 
-Security: a stable-baselines3 ``.zip`` holds pickled Python objects, and loading one runs
-code from it. Load only policies you trained yourself or got from a trusted source; this
-module loads exactly the file the user names (``--policy FILE``) and the checkpoints it
-wrote itself, never anything found by searching.
+Security: a stable-baselines3 ``.zip`` (and a SAC replay buffer ``.pkl``) holds pickled
+Python objects, and loading one runs code from it. This module loads exactly the file the
+user names (``--policy FILE``, documented as trusted) and, only with ``resume``, the
+checkpoints it wrote itself: every file it saves goes into a SHA-256 manifest
+(``MANIFEST``) in the checkpoint folder, and a checkpoint is loaded only if its file and
+its replay buffer hash to what the manifest holds. A file dropped into the folder, or
+changed since, is refused; nothing is ever loaded because it was found by searching. (The
+manifest guards against files planted or replaced in the folder, not against someone who
+can also rewrite the manifest: keep the folder as private as the code.)
 """
 
 from __future__ import annotations
 
 import functools
+import hashlib
+import json
 import math
 import re
 import time
@@ -31,12 +38,55 @@ from envs.gain_tuning import GainTuningEnv
 from tuning.evaluator import Trial, baseline_trial
 from twin.config import MachineConfig
 from twin.errors import ConfigError
+from twin.jsonio import write_json_atomic
 
-__all__ = ["ALGORITHMS", "apply_policy", "latest_checkpoint", "train"]
+__all__ = ["ALGORITHMS", "MANIFEST", "apply_policy", "latest_checkpoint", "train"]
 
 ALGORITHMS = ("ppo", "sac")
+MANIFEST = "checkpoints.sha256.json"
+"""The checkpoint folder's manifest: ``{file name: SHA-256 hex}`` of every file ``train``
+saved there."""
 _PREFIX = "policy"
 _STEPS = re.compile(rf"{_PREFIX}_(\d+)_steps\.zip$")
+
+
+def _sha256(path: Path) -> str:
+    digest = hashlib.sha256()
+    with open(path, "rb") as f:
+        for block in iter(lambda: f.read(1 << 20), b""):
+            digest.update(block)
+    return digest.hexdigest()
+
+
+def _manifest(directory: Path) -> dict[str, str]:
+    """The folder's manifest ({} if none, or if it is not one: then nothing is trusted)."""
+    path = Path(directory) / MANIFEST
+    try:
+        doc = json.loads(path.read_text(encoding="utf-8"))
+    except (OSError, UnicodeDecodeError, json.JSONDecodeError):
+        return {}
+    if not isinstance(doc, dict):
+        return {}
+    return {str(k): str(v) for k, v in doc.items() if isinstance(v, str)}
+
+
+def _record(directory: Path, *files: Path) -> None:
+    """Add (or update) ``files`` in the folder's manifest, atomically."""
+    entries = _manifest(directory)
+    for f in files:
+        entries[f.name] = _sha256(f)
+    write_json_atomic(Path(directory) / MANIFEST, entries, indent=1)
+
+
+def _buffer_of(checkpoint: Path) -> Path:
+    return checkpoint.with_name(checkpoint.name.replace("_steps.zip", "_steps.pkl").replace(
+        _PREFIX, f"{_PREFIX}_replay_buffer"))
+
+
+def _trusted(directory: Path, path: Path) -> bool:
+    """``path`` is a file this job saved in ``directory``, unchanged since."""
+    expected = _manifest(directory).get(path.name)
+    return expected is not None and path.is_file() and _sha256(path) == expected
 
 
 def _algorithm(name: str) -> Any:
@@ -49,13 +99,42 @@ def _algorithm(name: str) -> Any:
 
 
 def latest_checkpoint(directory: Path) -> Path | None:
-    """The checkpoint with the most steps in ``directory`` (written by ``train``), if any."""
+    """The checkpoint with the most steps among those the manifest of ``directory`` lists,
+    checked: None if there is none.
+
+    Raises
+    ------
+    ConfigError
+        (``resume``) The newest listed checkpoint, or its replay buffer, is missing or does
+        not hash to the manifest's value (changed or replaced since it was written), or a
+        newer checkpoint-like file lies in the folder that the manifest does not list: it
+        is not loaded (loading it would run whatever it holds).
+    """
+    folder = Path(directory)
+    listed = _manifest(folder)
     best: tuple[int, Path] | None = None
-    for p in Path(directory).glob(f"{_PREFIX}_*_steps.zip"):
+    stranger: tuple[int, Path] | None = None
+    for p in folder.glob(f"{_PREFIX}_*_steps.zip"):
         m = _STEPS.search(p.name)
-        if m and (best is None or int(m.group(1)) > best[0]):
-            best = (int(m.group(1)), p)
-    return None if best is None else best[1]
+        if not m:
+            continue
+        steps = int(m.group(1))
+        if p.name not in listed:
+            stranger = max(stranger or (steps, p), (steps, p))
+        elif best is None or steps > best[0]:
+            best = (steps, p)
+    if stranger is not None and (best is None or stranger[0] > best[0]):
+        raise ConfigError("resume", f"{stranger[1]} is not in {folder / MANIFEST}: this job "
+                          "did not write it; refusing to load it (a checkpoint is a pickle "
+                          "and loading one runs its code)")
+    if best is None:
+        return None
+    for f in (best[1], _buffer_of(best[1])):
+        if (f.exists() or f.name in listed) and not _trusted(folder, f):
+            raise ConfigError("resume", f"{f} does not match the SHA-256 in "
+                              f"{folder / MANIFEST} (changed or replaced since this job "
+                              "wrote it); refusing to load it")
+    return best[1]
 
 
 def _callbacks(directory: Path, every: int, n_envs: int, budget_s: float,
@@ -73,16 +152,27 @@ def _callbacks(directory: Path, every: int, n_envs: int, budget_s: float,
                 progress(int(self.num_timesteps))
             return time.perf_counter() - self.start < budget_s
 
-    ckpt = CheckpointCallback(max(1, every // n_envs), str(directory), name_prefix=_PREFIX,
-                              save_replay_buffer=True)
+    class Checkpoint(CheckpointCallback):
+        """SB3's checkpoints, each file entered in the folder's manifest as it is saved."""
+
+        def _on_step(self) -> bool:
+            keep = super()._on_step()
+            if self.n_calls % self.save_freq == 0:
+                zip_path = Path(self._checkpoint_path(extension="zip"))
+                buffer = Path(self._checkpoint_path("replay_buffer_", extension="pkl"))
+                _record(directory, zip_path, *([buffer] if buffer.is_file() else []))
+            return keep
+
+    ckpt = Checkpoint(max(1, every // n_envs), str(directory), name_prefix=_PREFIX,
+                      save_replay_buffer=True)
     return [ckpt, Budget()]
 
 
 def train(method: str, *, machine: str | MachineConfig, program: str = "compact",
           out_dir: Path, total_steps: int, budget_s: float = math.inf, n_envs: int = 2,
           seed: int = 0, checkpoint_steps: int = 200, rollout: int = 64,
-          weights: Weights | None = None, progress: Callable[[int], None] | None = None
-          ) -> Path:
+          weights: Weights | None = None, progress: Callable[[int], None] | None = None,
+          resume: bool = False) -> Path:
     """Train (or resume training) a tuning policy; returns the saved ``policy.zip``.
 
     Parameters
@@ -105,6 +195,15 @@ def train(method: str, *, machine: str | MachineConfig, program: str = "compact"
         Checkpoint every this many tuning runs.
     rollout : int
         PPO: tuning runs per policy update (over all environments).
+    resume : bool
+        Continue from the newest checkpoint this job wrote in ``out_dir`` (checked against
+        its manifest, ``latest_checkpoint``); without it training starts afresh whatever
+        the folder holds.
+
+    Raises
+    ------
+    ConfigError
+        ``resume`` and a checkpoint that fails its check.
     """
     from stable_baselines3.common.vec_env import DummyVecEnv, SubprocVecEnv
 
@@ -116,11 +215,10 @@ def train(method: str, *, machine: str | MachineConfig, program: str = "compact"
     vec = SubprocVecEnv(factories, start_method="spawn") if n_envs > 1 \
         else DummyVecEnv(factories)
     try:
-        resume = latest_checkpoint(out)
-        if resume is not None:   # our own checkpoint: trusted
-            model = algo.load(resume, env=vec)
-            buffer = resume.with_name(resume.name.replace(
-                "_steps.zip", "_steps.pkl").replace(_PREFIX, f"{_PREFIX}_replay_buffer"))
+        start = latest_checkpoint(out) if resume else None
+        if start is not None:   # our own checkpoint, as written: trusted
+            model = algo.load(start, env=vec)
+            buffer = _buffer_of(start)
             if method == "sac" and buffer.is_file():
                 model.load_replay_buffer(buffer)
         else:
@@ -133,6 +231,7 @@ def train(method: str, *, machine: str | MachineConfig, program: str = "compact"
                         reset_num_timesteps=False)
         path = out / "policy.zip"
         model.save(path)
+        _record(out, path)
     finally:
         vec.close()
     return path

@@ -44,6 +44,10 @@ def tune(
                                        "SB3 .zip: load only files from a trusted source."),
     train_steps: int = typer.Option(4096, "--train-steps", min=1,
                                     help="PPO/SAC: tuning runs to train for."),
+    resume: bool = typer.Option(False, "--resume", help="PPO/SAC: continue training from "
+                                "the newest checkpoint this job wrote in OUT/checkpoints "
+                                "(checked against its SHA-256 manifest; any other file "
+                                "there is refused, never loaded)."),
     out: Path = typer.Option(Path("runs/tune"), "--out", help="Output directory."),
     as_json: bool = typer.Option(False, "--json", help="Print exactly one JSON object."),
 ) -> None:
@@ -55,7 +59,8 @@ def tune(
         spec = TuneSpec(method=method, machine=machine, controller_model=controller_model,
                         program=program, budget_s=budget_s,
                         out_dir=out, storage=storage, study=study, workers=workers,
-                        seed=seed, max_runs=max_runs, policy=policy, train_steps=train_steps)
+                        seed=seed, max_runs=max_runs, policy=policy, train_steps=train_steps,
+                        resume=resume)
         training = method in ("ppo", "sac") and policy is None
         with Progress(TextColumn(f"[bold]{method}"), BarColumn(),
                       TextColumn("{task.description}"), TimeElapsedColumn(), console=err,

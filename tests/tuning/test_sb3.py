@@ -2,11 +2,19 @@
 and a saved policy tunes a machine it has not seen in at most 5 runs. (The training here is
 tiny: it checks the plumbing, not the policy's quality; see the report for the full run.)"""
 
+import base64
+import json
+import pathlib
+import pickle
+import shutil
+import zipfile
+from pathlib import Path
+
 import pytest
 
 from tuning.compare import compare_policy_to_cma, held_out_machines
 from tuning.jobs import TuneSpec, tune
-from tuning.sb3_job import apply_policy, latest_checkpoint, train
+from tuning.sb3_job import MANIFEST, apply_policy, latest_checkpoint, train
 from twin.errors import ConfigError
 
 
@@ -29,12 +37,69 @@ def test_training_resumes_from_the_newest_checkpoint(ppo, tmp_path):
     from stable_baselines3 import PPO
 
     resumed = tmp_path / "resume"
-    resumed.mkdir()
-    (resumed / "policy_32_steps.zip").write_bytes(latest_checkpoint(out).read_bytes())
+    shutil.copytree(out, resumed)      # the job's folder, manifest included
     path = train("ppo", machine="tomsk_xy", program="tiny", out_dir=resumed,
-                 total_steps=48, n_envs=1, checkpoint_steps=16, rollout=16)
+                 total_steps=48, n_envs=1, checkpoint_steps=16, rollout=16, resume=True)
     assert PPO.load(path).num_timesteps == 48     # 32 resumed + 16 new, not 48 new
     assert latest_checkpoint(resumed).name == "policy_48_steps.zip"
+    listed = json.loads((resumed / MANIFEST).read_text())
+    assert {"policy_16_steps.zip", "policy_32_steps.zip", "policy_48_steps.zip",
+            "policy.zip"} <= set(listed)
+
+
+def _planted(genuine: Path, path: Path, marker: Path) -> Path:
+    """A copy of a genuine checkpoint whose data carries a pickle that creates ``marker``
+    when it is loaded: what an attacker would drop into the folder."""
+    payload = base64.b64encode(pickle.dumps(_Touch(str(marker)))).decode()
+    with zipfile.ZipFile(genuine) as src, zipfile.ZipFile(path, "w") as dst:
+        for item in src.infolist():
+            data = src.read(item.filename)
+            if item.filename == "data":
+                doc = json.loads(data)
+                doc["planted"] = {":type:": "<class 'object'>", ":serialized:": payload}
+                data = json.dumps(doc).encode()
+            dst.writestr(item, data)
+    return path
+
+
+class _Touch:
+    def __init__(self, path: str):
+        self.path = path
+
+    def __reduce__(self):
+        return (pathlib.Path.touch, (pathlib.Path(self.path),))
+
+
+def test_a_planted_checkpoint_is_never_loaded(ppo, tmp_path):
+    out, _ = ppo
+    folder, marker = tmp_path / "job", tmp_path / "code-ran"
+    shutil.copytree(out, folder)
+    _planted(out / "policy_32_steps.zip", folder / "policy_64_steps.zip", marker)
+    # the proof that the file is live: SB3 runs its pickle on load
+    from stable_baselines3 import PPO
+    PPO.load(folder / "policy_64_steps.zip")
+    assert marker.exists()
+    marker.unlink()
+    # without --resume nothing found in the folder is loaded: training starts afresh
+    path = train("ppo", machine="tomsk_xy", program="tiny", out_dir=folder, total_steps=16,
+                 n_envs=1, checkpoint_steps=16, rollout=16)
+    assert not marker.exists() and PPO.load(path).num_timesteps == 16
+    # with it, the file the manifest does not list is refused, not loaded
+    with pytest.raises(ConfigError, match=r"policy_64_steps\.zip is not in .*did not write it"):
+        train("ppo", machine="tomsk_xy", program="tiny", out_dir=folder, total_steps=64,
+              n_envs=1, checkpoint_steps=16, rollout=16, resume=True)
+    assert not marker.exists()
+
+
+def test_a_checkpoint_changed_since_it_was_written_is_refused(ppo, tmp_path):
+    out, _ = ppo
+    folder, marker = tmp_path / "job", tmp_path / "code-ran"
+    shutil.copytree(out, folder)
+    _planted(out / "policy_32_steps.zip", folder / "policy_32_steps.zip", marker)  # replaced
+    with pytest.raises(ConfigError, match="does not match the SHA-256"):
+        train("ppo", machine="tomsk_xy", program="tiny", out_dir=folder, total_steps=48,
+              n_envs=1, checkpoint_steps=16, rollout=16, resume=True)
+    assert not marker.exists()
 
 
 def test_policy_tunes_an_unseen_machine_in_five_runs(ppo):
