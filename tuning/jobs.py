@@ -25,7 +25,7 @@ from tuning.evaluator import Evaluator, Trial
 from tuning.report import comparison, plot_convergence, table_markdown, write_overrides
 from twin.config import MachineConfig, load_machine
 from twin.errors import ConfigError
-from twin.jsonio import write_json_atomic
+from twin.jsonio import output_dir, write_json_atomic, write_text_atomic
 
 __all__ = ["METHODS", "TuneResult", "TuneSpec", "tune"]
 
@@ -193,8 +193,7 @@ def tune(spec: TuneSpec, *, on_trial: Callable[[Trial], None] | None = None,
     """
     start = time.perf_counter()
     cfg: MachineConfig = load_machine(spec.machine)
-    out = Path(spec.out_dir)
-    out.mkdir(parents=True, exist_ok=True)
+    out = output_dir(spec.out_dir)
     files: dict[str, Path] = {}
     with Evaluator.create(cfg, spec.program, weights=Weights.from_mapping(spec.weights),
                           workers=spec.workers if spec.method in ("cma", "optuna") else 1,
@@ -207,18 +206,22 @@ def tune(spec: TuneSpec, *, on_trial: Callable[[Trial], None] | None = None,
               f"max coordinate error {best.metrics['max_coordinate_error'] * 1e6:.3g} µm "
               f"(analytic {baseline.metrics['max_coordinate_error'] * 1e6:.3g} µm)",
               "apply with: twin run --set-file THIS_FILE")
+    # what the job is for comes first: the settings and the result; the figure and the
+    # report after them, so that a failing plot (a full disk, a broken backend) loses
+    # neither
     files["overrides"] = write_overrides(out / "best.toml", best.settings, header=header)
-    files["plot"] = plot_convergence(out / "convergence.png", trials, baseline,
-                                     title=f"{spec.method} on {cfg.name} ({spec.program})")
-    rows = comparison(baseline, best)
-    report = out / "report.md"
-    report.write_text(f"# {spec.method} tuning of {cfg.name} ({spec.program})\n\n"
-                      f"{len(trials)} tuning runs, {time.perf_counter() - start:.0f} s.\n\n"
-                      + table_markdown(rows), encoding="utf-8")
-    files["report"] = report
     files["result"] = out / "result.json"
+    files["report"] = out / "report.md"
+    files["plot"] = out / "convergence.png"
     result = TuneResult(spec, baseline, best, list(trials), files,
                         time.perf_counter() - start)
     doc = {**result.summary(), "trials": [t.to_dict() for t in trials]}
     write_json_atomic(files["result"], doc, indent=1)
+    rows = comparison(baseline, best)
+    write_text_atomic(files["report"],
+                      f"# {spec.method} tuning of {cfg.name} ({spec.program})\n\n"
+                      f"{len(trials)} tuning runs, {result.wall_time:.0f} s.\n\n"
+                      + table_markdown(rows))
+    plot_convergence(files["plot"], trials, baseline,
+                     title=f"{spec.method} on {cfg.name} ({spec.program})")
     return result

@@ -12,7 +12,7 @@ from rich.table import Table
 
 from twin.cli_common import CONTROLLER_MODEL_HELP, METRIC_ROWS, err, fail, summary_table
 from twin.errors import ConfigError, TwinError
-from twin.jsonio import json_text
+from twin.jsonio import json_text, output_dir
 
 __all__ = ["ROWS", "register"]
 
@@ -81,7 +81,7 @@ def compare_cmd(
                        builtin=builtin, planner=planner, dcu_order=dcu_order,
                        overrides=parse_sets(sets))
         base.belief(base.machine_config())
-        out.mkdir(parents=True, exist_ok=True)
+        output_dir(out)
         if sweep is not None:
             result = _sweep(base, laws, sweep, figure, out, write_sweep_report)
         else:

@@ -44,6 +44,7 @@ from typing import Any
 import numpy as np
 
 from twin.controller.metrics import contour_error, oscillation
+from twin.jsonio import output_dir
 from twin.model import mode_periods
 from twin.run import RunResult, RunSpec, run
 from twin.telemetry.sink import Sink
@@ -253,8 +254,7 @@ def compare(spec: RunSpec, laws: Sequence[str], *, out_dir: str | Path = "runs",
     -------
     Comparison
     """
-    out = Path(out_dir)
-    out.mkdir(parents=True, exist_ok=True)
+    out = output_dir(out_dir)
     rrd = out / f"{run_id}.rrd"
     shared = _shared_sink(rrd, laws, run_id) if recording else None
     runs: dict[str, LawRun] = {}

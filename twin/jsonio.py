@@ -1,4 +1,4 @@
-"""Writing records: strict JSON and atomic files.
+"""Writing records: strict JSON, atomic files, output folders checked before anything runs.
 
 Light on purpose (the standard library only): the CLI imports it at start-up to print
 ``--json`` output, and every run, identification and tuning record goes through it.
@@ -15,7 +15,35 @@ from collections.abc import Mapping
 from pathlib import Path
 from typing import Any
 
-__all__ = ["json_text", "plain", "write_json_atomic", "write_text_atomic"]
+from twin.errors import ConfigError
+
+__all__ = ["json_text", "output_dir", "plain", "write_json_atomic", "write_text_atomic"]
+
+
+def output_dir(path: str | Path, field: str = "out") -> Path:
+    """The folder ``path``, created if need be, once it is known that files can be written
+    in it: checked before a job starts (opens a driver, moves a machine, spends a budget),
+    so a bad path costs one line, not a traceback after the work.
+
+    Raises
+    ------
+    ConfigError
+        Naming ``field``: the path is not a folder, cannot be created, or cannot be written
+        in (read-only, no permission, no space)."""
+    folder = Path(path)
+    if folder.exists() and not folder.is_dir():
+        raise ConfigError(field, f"{folder} is not a folder")
+    probe = folder / f".write-check-{os.getpid()}"
+    try:
+        folder.mkdir(parents=True, exist_ok=True)
+        try:
+            with open(probe, "wb") as f:
+                f.write(b"\0")
+        finally:
+            probe.unlink(missing_ok=True)
+    except OSError as exc:
+        raise ConfigError(field, f"cannot write in {folder}: {exc.strerror or exc}") from None
+    return folder
 
 
 def write_text_atomic(path: str | Path, text: str) -> Path:
@@ -23,8 +51,12 @@ def write_text_atomic(path: str | Path, text: str) -> Path:
     old file or the whole new one, never half of it."""
     path = Path(path)
     tmp = path.with_name(path.name + ".partial")
-    tmp.write_text(text, encoding="utf-8")
-    os.replace(tmp, path)
+    try:
+        tmp.write_text(text, encoding="utf-8")
+        os.replace(tmp, path)
+    except BaseException:
+        tmp.unlink(missing_ok=True)   # no .partial left behind (a full disk, a signal)
+        raise
     return path
 
 

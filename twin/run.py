@@ -35,6 +35,7 @@ from twin.drive.linear import axis_transfer_function
 from twin.errors import ConfigError, DriverError
 from twin.hardware.realtime import RealTimeLoop, TickStats, fifo_priority
 from twin.hardware.sim import SimDriver
+from twin.jsonio import output_dir
 from twin.model import mode_periods
 from twin.plant import FINE_FIELDS, FINE_WIDTH, TRUTH_FIELDS, Plant
 from twin.runrecord import (
@@ -296,13 +297,16 @@ def run(spec: RunSpec, *, out_dir: str | Path = "runs", rerun: str = "file",
         drive interval).
     """
     run_id = run_id or time.strftime("%Y%m%d-%H%M%S-") + uuid.uuid4().hex[:6]
-    out = Path(out_dir)
-    out.mkdir(parents=True, exist_ok=True)
+    out = output_dir(out_dir)   # before the driver is opened: a bad folder costs nothing
     p = prepared or prepare(spec)
-    pending = [*(parse_command(c) for c in spec.commands), *commands]
     recording = None
-    if sink is None:
-        sink, recording = make_sink(rerun, out, run_id)
+    try:
+        pending = [*(parse_command(c) for c in spec.commands), *commands]
+        if sink is None:
+            sink, recording = make_sink(rerun, out, run_id)
+    except BaseException:
+        p.driver.close()        # whatever fails once the driver is open closes it
+        raise
     loop = _Loop(p, sink, spec.max_time, pending, progress, spec.rt_priority, keep_fine)
     aborted = None
     t_wall = time.perf_counter()

@@ -24,7 +24,7 @@ from typing import Any
 
 from twin.config import AXES, MachineConfig, load_machine, machine_from_toml_dict
 from twin.errors import ConfigError, ExperimentAborted
-from twin.runrecord import write_json_atomic, write_text_atomic
+from twin.jsonio import output_dir, write_json_atomic, write_text_atomic
 
 __all__ = ["identify", "open_identification_driver"]
 
@@ -114,8 +114,9 @@ def identify(machine: str, output: str | Path, *, driver: str = "sim",
     if output.suffix.lower() != ".toml":
         raise ConfigError("output", f"the calibrated machine file must end in .toml, got "
                           f"{str(output)!r}")
-    if not output.parent.is_dir():
-        raise ConfigError("output", f"no directory {str(output.parent)!r} for {output.name}")
+    output_dir(output.parent, "output")     # both folders writable before anything moves
+    if from_log is None:
+        output_dir(out_dir)
     if from_log is not None:
         log = IdentLog.load(from_log)   # checked against BASE by the fit
         absent = [a for a in chosen if a not in log.axes]
