@@ -281,13 +281,14 @@ def _cell(value: Any) -> str:
 
 def _register_more() -> None:
     """Commands that live in their own modules (imported lazily by their functions)."""
-    from twin import cli_compare, cli_hil, cli_identify, cli_manual, cli_tune
+    from twin import cli_compare, cli_hil, cli_identify, cli_manual, cli_runs, cli_tune
 
     cli_manual.register(app)
     cli_hil.register(app)
     cli_compare.register(app)
     cli_tune.register(app)
     cli_identify.register(app)
+    cli_runs.register(app)
 
 
 _register_more()
