@@ -141,9 +141,15 @@ def _attrs(trial: Trial) -> dict[str, Any]:
             "sim_time_s": d["sim_time_s"]}
 
 
-def _objective(evaluator: Evaluator, names: tuple[str, ...]
+def _objective(evaluator: Evaluator, names: tuple[str, ...], end: int | None = None
                ) -> Callable[[optuna.Trial], float]:
+    """The objective; with ``end``, a trial numbered ``end`` or above is not run (pruned,
+    and this process stops): the storage numbers trials atomically, so every process of a
+    job sees the same bound and the job runs at most ``end`` − its first number trials."""
     def objective(trial: optuna.Trial) -> float:
+        if end is not None and trial.number >= end:
+            trial.study.stop()
+            raise optuna.TrialPruned(f"the job's --max-runs is spent (trial {trial.number})")
         x = [trial.suggest_float(n, -1.0, 1.0) for n in names]
         result = evaluator.evaluate([x])[0]
         for key, value in _attrs(result).items():
@@ -167,11 +173,12 @@ def study_trials(study: optuna.Study) -> list[Trial]:
     return out
 
 
-def _worker(url: str, name: str, tuning: Tuning, budget_s: float, seed: int) -> None:
+def _worker(url: str, name: str, tuning: Tuning, budget_s: float, seed: int,
+            end: int | None = None) -> None:
     names = tuning.space.names
     storage = open_storage(url)
     study = open_study(storage, name, names, seed=seed)
-    study.optimize(_objective(Evaluator(tuning), names), timeout=budget_s,
+    study.optimize(_objective(Evaluator(tuning), names, end), timeout=budget_s,
                    callbacks=[_check_after_each_trial(storage)])
 
 
@@ -183,6 +190,7 @@ def run_optuna(evaluator: Evaluator, *, storage: str, study_name: str, budget_s:
 
     With ``evaluator.workers`` = N > 1, N - 1 extra processes join the study on this host
     (the evaluator's own pool is not used: each worker runs its trials itself).
+    ``max_trials`` bounds the tuning runs of the job, all its processes together.
     """
     if not (math.isfinite(budget_s) and budget_s > 0.0):
         raise ConfigError("budget_s", f"must be a finite number > 0 (s), got {budget_s!r}")
@@ -190,18 +198,20 @@ def run_optuna(evaluator: Evaluator, *, storage: str, study_name: str, budget_s:
     db = open_storage(storage, heartbeat_s=heartbeat_s, grace_s=grace_s)
     study = open_study(db, study_name, names, seed=seed)
     _seed_baseline(study, evaluator.baseline, names)
+    # --max-runs bounds the job, all its processes together: trial numbers from here on
+    end = None if max_trials is None else len(study.trials) + max_trials
     t = evaluator.tuning
     ctx = multiprocessing.get_context("spawn")
     extra = [ctx.Process(target=_worker, daemon=True,
-                         args=(storage, study_name, t, budget_s, seed + 1 + i))
+                         args=(storage, study_name, t, budget_s, seed + 1 + i, end))
              for i in range(evaluator.workers - 1)]
     for p in extra:
         p.start()
     local = Evaluator(t, 1, evaluator.on_trial)
     start = time.perf_counter()
     try:
-        study.optimize(_objective(local, names), timeout=budget_s, n_trials=max_trials,
-                       callbacks=[_check_after_each_trial(db)])
+        study.optimize(_objective(local, names, end), timeout=budget_s,
+                       n_trials=max_trials, callbacks=[_check_after_each_trial(db)])
     finally:
         for p in extra:
             p.join(timeout=max(1.0, budget_s - (time.perf_counter() - start)) + 60.0)

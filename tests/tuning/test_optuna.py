@@ -113,3 +113,14 @@ def test_a_trial_that_never_beat_is_failed_and_retried(tmp_path):
     retried = [t for t in after if t.system_attrs.get("failed_trial") == zombie.number]
     assert len(retried) == 1 and retried[0].state == optuna.trial.TrialState.COMPLETE
     assert all(t.state != optuna.trial.TrialState.RUNNING for t in after)
+
+
+def test_max_runs_bounds_the_job_across_its_workers(tmp_path):
+    url = f"sqlite:///{tmp_path / 'study.db'}"
+    with Evaluator.create("tomsk_xy", "tiny", workers=2) as ev:
+        trials = run_optuna(ev, storage=url, study_name="m", budget_s=60.0, max_trials=6)
+    study = optuna.load_study(study_name="m", storage=url)
+    done = [t for t in study.trials if t.state == optuna.trial.TrialState.COMPLETE]
+    assert len(trials) == len(done) <= 1 + 6          # the seeded baseline + at most 6 runs
+    assert len(done) >= 1 + 3                          # and the job did run
+    assert all(t.state != optuna.trial.TrialState.RUNNING for t in study.trials)
