@@ -13,7 +13,7 @@ import sys
 import pytest
 
 from twin.errors import ConfigError
-from twin.jsonio import output_dir, write_text_atomic
+from twin.jsonio import folder_lock, output_dir, write_text_atomic
 
 
 def _twin(*args: str, limit_file_size: bool = False) -> subprocess.CompletedProcess:
@@ -88,3 +88,18 @@ def test_tuning_keeps_settings_and_result_when_the_figure_fails(tmp_path, monkey
         jobs.tune(jobs.TuneSpec(method="analytic", program="tiny", out_dir=tmp_path))
     assert (tmp_path / "best.toml").is_file() and (tmp_path / "result.json").is_file()
     assert (tmp_path / "report.md").is_file()
+
+
+def test_a_second_job_into_a_busy_folder_is_refused(tmp_path):
+    with folder_lock(tmp_path) as held:
+        assert held == tmp_path
+        proc = _twin("tune", "--method", "analytic", "--program", "tiny", "--out",
+                     str(tmp_path))
+        _refused(proc, "out", "in use by another job", f"pid {os.getpid()}")
+        assert not (tmp_path / "best.toml").exists()
+        with pytest.raises(ConfigError, match="in use"):   # also within one process
+            with folder_lock(tmp_path):
+                pass
+    proc = _twin("tune", "--method", "analytic", "--program", "tiny", "--out", str(tmp_path))
+    assert proc.returncode == 0, proc.stderr       # released with its holder
+    assert (tmp_path / "best.toml").is_file()

@@ -25,7 +25,7 @@ from tuning.evaluator import Evaluator, Trial
 from tuning.report import comparison, plot_convergence, table_markdown, write_overrides
 from twin.config import MachineConfig, load_machine
 from twin.errors import ConfigError
-from twin.jsonio import output_dir, write_json_atomic, write_text_atomic
+from twin.jsonio import folder_lock, output_dir, write_json_atomic, write_text_atomic
 
 __all__ = ["METHODS", "TuneResult", "TuneSpec", "tune"]
 
@@ -194,6 +194,14 @@ def tune(spec: TuneSpec, *, on_trial: Callable[[Trial], None] | None = None,
     start = time.perf_counter()
     cfg: MachineConfig = load_machine(spec.machine)
     out = output_dir(spec.out_dir)
+    with folder_lock(out):
+        return _tune_in(spec, cfg, out, start, on_trial, progress)
+
+
+def _tune_in(spec: TuneSpec, cfg: MachineConfig, out: Path, start: float,
+             on_trial: Callable[[Trial], None] | None,
+             progress: Callable[[int], None] | None) -> TuneResult:
+    """The job, in its locked folder ``out``."""
     files: dict[str, Path] = {}
     with Evaluator.create(cfg, spec.program, weights=Weights.from_mapping(spec.weights),
                           workers=spec.workers if spec.method in ("cma", "optuna") else 1,

@@ -6,18 +6,23 @@ Light on purpose (the standard library only): the CLI imports it at start-up to 
 
 from __future__ import annotations
 
+import contextlib
 import dataclasses
 import json
 import math
 import os
 import sys
-from collections.abc import Mapping
+from collections.abc import Iterator, Mapping
 from pathlib import Path
 from typing import Any
 
 from twin.errors import ConfigError
 
-__all__ = ["json_text", "output_dir", "plain", "write_json_atomic", "write_text_atomic"]
+__all__ = ["LOCK_NAME", "folder_lock", "json_text", "output_dir", "plain", "write_json_atomic",
+           "write_text_atomic"]
+
+LOCK_NAME = ".job.lock"
+"""The lock file a job holds in its output folder (``folder_lock``)."""
 
 
 def output_dir(path: str | Path, field: str = "out") -> Path:
@@ -44,6 +49,40 @@ def output_dir(path: str | Path, field: str = "out") -> Path:
     except OSError as exc:
         raise ConfigError(field, f"cannot write in {folder}: {exc.strerror or exc}") from None
     return folder
+
+
+@contextlib.contextmanager
+def folder_lock(folder: str | Path, field: str = "out") -> Iterator[Path]:
+    """Hold an exclusive lock on ``folder`` (an advisory ``flock`` on its ``LOCK_NAME``) for
+    the life of a job: a second job into the same folder is refused instead of both
+    writing the same files. The lock goes with the process, so a killed job leaves none.
+
+    Raises
+    ------
+    ConfigError
+        Naming ``field``: another process holds the folder (its pid, if it wrote one)."""
+    try:
+        import fcntl
+    except ImportError:   # no flock (Windows): no lock, as before
+        yield Path(folder)
+        return
+    path = Path(folder) / LOCK_NAME
+    handle = open(path, "a+", encoding="utf-8")   # held until the job ends
+    try:
+        try:
+            fcntl.flock(handle, fcntl.LOCK_EX | fcntl.LOCK_NB)
+        except BlockingIOError:
+            handle.seek(0)
+            holder = handle.read().strip() or "?"
+            raise ConfigError(field, f"{folder} is in use by another job (pid {holder}); "
+                              "give this one its own --out") from None
+        handle.seek(0)
+        handle.truncate()
+        handle.write(f"{os.getpid()}\n")
+        handle.flush()
+        yield Path(folder)
+    finally:
+        handle.close()   # releases the lock
 
 
 def write_text_atomic(path: str | Path, text: str) -> Path:
