@@ -146,7 +146,11 @@ class HilProcess:
         return f"modbus://{self.info['host']}:{self.info['port']}"
 
     def log(self) -> str:
-        """What the server wrote on stderr so far."""
+        """What the server wrote on stderr so far (with an unread stderr pipe: everything,
+        once it has stopped)."""
+        pipe = self.process.stderr
+        if pipe is not None:
+            return pipe.read() if self.process.poll() is not None and not pipe.closed else ""
         self._log.seek(0)
         return self._log.read()
 
@@ -161,9 +165,12 @@ class HilProcess:
 
 
 @contextlib.contextmanager
-def spawn_hil_server(*args: str, ready_timeout: float = 60.0) -> Iterator[HilProcess]:
+def spawn_hil_server(*args: str, ready_timeout: float = 60.0,
+                     unread_stderr: bool = False) -> Iterator[HilProcess]:
     """Start ``twin hil-server --port 0 --json ARGS`` as a subprocess, yield it once it
-    listens, and always stop it (SIGTERM, then SIGKILL) and reap it.
+    listens, and always stop it (SIGTERM, then SIGKILL) and reap it. ``unread_stderr``:
+    its stderr is a pipe that nobody reads (as under a careless supervisor), instead of a
+    file.
 
     Raises
     ------
@@ -173,7 +180,8 @@ def spawn_hil_server(*args: str, ready_timeout: float = 60.0) -> Iterator[HilPro
     """
     with tempfile.TemporaryFile("w+", encoding="utf-8") as log:
         proc = subprocess.Popen([sys.executable, "-m", "twin.cli", "hil-server", "--port", "0",
-                                 "--json", *args], stdout=subprocess.PIPE, stderr=log,
+                                 "--json", *args], stdout=subprocess.PIPE,
+                                stderr=subprocess.PIPE if unread_stderr else log,
                                 text=True, env={**os.environ, "RERUN_ANALYTICS": "0"})
         try:
             with selectors.DefaultSelector() as sel:
@@ -189,6 +197,8 @@ def spawn_hil_server(*args: str, ready_timeout: float = 60.0) -> Iterator[HilPro
         finally:
             stop_process(proc)
             proc.stdout.close()  # type: ignore[union-attr]
+            if proc.stderr is not None:
+                proc.stderr.close()
 
 
 def register(app: typer.Typer) -> None:

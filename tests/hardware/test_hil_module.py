@@ -13,7 +13,7 @@ from pymodbus.constants import ExcCodes
 
 from twin.config import load_machine
 from twin.errors import ConfigError, SimulationError
-from twin.hardware.hil import HilModule
+from twin.hardware.hil import CLIENT, HilModule, Refused
 from twin.hardware.hil_server import hil_plant
 from twin.hardware.register_map import (
     load_register_map,
@@ -58,9 +58,9 @@ def _counts(module):
 
 
 def _drive(module, volts, feed=1):
+    module.write_holding(FEED, feed)      # outputs are taken only once the watchdog is fed
     for addr, v in zip((DAC_X, DAC_Y), volts, strict=True):
         module.write_holding(addr, volts_to_word(v, 10.0))
-    module.write_holding(FEED, feed)
     assert module.write_coil(ENABLE, True)
 
 
@@ -269,3 +269,58 @@ def test_module_options_out_of_range_name_the_option(plants, option, value):
     with pytest.raises(ConfigError) as info:
         HilModule(plants[0], RMAP, **{option: value})
     assert info.value.field == option
+
+
+def test_nothing_is_driven_before_the_watchdog_is_fed(rig):
+    module, _, clock = rig
+    with pytest.raises(Refused) as caught:
+        module.write_holding(DAC_X, volts_to_word(5.0, 10.0))
+    assert caught.value.code == ExcCodes.DEVICE_FAILURE
+    assert module.write_holding(DAC_Y, 0) == 0            # a zero is always safe
+    assert not module.write_coil(ENABLE, True)
+    assert module.holding_registers()[DAC_X] == 0 and not module.enabled
+    clock.now = 10 * WATCHDOG
+    module.advance()                                      # no expiry without a feed
+    assert not module.tripped and module.stats().refused == 2
+
+    def act(fc, address, values):
+        return asyncio.run(module._action(fc, 0, address, len(values), [0] * 4, values))
+
+    word = volts_to_word(1.0, 10.0)
+    assert act(6, DAC_X, [word]) == ExcCodes.DEVICE_FAILURE    # DAC first: refused, alive
+    assert act(16, 0, [word, word, 9]) is None                 # one request that feeds
+    assert act(5, ENABLE, [True]) is None and module.enabled
+    assert module.holding_registers() == {DAC_X: word, DAC_Y: word, FEED: 9}
+
+
+def test_one_client_owns_the_outputs_until_it_goes(rig):
+    module, _, clock = rig
+    first, second = object(), object()
+    token = CLIENT.set(first)
+    _drive(module, [1.0, -1.0])
+    CLIENT.reset(token)
+    assert module.owner is first
+    token = CLIENT.set(second)
+    try:
+        for write in (lambda: module.write_holding(DAC_X, 0),
+                      lambda: module.write_holding(FEED, 77),
+                      lambda: module.write_coil(ENABLE, False)):
+            with pytest.raises(Refused) as caught:
+                write()
+            assert caught.value.code == ExcCodes.DEVICE_BUSY
+        assert module.input_registers() and module.discrete_inputs()   # reads stay open
+        assert module.enabled and module.holding_registers()[FEED] == 1
+        module.release(second)                       # not the owner: nothing changes
+        assert module.enabled
+        module.release(first)                        # the owner's connection closed:
+        assert module.enabled and not module.tripped  # outputs guarded by the watchdog
+        clock.now = 0.5 * WATCHDOG
+        module.advance()
+        _drive(module, [0.5, 0.5], feed=3)           # now the second may take them
+        assert module.owner is second and module.enabled
+        clock.now = 2 * WATCHDOG
+        module.advance()                             # a trip frees them too
+        assert module.tripped and module.owner is not second
+        assert not module.enabled and module.holding_registers()[DAC_X] == 0
+    finally:
+        CLIENT.reset(token)

@@ -38,6 +38,16 @@ zeroes the DAC registers, clears the enable coil, disables the drives and sets t
 The trip is latched until the enable coil is written 0: until then DAC writes are dropped
 and a write of enable 1 is refused with Modbus exception 4 (device failure).
 
+Outputs off until fed, one owner: like a safety I/O module, the module drives nothing until
+a client feeds the watchdog, and that client (its connection, ``CLIENT``) then owns the
+outputs until it disconnects or the watchdog trips. Before any feed a non-zero reference or
+enable 1 is refused with exception 4 and the outputs stay zero (a write of several
+registers feeds first, so a controller's first tick, references and life counter in one
+request, is taken). While a client owns the outputs, another client's writes of outputs
+(references, watchdog, enable) get exception 6, device busy; reads stay open to everybody.
+When the owner disconnects, nobody owns the outputs; they stay as they are, guarded by
+the watchdog, so a controller that reconnects (and feeds in time) carries on.
+
 ``twin.hardware.hil_server`` serves the module over Modbus/TCP.
 """
 
@@ -46,6 +56,7 @@ from __future__ import annotations
 import math
 import time
 from collections.abc import Callable
+from contextvars import ContextVar
 from dataclasses import dataclass
 
 import numpy as np
@@ -57,7 +68,21 @@ from twin.errors import ConfigError, SimulationError
 from twin.hardware.register_map import RegisterMap, counter_to_words, volts_to_word, word_to_volts
 from twin.plant import Plant, Reading
 
-__all__ = ["OUTPUT_WINDOW", "HilModule", "HilStats"]
+__all__ = ["CLIENT", "OUTPUT_WINDOW", "HilModule", "HilStats", "Refused"]
+
+CLIENT: ContextVar[object | None] = ContextVar("hil_client", default=None)
+"""The connection the request being served came on (the server sets it per request; None
+for direct calls)."""
+_NOBODY = object()
+"""``HilModule.owner`` when no client owns the outputs."""
+
+
+class Refused(Exception):
+    """A write the module refuses, with the Modbus exception code it answers."""
+
+    def __init__(self, code: ExcCodes, why: str):
+        super().__init__(why)
+        self.code = code
 
 OUTPUT_WINDOW = 2e-3
 """Default output window (s): twice a tick's read-compute-write over pymodbus on loopback."""
@@ -92,6 +117,9 @@ class HilStats:
         Of those, the ones that arrived in a later drive interval than the counter read
         before them: the reference took effect one or more intervals later than the
         lock-step twin applies it (the client's read-compute-write took too long).
+    refused : int
+        Output writes refused: before the watchdog was fed, or from a client other than
+        the one that owns the outputs.
     """
 
     requests: int
@@ -103,6 +131,7 @@ class HilStats:
     fault: str | None = None
     dac_writes: int = 0
     late_writes: int = 0
+    refused: int = 0
 
 
 class HilModule:
@@ -164,6 +193,11 @@ class HilModule:
         self.enabled = False
         self.tripped = False
         self.fault: str | None = None
+        self.owner: object = _NOBODY
+        """The connection that owns the outputs (``_NOBODY``: none; see the module
+        docstring)."""
+        self.refused = 0
+        """Writes refused (not fed, or another client's while one owns the outputs)."""
         self._last_feed = -math.inf
         self._steps = 0
         self._sampled = -1
@@ -199,7 +233,7 @@ class HilModule:
         n = target - self._steps
         expiry = self._last_feed + self.watchdog
         try:
-            if self._live() and expiry <= now:
+            if self._live() and math.isfinite(expiry) and expiry <= now:
                 k = min(max(math.ceil(expiry / self.dt - 1e-9) - self._steps, 0), n)
                 self._step(k)
                 self._trip()
@@ -237,12 +271,29 @@ class HilModule:
         return self.enabled or any(self._hr[a] for a in self._dac_addr)
 
     def _trip(self) -> None:
+        """Outputs zero, drives disabled, the trip latched; nobody owns the outputs."""
         for a in self._dac_addr:
             self._hr[a] = 0
         self._u[:] = 0.0
         self._set_enable(False)
+        self.owner = _NOBODY
         self.tripped = True
         self._trips += 1
+
+    def release(self, client: object | None) -> None:
+        """``client``'s connection is gone: if it owned the outputs, nobody does now. The
+        outputs stay as they were, guarded by the watchdog: a controller whose connection
+        was re-opened (a driver's reconnect) feeds again in time and carries on; one that
+        is gone for good trips it within the timeout."""
+        if self.owner is not _NOBODY and self.owner == client:
+            self.owner = _NOBODY
+
+    def _claim(self, what: str) -> None:
+        """Refuse an output write of a client other than the owner."""
+        if self.owner is not _NOBODY and self.owner != CLIENT.get():
+            self.refused += 1
+            raise Refused(ExcCodes.DEVICE_BUSY, f"{what}: the outputs are held by another "
+                          "client")
 
     def _set_enable(self, flag: bool) -> None:
         self.enabled = flag
@@ -294,12 +345,22 @@ class HilModule:
 
     def write_holding(self, address: int, word: int) -> int:
         """Write one holding register (a DAC reference or the watchdog); returns the value
-        the register holds afterwards (a DAC write is dropped while a trip is latched)."""
+        the register holds afterwards (a DAC write is dropped while a trip is latched).
+        Raises ``Refused``: another client owns the outputs, or a non-zero reference
+        before anybody fed the watchdog."""
         if address == self.map.module.watchdog:
+            self._claim("watchdog")
             if word != self._hr[address]:
                 self._last_feed = self.now
+                if self.owner is _NOBODY:
+                    self.owner = CLIENT.get()
             self._hr[address] = word
         elif address in self._hr:
+            self._claim("reference")
+            if self.owner is _NOBODY and word != 0 and not self.tripped:
+                self.refused += 1
+                raise Refused(ExcCodes.DEVICE_FAILURE, "reference before the watchdog was "
+                              "fed: the outputs stay off")
             k = self._dac_addr.index(address)
             if k == 0:  # one count per reference write (the DAC registers go together)
                 self._dac_writes += 1
@@ -309,11 +370,14 @@ class HilModule:
         return self._hr.get(address, 0)
 
     def write_coil(self, address: int, flag: bool) -> bool:
-        """Write the enable coil; False if refused (enable while a trip is latched).
-        Writing 0 acknowledges a trip."""
+        """Write the enable coil; False if refused (enable while a trip is latched, or
+        before anybody fed the watchdog). Writing 0 acknowledges a trip. Raises
+        ``Refused`` when another client owns the outputs."""
         if address != self.map.module.enable:
             return True
-        if flag and self.tripped:
+        self._claim("enable")
+        if flag and (self.tripped or self.owner is _NOBODY):
+            self.refused += 1
             return False
         if not flag:
             self.tripped = False
@@ -324,7 +388,7 @@ class HilModule:
         """What the module did so far."""
         return HilStats(self._requests, self._steps, self._max_catch_up, self._trips,
                         self._steps * self.dt, self.now, self.fault, self._dac_writes,
-                        self._late_writes)
+                        self._late_writes, self.refused)
 
     # ------------------------------------------------------------------ pymodbus glue
     def sim_device(self) -> SimDevice:
@@ -359,13 +423,20 @@ class HilModule:
         if function_code == 4:
             self._read_step = self._steps
         if values is not None:
-            if function_code in _READ_BITS:
-                for i, flag in enumerate(values):
-                    if not self.write_coil(address + i, bool(flag)):
-                        return ExcCodes.DEVICE_FAILURE
-            else:
-                for i, word in enumerate(values):
-                    values[i] = self.write_holding(address + i, int(word))
+            try:
+                if function_code in _READ_BITS:
+                    for i, flag in enumerate(values):
+                        if not self.write_coil(address + i, bool(flag)):
+                            return ExcCodes.DEVICE_FAILURE
+                else:
+                    # the watchdog first: a request that feeds and sets references is
+                    # taken whole (a controller's tick)
+                    order = sorted(range(len(values)), key=lambda i: address + i
+                                   != self.map.module.watchdog)
+                    for i in order:
+                        values[i] = self.write_holding(address + i, int(values[i]))
+            except Refused as exc:
+                return exc.code
             return None
         if function_code in _READ_BITS:
             for a, flag in getattr(self, _READ_BITS[function_code])().items():

@@ -2,29 +2,138 @@
 ``ModbusTcpServer`` (asyncio, one thread: no locks) until SIGINT/SIGTERM, advancing the
 physics between requests. It binds 127.0.0.1 unless told otherwise. ``hil_plant`` makes the
 plant it serves.
+
+Each connection's requests run with ``hil.CLIENT`` set to that connection, so the module
+knows who owns the outputs, and a connection that closes releases them. pymodbus' own log
+goes through ``RateLimitedLog``: at most one line per connection and kind of fault per
+``LOG_INTERVAL``, without tracebacks or frame dumps, queued to a thread that writes it, so
+a flood of bad frames, or a stderr pipe that nobody reads, never stalls the serving loop.
 """
 
 from __future__ import annotations
 
 import asyncio
 import gc
+import logging
+import logging.handlers
+import queue
 import signal
-from collections.abc import Callable
+import sys
+import time
+from collections.abc import Callable, Iterator
+from contextlib import contextmanager
 
 import numpy as np
 from pymodbus.server import ModbusTcpServer
+from pymodbus.server.requesthandler import ServerRequestHandler
 
 from twin.config import MachineConfig
-from twin.hardware.hil import OUTPUT_WINDOW, HilModule, HilStats
+from twin.hardware.hil import CLIENT, OUTPUT_WINDOW, HilModule, HilStats
 from twin.hardware.register_map import RegisterMap
 from twin.plant import Plant
 
-__all__ = ["hil_plant", "serve_hil"]
+__all__ = ["LOG_INTERVAL", "RateLimitedLog", "hil_plant", "serve_hil"]
+
+LOG_INTERVAL = 5.0
+"""At most one log line per connection and kind of fault in this many seconds."""
+
+
+class RateLimitedLog(logging.Filter):
+    """Lets one record per (connection, kind) through per ``interval`` seconds; the kind
+    is the record's message template. Strips tracebacks and cuts long messages (a frame
+    dump is kilobytes). Counts what it drops."""
+
+    def __init__(self, interval: float = LOG_INTERVAL, clock: Callable[[], float]
+                 = time.monotonic, width: int = 200):
+        super().__init__()
+        self.interval, self.clock, self.width = interval, clock, width
+        self.dropped = 0
+        self._last: dict[tuple[int, str], float] = {}
+
+    def filter(self, record: logging.LogRecord) -> bool:
+        key = (id(CLIENT.get()), str(record.msg)[:60])
+        now = self.clock()
+        if now - self._last.get(key, -float("inf")) < self.interval:
+            self.dropped += 1
+            return False
+        self._last[key] = now
+        message = record.getMessage()
+        record.msg = message if len(message) <= self.width else message[:self.width] + " …"
+        record.args = None
+        record.exc_info = record.exc_text = record.stack_info = None
+        return True
+
+
+class _DroppingQueueHandler(logging.handlers.QueueHandler):
+    """A queue handler that drops a record when its bounded queue is full, never waits."""
+
+    def enqueue(self, record: logging.LogRecord) -> None:
+        try:
+            self.queue.put_nowait(record)
+        except queue.Full:
+            pass
+
+
+@contextmanager
+def _quiet_log(level: int = logging.WARNING) -> Iterator[RateLimitedLog]:
+    """pymodbus' log, rate-limited and written by a thread of its own (see the module
+    docstring), for the life of the server."""
+    log = logging.getLogger("pymodbus")
+    limit = RateLimitedLog()
+    records: queue.Queue = queue.Queue(maxsize=1000)
+    handler = _DroppingQueueHandler(records)
+    handler.addFilter(limit)
+    stream = logging.StreamHandler(sys.stderr)
+    stream.setFormatter(logging.Formatter("hil-server: %(levelname)s %(message)s"))
+    listener = logging.handlers.QueueListener(records, stream)
+    saved = (log.level, log.handlers[:], log.propagate)
+    log.handlers[:] = [handler]
+    log.setLevel(level)
+    log.propagate = False
+    listener.start()
+    try:
+        yield limit
+    finally:
+        log.setLevel(saved[0])
+        log.handlers[:] = saved[1]
+        log.propagate = saved[2]
+        listener.stop()
+
+
+class _Connection(ServerRequestHandler):
+    """One client connection: its requests run with ``hil.CLIENT`` set to it, and closing
+    it releases the outputs it owned."""
+
+    module: HilModule
+
+    async def handle_request(self) -> None:
+        token = CLIENT.set(self)
+        try:
+            await super().handle_request()
+        finally:
+            CLIENT.reset(token)
+
+    def callback_disconnected(self, exc: Exception | None) -> None:
+        super().callback_disconnected(exc)
+        self.module.release(self)
+
+
+class _Server(ModbusTcpServer):
+    """pymodbus' TCP server with ``_Connection`` handlers (pymodbus 3.x:
+    ``callback_new_connection`` makes the handler of a new connection)."""
+
+    module: HilModule
+
+    def callback_new_connection(self) -> ServerRequestHandler:
+        handler = _Connection(self, self.trace_packet, self.trace_pdu, self.trace_connect)
+        handler.module = self.module
+        return handler
 
 
 async def _serve(module: HilModule, host: str, port: int,
                  on_ready: Callable[[str, int], None] | None) -> None:
-    server = ModbusTcpServer(module.sim_device(), address=(host, port))
+    server = _Server(module.sim_device(), address=(host, port))
+    server.module = module
     await server.serve_forever(background=True)
     bound = server.transport.sockets[0].getsockname()  # type: ignore[union-attr]
     stop = asyncio.Event()
@@ -88,5 +197,6 @@ def serve_hil(plant: Plant, register_map: RegisterMap, *, host: str = "127.0.0.1
     """
     module = HilModule(plant, register_map, watchdog=watchdog, sync_phase=sync_phase,
                        output_window=output_window)
-    asyncio.run(_serve(module, host, port, on_ready))
+    with _quiet_log():
+        asyncio.run(_serve(module, host, port, on_ready))
     return module.stats()
