@@ -318,3 +318,24 @@ def test_driver_options_out_of_range_name_the_option(option, value):
     with pytest.raises(ConfigError) as info:
         ModbusDriver("127.0.0.1", 1, **{option: value})
     assert info.value.field == option
+
+
+def test_after_a_reconnect_the_enable_coil_is_written_again():
+    # a module that lost the connection may have dropped its outputs (its watchdog, or a
+    # safety module's rule); the driver must not assume its cached enable still holds
+    module = FakeModule((4, 2, "close"))
+    try:
+        drv = ModbusDriver("127.0.0.1", module.port, reconnects=1, timeout=0.2)
+        on = Outputs()
+        on.enable = True
+        drv.write(on)
+        coil_writes = sum(1 for fc, *_ in module.log if fc == 5)
+        drv.write(on)                               # unchanged: not written again
+        assert sum(1 for fc, *_ in module.log if fc == 5) == coil_writes
+        for _ in range(3):
+            drv.read()                              # one of these reconnects
+        drv.write(on)
+        assert sum(1 for fc, *_ in module.log if fc == 5) == coil_writes + 1
+        drv.close()
+    finally:
+        module.close()

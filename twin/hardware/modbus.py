@@ -261,6 +261,7 @@ class ModbusDriver:
                 resp = call(*args, device_id=self._unit, **kwargs)
             except (ConnectionException, OSError) as exc:  # OSError: reset by the peer
                 self._client.close()
+                self._enable = None   # a new connection: the enable coil is written again
                 if attempt < self.reconnects:
                     continue
                 self._fail(f"connection lost during {what}: {exc}")
