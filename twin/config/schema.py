@@ -451,6 +451,12 @@ class ControllerSettings(_Validated):
         "axis' following error is within this (seed 000: 1 µm positioning accuracy)")
     settle_timeout: float = _num(2.0, "s", gt=0, le=60.0,
                                  doc="longest wait for the in-position tolerance")
+    min_feed: float = _num(1e-6, "m/s", gt=0, le=1.0, doc="slowest programmed feed "
+                           "accepted (0.06 mm/min): a slower F is refused at its line")
+    max_program_time: float = _num(
+        86400.0, "s", gt=0, le=3.2e7, doc="longest a program may take, judged by a lower "
+        "bound (every move at its full feed, plus the dwells): beyond it the program is "
+        "refused at the line that passes it")
     regulator: RegulatorSettings = field(default_factory=RegulatorSettings)
     timing: TimingConfig = field(default_factory=TimingConfig)
 

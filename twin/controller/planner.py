@@ -58,7 +58,7 @@ from typing import Any, NamedTuple
 
 from twin.config import AxisConfig, ControllerSettings
 from twin.controller.corner import CornerModel, SeedCornerModel
-from twin.controller.gcode.items import Move, ProgramEnd
+from twin.controller.gcode.items import Dwell, Move, ProgramEnd
 from twin.controller.geometry import Arc, Line, Segment
 from twin.controller.profiles import Limits, Profile, plan_move
 from twin.controller.profiles.laws import check_law
@@ -66,7 +66,7 @@ from twin.controller.reach import monotone_end_speed as reach_speed
 from twin.controller.reach import reach_floor
 from twin.controller.segment_limits import SegmentLimits
 from twin.controller.workzone import WorkZone
-from twin.errors import ConfigError, TwinError
+from twin.errors import ConfigError, PlanningError, TwinError
 
 __all__ = [
     "MODES",
@@ -196,12 +196,21 @@ class Planner:
         Node speed limit from the corner angle; default ``SeedCornerModel()``.
     work_zone : WorkZone, optional
         Soft limits; None: unchecked.
+    min_feed : float
+        Slowest programmed feed accepted (m/s): a slower one (a typing slip, a number that
+        underflowed to a denormal) is a ``PlanningError`` at its line.
+    max_program_time : float
+        Longest a program may take (s), judged by a lower bound of its time (every block at
+        its full feed, plus the dwells): the block or dwell that passes it is a
+        ``PlanningError`` at its line, before the run would otherwise stop at its time
+        limit with nothing said.
     """
 
     def __init__(self, limits: Limits, axis_limits: Sequence[Limits], *,
                  rapid_velocity: float, tolerance: float, law: str = "parabolic",
                  lookahead: int = 64, mode: str = "lookahead",
-                 corner_model: CornerModel | None = None, work_zone: WorkZone | None = None):
+                 corner_model: CornerModel | None = None, work_zone: WorkZone | None = None,
+                 min_feed: float = 1e-6, max_program_time: float = 86400.0):
         check_law(law)
         if mode not in MODES:
             raise ConfigError("mode", f"must be one of {MODES}, got {mode!r}")
@@ -209,7 +218,8 @@ class Planner:
             raise ConfigError("lookahead", f"must be an integer >= 1, got {lookahead!r}")
         if len(axis_limits) != 2:
             raise ConfigError("axis_limits", f"need 2 (x, y), got {len(axis_limits)}")
-        for name, value in (("rapid_velocity", rapid_velocity), ("tolerance", tolerance)):
+        for name, value in (("rapid_velocity", rapid_velocity), ("tolerance", tolerance),
+                            ("min_feed", min_feed), ("max_program_time", max_program_time)):
             if not (math.isfinite(value) and value > 0.0):
                 raise ConfigError(name, f"must be finite and > 0, got {value!r}")
         self.limits = limits
@@ -224,6 +234,9 @@ class Planner:
         self._caps = SegmentLimits(limits, axis_limits)
         self._limits_cache: dict[tuple[float, float, float], Limits] = {}
         self._count = 0
+        self.min_feed = float(min_feed)
+        self.max_program_time = float(max_program_time)
+        self._time_bound = 0.0
 
     @classmethod
     def from_settings(cls, settings: ControllerSettings, axes: Mapping[str, AxisConfig],
@@ -239,6 +252,8 @@ class Planner:
         options.setdefault("mode", settings.planner)
         options.setdefault("lookahead", settings.lookahead)
         options.setdefault("tolerance", settings.contour_tolerance)
+        options.setdefault("min_feed", settings.min_feed)
+        options.setdefault("max_program_time", settings.max_program_time)
         if "work_zone" not in options:
             options["work_zone"] = WorkZone.from_axes(axes) if settings.soft_limits else None
         return cls(Limits.from_config(settings.limits),
@@ -268,6 +283,7 @@ class Planner:
         source = iter(items)
         error: TwinError | None = None
         self._count = 0
+        self._time_bound = 0.0
         while True:
             try:
                 item = next(source)
@@ -281,6 +297,8 @@ class Planner:
                     block = self._block(item.segment, item.feed, item.line)
                 else:
                     block = None
+                    if kind is Dwell:
+                        self._spend(item.duration, item.line, "its dwell")
             except StopIteration:
                 break
             except TwinError as exc:
@@ -309,16 +327,38 @@ class Planner:
         PlanningError
             Naming the G-code line of the first move that leaves the zone.
         """
-        if self.work_zone is None:
-            return
+        self._time_bound = 0.0
         for item in segments_from_program(items):
             if type(item) is MotionBlock:
-                self.work_zone.check(item.segment, item.line)
+                if self.work_zone is not None:
+                    self.work_zone.check(item.segment, item.line)
+                self._account(item.segment.length, item.feed, item.line)
+            elif type(item) is Dwell:
+                self._spend(item.duration, item.line, "its dwell")
+        self._time_bound = 0.0
 
     # ------------------------------------------------------------------ internals
+    def _account(self, length: float, feed: float | None, line: int) -> None:
+        """The feed bound, and the block's time at full feed against the program's."""
+        if feed is not None and not feed >= self.min_feed:
+            raise PlanningError(f"line {line}: feed {feed * 60e3:.6g} mm/min is below the "
+                                f"machine's minimum {self.min_feed * 60e3:.6g} mm/min "
+                                "(controller.min_feed)")
+        v = self.rapid_velocity if feed is None else min(feed, self.limits.max_velocity)
+        self._spend(length / v, line, "its moves")
+
+    def _spend(self, seconds: float, line: int, what: str) -> None:
+        self._time_bound += seconds
+        if not self._time_bound <= self.max_program_time:
+            raise PlanningError(f"line {line}: the program takes at least "
+                                f"{self._time_bound:.6g} s with {what} so far, beyond the "
+                                f"machine's {self.max_program_time:g} s "
+                                "(controller.max_program_time)")
+
     def _block(self, seg: Segment, feed: float | None, line: int) -> _Block:
         if self.work_zone is not None:
             self.work_zone.check(seg, line)
+        self._account(seg.length, feed, line)
         b = _Block()
         b.segment, b.feed, b.line = seg, feed, line
         b.rapid = feed is None
