@@ -308,7 +308,7 @@ def run(spec: RunSpec, *, out_dir: str | Path = "runs", rerun: str = "file",
         p.driver.close()        # whatever fails once the driver is open closes it
         raise
     loop = _Loop(p, sink, spec.max_time, pending, progress, spec.rt_priority, keep_fine)
-    aborted = None
+    aborted = fault = None
     t_wall = time.perf_counter()
     late: list[int] = []
     try:
@@ -317,14 +317,14 @@ def run(spec: RunSpec, *, out_dir: str | Path = "runs", rerun: str = "file",
     except KeyboardInterrupt as exc:
         aborted = f"interrupted ({_signal_name(exc)})"
     except DriverError as exc:
-        aborted = f"driver fault: {exc}"
+        fault = f"driver fault: {exc}"
     except Exception as exc:
         aborted = f"{type(exc).__name__}: {exc}"
         raise
     finally:
         wall = time.perf_counter() - t_wall
         with _deferred_interrupt(late):  # a second signal must not lose the record
-            result = loop.finish(spec, run_id, out, recording, wall, aborted)
+            result = loop.finish(spec, run_id, out, recording, wall, aborted, fault)
     if late:
         raise RunInterrupted(result, late[0])
     return result
@@ -445,7 +445,7 @@ class _Loop:
             self.stats = self.stats or loop.last_stats()
 
     def finish(self, spec: RunSpec, run_id: str, out: Path, recording: str | None,
-               wall: float, aborted: str | None) -> RunResult:
+               wall: float, aborted: str | None, fault: str | None = None) -> RunResult:
         """Stop the machine, flush the telemetry, write the summary (atomically)."""
         p, ctrl = self.p, self.p.controller
         if self.truth is not None:
@@ -468,7 +468,8 @@ class _Loop:
         stats = self.stats or (schedule.stats() if schedule is not None
                                else TickStats.lockstep(self.period, self.ticks))
         summary: dict[str, Any] = {"run_id": run_id,
-                                   **final_status(ctrl.status, aborted, self.max_time),
+                                   **final_status(ctrl.status, aborted, self.max_time,
+                                                  fault),
                                    "machine": p.cfg.name,
                                    "controller_model": (p.belief or p.cfg).name,
                                    "driver": spec.driver,
@@ -492,6 +493,8 @@ class _Loop:
             summary["controller_model_config"] = dataclasses.asdict(p.belief)
         if ctrl.error is not None:
             summary["error"] = str(ctrl.error)
+        if fault is not None:
+            summary["error"] = fault
         if p.notes:
             summary["input_warnings"] = list(p.notes)
         write_json_atomic(out / f"{run_id}.json", summary)
@@ -549,16 +552,20 @@ def _signal_name(exc: BaseException) -> str:
     return "Ctrl-C" if not isinstance(exc, Terminated) else signal.Signals(exc.signum).name
 
 
-def final_status(status: ControllerStatus, aborted: str | None, max_time: float
-                 ) -> dict[str, Any]:
+def final_status(status: ControllerStatus, aborted: str | None, max_time: float,
+                 driver_fault: str | None = None) -> dict[str, Any]:
     """How a run ended, for its record: ``status`` is FINISHED, ABORTED (``aborted`` says
-    why: a signal, a driver fault, an error), FAULT (``fault`` names the controller's
-    latched fault) or TIMEOUT (``timeout`` says which limit); never a state in progress.
-    ``controller_status`` keeps the controller's own last state."""
+    why: a signal, an error), FAULT (``fault`` names the controller's latched fault, or
+    ``DRIVER`` for the machine's I/O, whose message goes into ``error``) or TIMEOUT
+    (``timeout`` says which limit); never a state in progress. ``controller_status`` keeps
+    the controller's own last state."""
     out: dict[str, Any] = {"status": "FINISHED", "aborted": aborted,
                            "controller_status": status.name}
     if aborted is not None:
         out["status"] = "ABORTED"
+    elif driver_fault is not None:
+        out["status"] = "FAULT"
+        out["fault"] = "DRIVER"
     elif status >= ControllerStatus.LIMIT_TRIP:
         out["status"] = "FAULT"
         out["fault"] = status.name

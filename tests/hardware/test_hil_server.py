@@ -173,8 +173,9 @@ def test_killing_the_server_mid_run_stops_within_a_period_and_keeps_the_record(t
     s = json.loads((tmp_path / "killed.json").read_text())
     # A dying process answers nothing; the driver notices the closed connection, or the
     # silence if its answer timeout comes first (the teardown of the server takes ms).
+    assert s["status"] == "FAULT" and s["fault"] == "DRIVER" and s["aborted"] is None
     assert re.match(rf"driver fault: {url}: (connection lost during|no valid response to) ",
-                    s["aborted"]), s["aborted"]
+                    s["error"]), s["error"]
     period, timeout = p.cfg.controller.period, p.driver.driver.timeout
     failed = [c for c in timed.calls if not c[2]]
     assert len(failed) == 1 and timed.calls[-1] is failed[0]

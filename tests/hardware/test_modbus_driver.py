@@ -31,7 +31,8 @@ class FakeModule:
     ``ir``, ``hr`` (16-bit words) and ``di``, ``coils`` (bools) are dicts by address;
     ``log`` lists every request as (function code, address, count or values). ``fault``
     ``(function_code, after, kind)`` makes the ``after``-th and later requests of that
-    function code go wrong: "garbage", "short", "exception", "wrong_fc", "close", "silent",
+    function code go wrong: "garbage", "short", "exception", "flipped_fc", "wrong_fc", "close",
+    "silent",
     "bad_echo" (for writes); once a connection was closed by a fault, the next one behaves.
     """
 
@@ -130,6 +131,8 @@ class FakeModule:
             return pdu[:1] + bytes([4]) + pdu[2:6] if fc == 4 else pdu[:1] + b"\x00"
         if kind == "exception":
             return struct.pack(">BB", fc | 0x80, 2)
+        if kind == "flipped_fc":   # one bit of the function code flipped in transit
+            return bytes([fc | 0x80]) + pdu[1:2]
         if kind == "wrong_fc":
             return bytes([3]) + pdu[1:]
         if kind == "bad_echo":
@@ -191,6 +194,8 @@ def test_one_tick_is_three_requests_and_the_image_decodes(module):
     ((4, 1, "exception"), "refused read_input_registers(0, count=6): Modbus exception 2 "
                           "(ILLEGAL_ADDRESS)"),
     ((4, 1, "wrong_fc"), "function code 3, expected 4"),
+    ((4, 1, "flipped_fc"), "garbled response to read_input_registers(0, count=6): an "
+                           "exception answer with the undefined code 12"),
     ((4, 1, "close"), "connection lost during read_input_registers(0, count=6)"),
     ((4, 1, "silent"), "no valid response to read_input_registers(0, count=6) within 250 ms"),
     ((16, 2, "bad_echo"), "garbled response to write_registers(0, 3 values): echoed "
@@ -297,8 +302,9 @@ def test_a_garbled_answer_mid_run_stops_safely_with_the_record_intact(tmp_path):
         module.close()
     s = json.loads((tmp_path / "garbled.json").read_text())
     assert s == json.loads(json_text(result.summary))
-    assert s["aborted"].startswith("driver fault: modbus://127.0.0.1:")
-    assert "garbled response to read_input_registers(0, count=6)" in s["aborted"]
+    assert s["status"] == "FAULT" and s["fault"] == "DRIVER" and s["aborted"] is None
+    assert s["error"].startswith("driver fault: modbus://127.0.0.1:")
+    assert "garbled response to read_input_registers(0, count=6)" in s["error"]
     # 1 read by prepare, then 38 good ticks; the 39th tick's read failed (a due tick that
     # ran and has no record row; slots skipped under load are due too).
     ticks = s["ticks"]
@@ -337,5 +343,24 @@ def test_after_a_reconnect_the_enable_coil_is_written_again():
         drv.write(on)
         assert sum(1 for fc, *_ in module.log if fc == 5) == coil_writes + 1
         drv.close()
+    finally:
+        module.close()
+
+
+def test_a_counter_step_the_axis_cannot_make_is_a_fault_naming_the_axis():
+    module = FakeModule()
+    module.ir.update({0: 0xFFFF, 1: 0xFFF0, 2: 0, 3: 100})   # x just below its wrap
+    try:
+        drv = ModbusDriver("127.0.0.1", module.port, timeout=0.25, counts_per_s=[2e4, 2e4])
+        drv.read()
+        module.ir.update({0: 0, 1: 5})                      # x wrapped: +21 counts
+        module.ir[3] = 110                                   # y: +10 counts
+        assert drv.read().encoder_counts.tolist() == [5, 110]
+        module.ir[2] ^= 0x0001                               # a bit flipped in y's high word
+        with pytest.raises(DriverError, match=r"axis y: implausible counter step of 65536 "
+                                               r"counts in [0-9.]+ ms"):
+            drv.read()
+        drv.close()                                          # the safe state still goes out
+        assert module.log[-2:] == [(5, 0, False), (16, 0, [0, 0, module.log[-1][2][2]])]
     finally:
         module.close()

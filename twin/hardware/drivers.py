@@ -88,6 +88,11 @@ def parse_driver_url(url: str) -> DriverUrl:
     return DriverUrl(parts.scheme, parts.hostname, port, options)
 
 
+PLAUSIBLE_MARGIN = 2.0
+"""A counter may step by up to this many times its axis' top speed over the time between two
+reads (plus a count or two) before the step is taken for a corrupted answer."""
+
+
 def open_driver(url: str, cfg: MachineConfig) -> MachineIO:
     """Open the machine I/O that ``url`` names, for machine ``cfg``.
 
@@ -109,4 +114,8 @@ def open_driver(url: str, cfg: MachineConfig) -> MachineIO:
     path = opts.pop("map", None)
     rmap = load_register_map(str(path) if path else None)
     opts.setdefault("timeout", max(4.0 * cfg.controller.period, 0.01))
-    return ModbusDriver(spec.host, spec.port, register_map=rmap, **opts)
+    # how fast a counter may plausibly move: each axis' top speed, with a margin
+    plausible = [PLAUSIBLE_MARGIN * cfg.axes[a].limits.max_velocity
+                 * cfg.axes[a].counts_per_metre for a in AXES]
+    return ModbusDriver(spec.host, spec.port, register_map=rmap, counts_per_s=plausible,
+                        counter_bits=[cfg.axes[a].encoder.bits for a in AXES], **opts)

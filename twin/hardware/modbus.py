@@ -34,7 +34,7 @@ import contextlib
 import logging
 import math
 import time
-from collections.abc import Callable, Iterator
+from collections.abc import Callable, Iterator, Sequence
 from typing import Any, NoReturn
 
 import numpy as np
@@ -92,6 +92,12 @@ class ModbusDriver:
         once; a position loop that lost its module should stop, not wait).
     connect_timeout : float
         How long opening keeps trying to connect (s): the module may still be starting.
+    counts_per_s : sequence of 2 float, optional
+        The fastest each counter may plausibly move (counts/s; ``open_driver`` gives twice
+        the axis' top speed). A larger step between two reads is a ``DriverError`` naming
+        the axis (Modbus/TCP carries no checksum). None: unchecked.
+    counter_bits : sequence of 2 int
+        Width of each counter (bits), for its wrap-around.
 
     Attributes
     ----------
@@ -118,7 +124,8 @@ class ModbusDriver:
 
     def __init__(self, host: str, port: int = 502, *, register_map: RegisterMap | None = None,
                  timeout: float = 0.02, retries: int = 0, reconnects: int = 0,
-                 connect_timeout: float = 2.0):
+                 connect_timeout: float = 2.0, counts_per_s: Sequence[float] | None = None,
+                 counter_bits: Sequence[int] = (32, 32)):
         for name, value in (("timeout", timeout), ("connect_timeout", connect_timeout)):
             if not (math.isfinite(value) and value > 0):
                 raise ConfigError(name, f"must be > 0 s, got {value}")
@@ -138,6 +145,11 @@ class ModbusDriver:
         self._closed = False
         self._enable: bool | None = None
         self._life = 0
+        # plausibility of the counters: the fastest each may move (counts/s), its width
+        self._rate = None if counts_per_s is None else [float(v) for v in counts_per_s]
+        self._bits = [int(b) for b in counter_bits]
+        self._last_counts: list[int] | None = None
+        self._last_read = 0.0
         self._plan()
         self._connect(connect_timeout)
         self._t0 = time.perf_counter()
@@ -184,9 +196,31 @@ class ModbusDriver:
             flags[0, k], flags[1, k] = di[ax.limit_min], di[ax.limit_max]
             flags[2, k] = ax.home is not None and di[ax.home]
             ready = ready and (ax.drive_ready is None or di[ax.drive_ready])
+        now = time.perf_counter()
+        if self._rate is not None:
+            self._check_plausible(counts.tolist(), now)
         return Inputs(encoder_counts=counts, tacho_volts=tacho, limit_min=flags[0],
                       limit_max=flags[1], home=flags[2], drive_ready=bool(ready),
-                      time=time.perf_counter() - self._t0)
+                      time=now - self._t0)
+
+    def _check_plausible(self, counts: list[int], now: float) -> None:
+        """Modbus/TCP has no checksum: a flipped byte in a counter answer would be a jump of
+        the table. A step larger than the axis can travel since the last read (at
+        ``counts_per_s``, over that time plus a millisecond, plus two counts) is taken for a
+        corrupted answer: a fault naming the axis."""
+        last, self._last_counts = self._last_counts, counts
+        dt, self._last_read = now - self._last_read, now
+        if last is None or self._rate is None:
+            return
+        for k, a in enumerate(AXES):
+            full = 1 << self._bits[k]
+            half = full >> 1
+            step = (counts[k] - last[k] + half) % full - half
+            allowed = self._rate[k] * (dt + 1e-3) + 2.0
+            if abs(step) > allowed:
+                self._fail(f"axis {a}: implausible counter step of {step} counts in "
+                           f"{dt * 1e3:.1f} ms, more than the axis can travel ({allowed:.0f} "
+                           "counts at twice its top speed): a corrupted answer?")
 
     def write(self, outputs: Outputs) -> None:
         """Write the references and the watchdog life counter; the enable coil on change."""
@@ -279,8 +313,9 @@ class ModbusDriver:
             code = getattr(resp, "exception_code", 0)
             try:
                 name = ExcCodes(code).name
-            except ValueError:
-                name = "unknown code"
+            except ValueError:   # no module sends that: the answer itself was corrupted
+                self._fail(f"garbled response to {what}: an exception answer with the "
+                           f"undefined code {code}")
             self._fail(f"the module refused {what}: Modbus exception {code} ({name})")
         if resp.function_code != function_code:
             self._fail(f"garbled response to {what}: function code {resp.function_code}, "
