@@ -78,7 +78,10 @@ def _run(program: Path | None, machine: str, profile: str | None, planner: str |
             def progress(t: float, _limit: float) -> None:
                 bar.update(task, description=f"{t:.1f} s")
 
-            result = run(spec, out_dir=out, rerun=rerun, progress=progress)
+            def warn(message: str) -> None:
+                bar.console.print(f"[yellow]warning:[/] {message}", highlight=False)
+
+            result = run(spec, out_dir=out, rerun=rerun, progress=progress, warn=warn)
     except RunInterrupted as exc:   # the record was complete: report it, then stop
         _report(exc.result.summary, out, as_json)
         raise typer.Exit(128 + exc.signum) from None

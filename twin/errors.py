@@ -4,6 +4,7 @@ from __future__ import annotations
 
 __all__ = [
     "ConfigError",
+    "DeadlineFault",
     "DriverError",
     "ExperimentAborted",
     "FitError",
@@ -73,6 +74,11 @@ class SimulationError(TwinError, RuntimeError):
 
 class DriverError(TwinError, RuntimeError):
     """A hardware driver failed: timeout, lost connection, malformed response."""
+
+
+class DeadlineFault(TwinError, RuntimeError):
+    """A paced loop missed its deadlines beyond the machine's policy
+    (``controller.deadlines``)."""
 
 
 class ExperimentAborted(TwinError, RuntimeError):

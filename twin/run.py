@@ -32,8 +32,8 @@ from twin.controller.linear import LinearAxisModel
 from twin.controller.metrics import OscillationMeter
 from twin.controller.record import Record
 from twin.drive.linear import axis_transfer_function
-from twin.errors import ConfigError, DriverError
-from twin.hardware.realtime import RealTimeLoop, TickStats, fifo_priority
+from twin.errors import ConfigError, DeadlineFault, DriverError
+from twin.hardware.realtime import DeadlinePolicy, RealTimeLoop, TickStats, fifo_priority
 from twin.hardware.sim import SimDriver
 from twin.jsonio import output_dir
 from twin.model import mode_periods
@@ -260,7 +260,7 @@ def run(spec: RunSpec, *, out_dir: str | Path = "runs", rerun: str = "file",
         progress: Callable[[float, float], None] | None = None,
         prepared: Prepared | None = None,
         commands: Sequence[Callable[[Controller], None]] = (),
-        keep_fine: bool = False) -> RunResult:
+        keep_fine: bool = False, warn: Callable[[str], None] | None = None) -> RunResult:
     """Run ``spec`` and write ``<run_id>.rrd`` and ``<run_id>.json`` into ``out_dir``.
 
     On the twin (``driver="sim"``) the loop runs in lock-step, as fast as the machine allows;
@@ -291,6 +291,10 @@ def run(spec: RunSpec, *, out_dir: str | Path = "runs", rerun: str = "file",
     commands : sequence of callables(controller)
         Manual-mode commands (``controller.home``, ``controller.jog`` ...) started one after
         the other, each when the previous motion has FINISHED; a trip ends the run.
+    warn : callable(str), optional
+        Live warnings (behind real I/O: deadlines slipping toward the machine's policy,
+        ``controller.deadlines``, which stops the run with a FAULT when broken). They go
+        into the summary's ``warnings`` and the recording's events as well.
     keep_fine : bool
         Keep the twin's drive-rate samples in ``RunResult.fine`` (they always go to the
         telemetry and into the summary's elastic oscillation; kept, they cost 88 bytes per
@@ -307,7 +311,8 @@ def run(spec: RunSpec, *, out_dir: str | Path = "runs", rerun: str = "file",
     except BaseException:
         p.driver.close()        # whatever fails once the driver is open closes it
         raise
-    loop = _Loop(p, sink, spec.max_time, pending, progress, spec.rt_priority, keep_fine)
+    loop = _Loop(p, sink, spec.max_time, pending, progress, spec.rt_priority, keep_fine,
+                 warn)
     aborted = fault = None
     t_wall = time.perf_counter()
     late: list[int] = []
@@ -317,7 +322,9 @@ def run(spec: RunSpec, *, out_dir: str | Path = "runs", rerun: str = "file",
     except KeyboardInterrupt as exc:
         aborted = f"interrupted ({_signal_name(exc)})"
     except DriverError as exc:
-        fault = f"driver fault: {exc}"
+        fault = ("DRIVER", f"driver fault: {exc}")
+    except DeadlineFault as exc:
+        fault = ("DEADLINE", str(exc))
     except Exception as exc:
         aborted = f"{type(exc).__name__}: {exc}"
         raise
@@ -336,10 +343,12 @@ class _Loop:
     def __init__(self, p: Prepared, sink: Sink, max_time: float,
                  pending: list[Callable[[Controller], None]],
                  progress: Callable[[float, float], None] | None, rt_priority: int = 0,
-                 keep_fine: bool = False):
+                 keep_fine: bool = False, warn: Callable[[str], None] | None = None):
         self.p, self.sink, self.pending, self.progress = p, sink, pending, progress
         self.rt_priority = rt_priority
         self.rt_granted = False
+        self.warn = warn
+        self.deadline_warnings: list[str] = []
         self.period = p.cfg.controller.period
         self.max_time = max_time
         self.limit = round(max_time / self.period)
@@ -426,6 +435,15 @@ class _Loop:
         loop = RealTimeLoop(self.period)
         cost = [2e-3]  # the last batch's wall time (s): a first guess
 
+        def warning(message: str) -> None:
+            self.deadline_warnings.append(message)
+            self.sink.event(self.ticks * self.period, message, level="WARN")
+            if self.warn is not None:
+                self.warn(message)
+
+        policy = DeadlinePolicy.from_config(self.p.cfg.controller.deadlines, self.period,
+                                            on_warning=warning)
+
         def step(_k: int, t: float) -> bool:
             if ctrl.done and not self._next_command():
                 return False
@@ -440,12 +458,13 @@ class _Loop:
         try:
             with fifo_priority(self.rt_priority) as granted:
                 self.rt_granted = granted
-                self.stats = loop.run(step, max_ticks=self.limit)
+                self.stats = loop.run(step, max_ticks=self.limit, policy=policy)
         finally:
             self.stats = self.stats or loop.last_stats()
 
     def finish(self, spec: RunSpec, run_id: str, out: Path, recording: str | None,
-               wall: float, aborted: str | None, fault: str | None = None) -> RunResult:
+               wall: float, aborted: str | None,
+               fault: tuple[str, str] | None = None) -> RunResult:
         """Stop the machine, flush the telemetry, write the summary (atomically)."""
         p, ctrl = self.p, self.p.controller
         if self.truth is not None:
@@ -494,7 +513,9 @@ class _Loop:
         if ctrl.error is not None:
             summary["error"] = str(ctrl.error)
         if fault is not None:
-            summary["error"] = fault
+            summary["error"] = fault[1]
+        if self.deadline_warnings:
+            summary["warnings"] = list(self.deadline_warnings)
         if p.notes:
             summary["input_warnings"] = list(p.notes)
         write_json_atomic(out / f"{run_id}.json", summary)
@@ -553,19 +574,20 @@ def _signal_name(exc: BaseException) -> str:
 
 
 def final_status(status: ControllerStatus, aborted: str | None, max_time: float,
-                 driver_fault: str | None = None) -> dict[str, Any]:
+                 io_fault: tuple[str, str] | None = None) -> dict[str, Any]:
     """How a run ended, for its record: ``status`` is FINISHED, ABORTED (``aborted`` says
     why: a signal, an error), FAULT (``fault`` names the controller's latched fault, or
-    ``DRIVER`` for the machine's I/O, whose message goes into ``error``) or TIMEOUT
-    (``timeout`` says which limit); never a state in progress. ``controller_status`` keeps
-    the controller's own last state."""
+    ``io_fault``'s kind: ``DRIVER`` for the machine's I/O, ``DEADLINE`` for the deadline
+    policy; its message goes into ``error``) or TIMEOUT (``timeout`` says which limit);
+    never a state in progress. ``controller_status`` keeps the controller's own last
+    state."""
     out: dict[str, Any] = {"status": "FINISHED", "aborted": aborted,
                            "controller_status": status.name}
     if aborted is not None:
         out["status"] = "ABORTED"
-    elif driver_fault is not None:
+    elif io_fault is not None:
         out["status"] = "FAULT"
-        out["fault"] = "DRIVER"
+        out["fault"] = io_fault[0]
     elif status >= ControllerStatus.LIMIT_TRIP:
         out["status"] = "FAULT"
         out["fault"] = status.name

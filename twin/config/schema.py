@@ -21,6 +21,7 @@ __all__ = [
     "ControllerSettings",
     "ConverterConfig",
     "DacConfig",
+    "DeadlineConfig",
     "EncoderConfig",
     "LimitsConfig",
     "MachineConfig",
@@ -432,6 +433,30 @@ class TimingConfig(_Validated):
 
 
 @dataclass(frozen=True, kw_only=True)
+class DeadlineConfig(_Validated):
+    """What a paced run (real I/O) does about missed deadlines.
+
+    A position loop that misses its periods is not controlling the machine: the run stops
+    with a FAULT naming this policy when more than ``max_skipped_in_a_row`` consecutive
+    periods are lost, or when, over the last ``window`` seconds, fewer than
+    ``min_on_time`` of the periods started on time. A live warning comes first, once the
+    on-time share falls below ``warn_on_time``.
+    """
+
+    max_skipped_in_a_row: int = _num(4, "periods", ge=0, le=1000,
+                                     doc="more lost periods in a row stop the run")
+    window: float = _num(1.0, "s", gt=0, le=600.0, doc="span of the on-time share")
+    min_on_time: float = _num(0.9, "1", ge=0, le=1, doc="a lower on-time share stops the run")
+    warn_on_time: float = _num(0.97, "1", ge=0, le=1,
+                               doc="a lower on-time share is warned about")
+
+    def _check(self) -> None:
+        if self.warn_on_time < self.min_on_time:
+            raise ConfigError("warn_on_time", f"must be >= min_on_time ({self.min_on_time}), "
+                              f"got {self.warn_on_time}")
+
+
+@dataclass(frozen=True, kw_only=True)
 class ControllerSettings(_Validated):
     """The CNC: period, contour limits, planner and regulator settings."""
 
@@ -459,6 +484,7 @@ class ControllerSettings(_Validated):
         "refused at the line that passes it")
     regulator: RegulatorSettings = field(default_factory=RegulatorSettings)
     timing: TimingConfig = field(default_factory=TimingConfig)
+    deadlines: DeadlineConfig = field(default_factory=DeadlineConfig)
 
 
 @dataclass(frozen=True, kw_only=True)

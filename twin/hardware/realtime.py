@@ -15,12 +15,16 @@ import contextlib
 import math
 import os
 import time
+from collections import deque
 from collections.abc import Callable, Iterator
 from dataclasses import asdict, dataclass
 
 import numpy as np
 
-__all__ = ["RealTimeLoop", "TickStats", "fifo_priority", "set_fifo_priority"]
+from twin.errors import DeadlineFault
+
+__all__ = ["DeadlinePolicy", "RealTimeLoop", "TickStats", "fifo_priority",
+           "set_fifo_priority"]
 
 
 @dataclass(frozen=True)
@@ -89,6 +93,86 @@ class TickStats:
                    tolerance)
 
 
+class DeadlinePolicy:
+    """The machine's policy on missed deadlines (``controller.deadlines``), applied slot by
+    slot: a FAULT (``DeadlineFault``) when more than ``max_skipped_in_a_row`` periods are
+    lost in a row, or when the on-time share of the last ``window`` slots falls below
+    ``min_on_time``; a warning (``on_warning``, at most once per window) when it falls below
+    ``warn_on_time`` or when periods are lost. Lost slots count as late. Warnings start once
+    a tenth of a window has passed, the share's FAULT once a whole window has (the first
+    ticks of a run settle the caches), so a slipping loop is warned about before it stops.
+    """
+
+    def __init__(self, period: float, *, max_skipped_in_a_row: int = 4, window: float = 1.0,
+                 min_on_time: float = 0.9, warn_on_time: float = 0.97,
+                 on_warning: Callable[[str], None] | None = None):
+        self.period = period
+        self.max_skipped = max_skipped_in_a_row
+        self.slots = max(1, round(window / period))
+        self.min_on_time, self.warn_on_time = min_on_time, warn_on_time
+        self.on_warning = on_warning
+        self.warnings: list[str] = []
+        self._recent: deque[bool] = deque(maxlen=self.slots)
+        self._on_time = 0
+        self._seen = 0
+        self._warned_at = -self.slots
+
+    @classmethod
+    def from_config(cls, cfg, period: float, on_warning: Callable[[str], None] | None = None
+                    ) -> DeadlinePolicy:
+        """From a ``DeadlineConfig``."""
+        return cls(period, max_skipped_in_a_row=cfg.max_skipped_in_a_row, window=cfg.window,
+                   min_on_time=cfg.min_on_time, warn_on_time=cfg.warn_on_time,
+                   on_warning=on_warning)
+
+    def _push(self, on_time: bool) -> None:
+        if len(self._recent) == self.slots:
+            self._on_time -= self._recent[0]
+        self._recent.append(on_time)
+        self._on_time += on_time
+        self._seen += 1
+
+    def observe(self, on_time: bool, skipped: int) -> None:
+        """One tick ran (``on_time`` or late), then ``skipped`` slots were lost.
+
+        Raises
+        ------
+        DeadlineFault
+            Naming the rule that was broken and the figures."""
+        self._push(on_time)
+        for _ in range(min(skipped, self.slots)):
+            self._push(False)
+        if skipped > self.max_skipped:
+            raise DeadlineFault(
+                f"deadline policy: {skipped} periods of {self.period * 1e3:g} ms lost in a "
+                f"row, more than controller.deadlines.max_skipped_in_a_row = "
+                f"{self.max_skipped}")
+        if self._seen < max(self.slots // 10, 1):
+            return
+        share = self._on_time / len(self._recent)
+        if share < self.min_on_time and self._seen >= self.slots:
+            raise DeadlineFault(
+                f"deadline policy: {100 * share:.1f} % of the last {self.slots} periods "
+                f"started on time, below controller.deadlines.min_on_time = "
+                f"{100 * self.min_on_time:g} %")
+        if skipped:
+            self._warn(f"deadlines: {skipped} period{'s' if skipped > 1 else ''} lost in a "
+                       f"row (the run stops above {self.max_skipped})")
+        if share < self.warn_on_time:
+            self._warn(f"deadlines: {100 * share:.1f} % of the last {len(self._recent)} "
+                       f"periods on time (warning below {100 * self.warn_on_time:g} %, the "
+                       f"run stops below {100 * self.min_on_time:g} %)")
+
+    def _warn(self, message: str) -> None:
+        """At most one warning per window of slots."""
+        if self._seen - self._warned_at < self.slots:
+            return
+        self._warned_at = self._seen
+        self.warnings.append(message)
+        if self.on_warning is not None:
+            self.on_warning(message)
+
+
 class RealTimeLoop:
     """Run ``tick(k, t)`` every ``period`` seconds of wall time, with absolute deadlines.
 
@@ -126,11 +210,14 @@ class RealTimeLoop:
         self._stop = True
 
     def run(self, tick: Callable[[int, float], bool], *, max_ticks: int | None = None,
-            duration: float | None = None) -> TickStats:
+            duration: float | None = None, policy: DeadlinePolicy | None = None
+            ) -> TickStats:
         """Pace ``tick`` until it returns False, ``max_ticks`` ran, or ``duration`` passed.
 
         ``tick(k, t)`` gets the tick index and its deadline relative to ``start`` (s); a tick
         that returns False ends the loop and is not counted. Returns the deadline report.
+        With ``policy``, every tick and every lost slot is judged by it; its
+        ``DeadlineFault`` ends the loop (the report stays in ``last_stats``).
         """
         period, clock = self.period, self._clock
         # the slots whose deadlines fall within ``duration``: k·period < duration
@@ -164,6 +251,8 @@ class RealTimeLoop:
                 skipped += behind
                 self._skipped = skipped
                 k += behind
+            if policy is not None:
+                policy.observe(late <= self.tolerance, max(behind, 0))
         return self.last_stats()
 
     def last_stats(self) -> TickStats:

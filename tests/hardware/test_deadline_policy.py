@@ -1,0 +1,121 @@
+"""The deadline policy of paced runs (``controller.deadlines``): exact slot sequences for
+its rules, and a real run through a latency proxy between the driver and the HIL server."""
+
+from __future__ import annotations
+
+import json
+import os
+import socket
+import subprocess
+import sys
+import threading
+import time
+
+import pytest
+
+from twin.cli_hil import spawn_hil_server
+from twin.errors import DeadlineFault
+from twin.hardware.realtime import DeadlinePolicy, RealTimeLoop
+
+PERIOD = 5e-3
+
+
+def _policy(**kw):
+    seen: list[str] = []
+    return DeadlinePolicy(PERIOD, window=0.1, on_warning=seen.append, **kw), seen   # 20 slots
+
+
+def test_more_lost_periods_in_a_row_than_allowed_stop_the_run():
+    policy, seen = _policy(max_skipped_in_a_row=4)
+    for _ in range(5):
+        policy.observe(True, 0)
+    policy.observe(True, 2)                      # two lost: a warning, no fault
+    assert len(seen) == 1 and "2 periods lost in a row" in seen[0]
+    with pytest.raises(DeadlineFault, match=r"5 periods of 5 ms lost in a row, more than "
+                                            r"controller\.deadlines\.max_skipped_in_a_row = 4"):
+        policy.observe(True, 5)
+
+
+def test_a_falling_on_time_share_is_warned_about_then_stops_the_run():
+    policy, seen = _policy(min_on_time=0.9, warn_on_time=0.97)
+    for _ in range(20):
+        policy.observe(True, 0)
+    for _ in range(2):                           # down to 18 of 20 on time: warned at 95 %
+        policy.observe(False, 0)
+    assert len(seen) == 1 and "95.0 % of the last 20 periods" in seen[0]
+    with pytest.raises(DeadlineFault, match=r"85\.0 % of the last 20 periods started on "
+                                            r"time, below controller\.deadlines\.min_on_time"):
+        policy.observe(False, 0)
+
+
+def test_the_first_ticks_are_not_judged_by_the_share():
+    policy, seen = _policy()
+    policy.observe(False, 0)                     # a slow first tick: nothing yet
+    assert not seen
+
+
+def test_the_loop_applies_the_policy_slot_by_slot():
+    clock = [0.0]
+    policy, _ = _policy(max_skipped_in_a_row=4)
+
+    def tick(k, _t):
+        clock[0] += PERIOD * (7.5 if k == 3 else 0.2)   # the fourth, from 3 T to 10.5 T:
+        return True
+
+    loop = RealTimeLoop(PERIOD, spin=0.0, clock=lambda: clock[0],
+                        sleep=lambda dt: clock.__setitem__(0, clock[0] + dt))
+    with pytest.raises(DeadlineFault, match="6 periods"):   # slots 4 … 9 lost
+        loop.run(tick, max_ticks=100, policy=policy)
+    assert loop.last_stats().due == 4 + 6
+
+
+class _LatencyProxy:
+    """TCP on loopback that forwards both ways after ``delay`` seconds (one way)."""
+
+    def __init__(self, upstream_port: int, delay: float):
+        self.delay, self.upstream = delay, upstream_port
+        self.sock = socket.create_server(("127.0.0.1", 0))
+        self.port = self.sock.getsockname()[1]
+        threading.Thread(target=self._accept, daemon=True).start()
+
+    def _accept(self) -> None:
+        while True:
+            try:
+                client, _ = self.sock.accept()
+            except OSError:
+                return
+            server = socket.create_connection(("127.0.0.1", self.upstream))
+            for a, b in ((client, server), (server, client)):
+                threading.Thread(target=self._pump, args=(a, b), daemon=True).start()
+
+    def _pump(self, src: socket.socket, dst: socket.socket) -> None:
+        try:
+            while data := src.recv(65536):
+                time.sleep(self.delay)
+                dst.sendall(data)
+        except OSError:
+            pass
+        finally:
+            for s in (src, dst):
+                s.close()
+
+    def close(self) -> None:
+        self.sock.close()
+
+
+def test_five_ms_of_latency_ends_a_run_in_a_deadline_fault(tmp_path):
+    with spawn_hil_server("--rt-priority", "10") as server:
+        proxy = _LatencyProxy(server.info["port"], 5e-3)
+        try:
+            proc = subprocess.run(
+                [sys.executable, "-m", "twin.cli", "run", "--builtin", "spline_line",
+                 "--driver", f"modbus://127.0.0.1:{proxy.port}?timeout=0.1", "--rerun",
+                 "none", "--out", str(tmp_path), "--json"], capture_output=True, text=True,
+                timeout=300, env={**os.environ, "RERUN_ANALYTICS": "0"})
+        finally:
+            proxy.close()
+    assert proc.returncode == 1, proc.stderr
+    s = json.loads(proc.stdout)
+    assert s["status"] == "FAULT" and s["fault"] == "DEADLINE", s.get("error")
+    assert "controller.deadlines" in s["error"] and s["aborted"] is None
+    assert s["ticks"]["on_time_ratio"] < 0.5
