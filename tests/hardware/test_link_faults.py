@@ -1,18 +1,19 @@
-"""The deadline policy of paced runs (``controller.deadlines``): exact slot sequences for
-its rules, and a real run through a latency proxy between the driver and the HIL server."""
+"""Faults of the link to the machine's I/O: the deadline policy of paced runs
+(``controller.deadlines``: exact slot sequences for its rules, and a real run through a
+latency proxy between the driver and the HIL server), and a counter answer corrupted in
+transit (the driver's plausibility check)."""
 
 from __future__ import annotations
 
 import json
 import os
-import socket
+import re
 import subprocess
 import sys
-import threading
-import time
 
 import pytest
 
+from tests.hardware.link_proxy import LinkProxy
 from twin.cli_hil import spawn_hil_server
 from twin.errors import DeadlineFault
 from twin.hardware.realtime import DeadlinePolicy, RealTimeLoop
@@ -69,43 +70,9 @@ def test_the_loop_applies_the_policy_slot_by_slot():
     assert loop.last_stats().due == 4 + 6
 
 
-class _LatencyProxy:
-    """TCP on loopback that forwards both ways after ``delay`` seconds (one way)."""
-
-    def __init__(self, upstream_port: int, delay: float):
-        self.delay, self.upstream = delay, upstream_port
-        self.sock = socket.create_server(("127.0.0.1", 0))
-        self.port = self.sock.getsockname()[1]
-        threading.Thread(target=self._accept, daemon=True).start()
-
-    def _accept(self) -> None:
-        while True:
-            try:
-                client, _ = self.sock.accept()
-            except OSError:
-                return
-            server = socket.create_connection(("127.0.0.1", self.upstream))
-            for a, b in ((client, server), (server, client)):
-                threading.Thread(target=self._pump, args=(a, b), daemon=True).start()
-
-    def _pump(self, src: socket.socket, dst: socket.socket) -> None:
-        try:
-            while data := src.recv(65536):
-                time.sleep(self.delay)
-                dst.sendall(data)
-        except OSError:
-            pass
-        finally:
-            for s in (src, dst):
-                s.close()
-
-    def close(self) -> None:
-        self.sock.close()
-
-
 def test_five_ms_of_latency_ends_a_run_in_a_deadline_fault(tmp_path):
     with spawn_hil_server("--rt-priority", "10") as server:
-        proxy = _LatencyProxy(server.info["port"], 5e-3)
+        proxy = LinkProxy(server.info["port"], delay=5e-3)
         try:
             proc = subprocess.run(
                 [sys.executable, "-m", "twin.cli", "run", "--builtin", "spline_line",
@@ -119,3 +86,36 @@ def test_five_ms_of_latency_ends_a_run_in_a_deadline_fault(tmp_path):
     assert s["status"] == "FAULT" and s["fault"] == "DEADLINE", s.get("error")
     assert "controller.deadlines" in s["error"] and s["aborted"] is None
     assert s["ticks"]["on_time_ratio"] < 0.5
+
+
+def test_a_corrupted_counter_answer_ends_the_run_in_a_fault_naming_the_axis(tmp_path):
+    """One flipped bit in the high word of X's counter, in one answer of the module to a
+    counter read (function 4) well into the run: the driver's plausibility check stops the
+    run (Modbus/TCP has no checksum to catch it)."""
+    answers = [0]
+
+    def spoil(data: bytes) -> bytes:
+        # MBAP (7 bytes), then function 4, byte count, X counter high word, low word, ...
+        if len(data) >= 11 and data[7] == 4:
+            answers[0] += 1
+            if answers[0] == 300:
+                data = data[:9] + bytes([data[9] ^ 0x01]) + data[10:]
+        return data
+
+    with spawn_hil_server("--rt-priority", "10") as server:
+        proxy = LinkProxy(server.info["port"], spoil=spoil)
+        try:
+            proc = subprocess.run(
+                [sys.executable, "-m", "twin.cli", "run", "--builtin", "spline_line",
+                 "--driver", f"modbus://127.0.0.1:{proxy.port}?timeout=0.1", "--rerun",
+                 "none", "--out", str(tmp_path), "--json", "--rt-priority", "10"],
+                capture_output=True, text=True, timeout=300,
+                env={**os.environ, "RERUN_ANALYTICS": "0"})
+        finally:
+            proxy.close()
+    assert proc.returncode == 1, proc.stderr
+    s = json.loads(proc.stdout)
+    assert s["status"] == "FAULT" and s["fault"] == "DRIVER", s
+    found = re.search(r"axis x: implausible counter step of (-?\d+) counts", s["error"])
+    assert found and abs(int(found.group(1)) - (1 << 24)) < 1000   # the flip, plus motion
+    assert answers[0] >= 300
