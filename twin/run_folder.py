@@ -125,7 +125,7 @@ def inventory(folder: str | Path, *, now: float | None = None) -> Inventory:
                 and "rrd.partial" not in kinds:
             continue   # some other JSON file (a tuning result, a comparison)
         entry = RunEntry(run_id, summary, sorted(kinds.values()))
-        entry.live = any(k.endswith("partial") and now - p.stat().st_mtime < LIVE_S
+        entry.live = any(k.endswith("partial") and now - _mtime(p) < LIVE_S
                          for k, p in kinds.items())
         if summary is None:
             entry.problem = ("recording without its summary" if "rrd" in kinds
@@ -138,8 +138,17 @@ def inventory(folder: str | Path, *, now: float | None = None) -> Inventory:
         if entry.live:
             entry.problem = entry.problem or "in progress"
         runs.append(entry)
-    runs.sort(key=lambda r: min(p.stat().st_mtime for p in r.files))
+    runs.sort(key=lambda r: min(_mtime(p) for p in r.files))
     return Inventory(root, runs)
+
+
+def _mtime(path: Path) -> float:
+    """Modification time, or −inf for a file gone meanwhile (a live run renames its
+    ``.partial``)."""
+    try:
+        return path.stat().st_mtime
+    except OSError:
+        return -float("inf")
 
 
 def clean(inv: Inventory) -> list[Path]:

@@ -327,8 +327,9 @@ class PositionRegulator:
             x_ref, v_ref, a_ref, j_ref, x_actual = (
                 np.asarray(v, dtype=np.float64) for v in (x_ref, v_ref, a_ref, j_ref,
                                                           x_actual))
-        if self._latched:
-            np.subtract(x_ref, x_actual, out=self.error)
+        if self._latched:   # tripped: the error is still shown (inf − inf is NaN, quietly)
+            with np.errstate(invalid="ignore", over="ignore"):
+                np.subtract(x_ref, x_actual, out=self.error)
             return self._latched
         code = _regulate(self._par, self._st, x_ref, v_ref, a_ref, j_ref, x_actual,
                          self.output, self.error, self.terms, self._limit, self._lsb,
