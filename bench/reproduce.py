@@ -20,7 +20,7 @@ from pathlib import Path
 os.environ.setdefault("RERUN_ANALYTICS", "0")
 os.environ.setdefault("MPLBACKEND", "Agg")
 
-from twin.run import write_json_atomic
+from twin.jsonio import write_json_atomic
 from twin.studies import STUDIES, run_study
 from twin.studies.results import load_results, render
 

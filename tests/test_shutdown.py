@@ -18,7 +18,8 @@ import rerun.chunk as rc
 
 from twin.controller.controller import ControllerStatus
 from twin.jsonio import json_text
-from twin.run import RunInterrupted, RunSpec, final_status, run
+from twin.run import RunSpec, run
+from twin.run_end import RunInterrupted, final_status
 from twin.telemetry.sink import NullSink
 
 # a long dwell: the run is still going when the signal comes (the twin simulates it)

@@ -83,9 +83,9 @@ def _buffer_of(checkpoint: Path) -> Path:
         _PREFIX, f"{_PREFIX}_replay_buffer"))
 
 
-def _trusted(directory: Path, path: Path) -> bool:
-    """``path`` is a file this job saved in ``directory``, unchanged since."""
-    expected = _manifest(directory).get(path.name)
+def _trusted(listed: dict[str, str], path: Path) -> bool:
+    """``path`` is a file the manifest ``listed`` holds, unchanged since."""
+    expected = listed.get(path.name)
     return expected is not None and path.is_file() and _sha256(path) == expected
 
 
@@ -130,7 +130,7 @@ def latest_checkpoint(directory: Path) -> Path | None:
     if best is None:
         return None
     for f in (best[1], _buffer_of(best[1])):
-        if (f.exists() or f.name in listed) and not _trusted(folder, f):
+        if (f.exists() or f.name in listed) and not _trusted(listed, f):
             raise ConfigError("resume", f"{f} does not match the SHA-256 in "
                               f"{folder / MANIFEST} (changed or replaced since this job "
                               "wrote it); refusing to load it")

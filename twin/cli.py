@@ -62,7 +62,8 @@ def _run(program: Path | None, machine: str, profile: str | None, planner: str |
          driver: str = "sim", rt_priority: int = 0, set_file: Path | None = None,
          controller_model: str | None = None) -> None:
     from twin.overrides import parse_sets, set_file_overrides
-    from twin.run import RunInterrupted, RunSpec, run
+    from twin.run import RunSpec, run
+    from twin.run_end import RunInterrupted
 
     try:
         spec = RunSpec(machine=machine, controller_model=controller_model,

@@ -1,4 +1,5 @@
-"""Typed exceptions of xy-twin. Every one subclasses a built-in so callers may catch either."""
+"""Typed exceptions of xy-twin. Every one subclasses a built-in so callers may catch either.
+``byte_place`` finds where in a file a bad byte is, for the message that names it."""
 
 from __future__ import annotations
 
@@ -12,6 +13,7 @@ __all__ = [
     "PlanningError",
     "SimulationError",
     "TwinError",
+    "byte_place",
 ]
 
 
@@ -89,3 +91,10 @@ class ExperimentAborted(TwinError, RuntimeError):
 
 class FitError(TwinError, RuntimeError):
     """A fit of the twin to measurements did not converge or is not trustworthy."""
+
+
+def byte_place(data: bytes, offset: int) -> tuple[int, int]:
+    """Line and column (1-based) of byte ``offset`` in ``data``: where a bad byte of a
+    file is, for the message that names it."""
+    line = data.count(b"\n", 0, offset) + 1
+    return line, offset - (data.rfind(b"\n", 0, offset) + 1) + 1

@@ -1,6 +1,6 @@
-"""The parts of a run record: the metric summary, atomic JSON files (``twin.jsonio``,
-re-exported), the telemetry sink a ``--rerun`` option names, the deadline report, and
-manual-mode commands."""
+"""The parts of a run record: the metric summary, the telemetry sink a ``--rerun`` option
+names, the deadline report, and manual-mode commands (the files themselves are written by
+``twin.jsonio``)."""
 
 from __future__ import annotations
 
@@ -15,11 +15,9 @@ from twin.controller.controller import Controller
 from twin.controller.summary import summarize
 from twin.errors import ConfigError
 from twin.hardware.realtime import TickStats
-from twin.jsonio import json_text, plain, write_json_atomic, write_text_atomic
 from twin.telemetry.sink import NullSink, Sink
 
-__all__ = ["json_text", "make_sink", "parse_command", "plain", "run_summary", "ticks_dict",
-           "write_json_atomic", "write_text_atomic"]
+__all__ = ["make_sink", "parse_command", "run_summary", "ticks_dict"]
 
 
 def make_sink(rerun: str, out: Path, run_id: str) -> tuple[Sink, str | None]:

@@ -19,7 +19,7 @@ from pathlib import Path
 from typing import Any
 
 from twin.config.schema import AXES, MachineConfig
-from twin.errors import ConfigError
+from twin.errors import ConfigError, byte_place
 
 __all__ = ["MACHINES_DIR", "available_machines", "diff_machines", "flatten", "from_dict",
            "load_machine", "machine_from_toml_dict", "machine_identity", "read_toml"]
@@ -188,8 +188,7 @@ def read_toml(path: str | Path, field: str | None = None) -> dict[str, Any]:
     try:
         text = data.decode("utf-8")
     except UnicodeDecodeError as exc:
-        line = data.count(b"\n", 0, exc.start) + 1
-        column = exc.start - (data.rfind(b"\n", 0, exc.start) + 1) + 1
+        line, column = byte_place(data, exc.start)
         raise ConfigError(where, f"{p}: not UTF-8 text: byte {exc.start} (line {line}, "
                           f"column {column}) is 0x{data[exc.start]:02x}") from None
     try:

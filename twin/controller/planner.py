@@ -335,17 +335,18 @@ class Planner:
                 self._account(item.segment.length, item.feed, item.line)
             elif type(item) is Dwell:
                 self._spend(item.duration, item.line, "its dwell")
-        self._time_bound = 0.0
 
     # ------------------------------------------------------------------ internals
-    def _account(self, length: float, feed: float | None, line: int) -> None:
-        """The feed bound, and the block's time at full feed against the program's."""
+    def _account(self, length: float, feed: float | None, line: int) -> float:
+        """The feed bound, and the block's time at full feed against the program's; returns
+        that full speed (m/s): the rapid speed, or the feed capped by the contour limit."""
         if feed is not None and not feed >= self.min_feed:
             raise PlanningError(f"line {line}: feed {feed * 60e3:.6g} mm/min is below the "
                                 f"machine's minimum {self.min_feed * 60e3:.6g} mm/min "
                                 "(controller.min_feed)")
         v = self.rapid_velocity if feed is None else min(feed, self.limits.max_velocity)
         self._spend(length / v, line, "its moves")
+        return v
 
     def _spend(self, seconds: float, line: int, what: str) -> None:
         self._time_bound += seconds
@@ -358,14 +359,13 @@ class Planner:
     def _block(self, seg: Segment, feed: float | None, line: int) -> _Block:
         if self.work_zone is not None:
             self.work_zone.check(seg, line)
-        self._account(seg.length, feed, line)
+        v_cap = self._account(seg.length, feed, line)
         b = _Block()
         b.segment, b.feed, b.line = seg, feed, line
         b.rapid = feed is None
         b.length = seg.length
         b.index = self._count
         self._count += 1
-        v_cap = self.rapid_velocity if feed is None else min(feed, self.limits.max_velocity)
         if type(seg) is Line:
             ux, uy = seg._ux, seg._uy      # float fast path (same package)
             b.t0x = b.t1x = ux

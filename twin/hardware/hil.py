@@ -285,12 +285,12 @@ class HilModule:
         outputs stay as they were, guarded by the watchdog: a controller whose connection
         was re-opened (a driver's reconnect) feeds again in time and carries on; one that
         is gone for good trips it within the timeout."""
-        if self.owner is not _NOBODY and self.owner == client:
+        if self.owner is client:
             self.owner = _NOBODY
 
     def _claim(self, what: str) -> None:
         """Refuse an output write of a client other than the owner."""
-        if self.owner is not _NOBODY and self.owner != CLIENT.get():
+        if self.owner is not _NOBODY and self.owner is not CLIENT.get():
             self.refused += 1
             raise Refused(ExcCodes.DEVICE_BUSY, f"{what}: the outputs are held by another "
                           "client")

@@ -41,21 +41,21 @@ LOG_INTERVAL = 5.0
 class RateLimitedLog(logging.Filter):
     """Lets one record per (connection, kind) through per ``interval`` seconds; the kind
     is the record's message template. Strips tracebacks and cuts long messages (a frame
-    dump is kilobytes). Counts what it drops."""
+    dump is kilobytes)."""
 
     def __init__(self, interval: float = LOG_INTERVAL, clock: Callable[[], float]
                  = time.monotonic, width: int = 200):
         super().__init__()
         self.interval, self.clock, self.width = interval, clock, width
-        self.dropped = 0
         self._last: dict[tuple[int, str], float] = {}
 
     def filter(self, record: logging.LogRecord) -> bool:
         key = (id(CLIENT.get()), str(record.msg)[:60])
         now = self.clock()
         if now - self._last.get(key, -float("inf")) < self.interval:
-            self.dropped += 1
             return False
+        if len(self._last) > 4096:   # many connections come and go: forget the old ones
+            self._last = {k: t for k, t in self._last.items() if now - t < self.interval}
         self._last[key] = now
         message = record.getMessage()
         record.msg = message if len(message) <= self.width else message[:self.width] + " …"
@@ -75,14 +75,13 @@ class _DroppingQueueHandler(logging.handlers.QueueHandler):
 
 
 @contextmanager
-def _quiet_log(level: int = logging.WARNING) -> Iterator[RateLimitedLog]:
+def _quiet_log(level: int = logging.WARNING) -> Iterator[None]:
     """pymodbus' log, rate-limited and written by a thread of its own (see the module
     docstring), for the life of the server."""
     log = logging.getLogger("pymodbus")
-    limit = RateLimitedLog()
     records: queue.Queue = queue.Queue(maxsize=1000)
     handler = _DroppingQueueHandler(records)
-    handler.addFilter(limit)
+    handler.addFilter(RateLimitedLog())
     stream = logging.StreamHandler(sys.stderr)
     stream.setFormatter(logging.Formatter("hil-server: %(levelname)s %(message)s"))
     listener = logging.handlers.QueueListener(records, stream)
@@ -92,7 +91,7 @@ def _quiet_log(level: int = logging.WARNING) -> Iterator[RateLimitedLog]:
     log.propagate = False
     listener.start()
     try:
-        yield limit
+        yield
     finally:
         log.setLevel(saved[0])
         log.handlers[:] = saved[1]

@@ -147,7 +147,7 @@ class ModbusDriver:
         self._life = 0
         # plausibility of the counters: the fastest each may move (counts/s), its width
         self._rate = None if counts_per_s is None else [float(v) for v in counts_per_s]
-        self._bits = [int(b) for b in counter_bits]
+        self._wrap = [1 << int(b) for b in counter_bits]
         self._last_counts: list[int] | None = None
         self._last_read = 0.0
         self._plan()
@@ -204,18 +204,17 @@ class ModbusDriver:
                       time=now - self._t0)
 
     def _check_plausible(self, counts: list[int], now: float) -> None:
-        """Modbus/TCP has no checksum: a flipped byte in a counter answer would be a jump of
-        the table. A step larger than the axis can travel since the last read (at
-        ``counts_per_s``, over that time plus a millisecond, plus two counts) is taken for a
-        corrupted answer: a fault naming the axis."""
+        """(With ``counts_per_s``.) Modbus/TCP has no checksum: a flipped byte in a counter
+        answer would be a jump of the table. A step larger than the axis can travel since
+        the last read (at ``counts_per_s``, over that time plus a millisecond, plus two
+        counts) is taken for a corrupted answer: a fault naming the axis."""
         last, self._last_counts = self._last_counts, counts
         dt, self._last_read = now - self._last_read, now
-        if last is None or self._rate is None:
+        if last is None:
             return
         for k, a in enumerate(AXES):
-            full = 1 << self._bits[k]
-            half = full >> 1
-            step = (counts[k] - last[k] + half) % full - half
+            full = self._wrap[k]
+            step = (counts[k] - last[k] + (full >> 1)) % full - (full >> 1)
             allowed = self._rate[k] * (dt + 1e-3) + 2.0
             if abs(step) > allowed:
                 self._fail(f"axis {a}: implausible counter step of {step} counts in "

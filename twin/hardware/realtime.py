@@ -111,7 +111,6 @@ class DeadlinePolicy:
         self.slots = max(1, round(window / period))
         self.min_on_time, self.warn_on_time = min_on_time, warn_on_time
         self.on_warning = on_warning
-        self.warnings: list[str] = []
         self._recent: deque[bool] = deque(maxlen=self.slots)
         self._on_time = 0
         self._seen = 0
@@ -168,7 +167,6 @@ class DeadlinePolicy:
         if self._seen - self._warned_at < self.slots:
             return
         self._warned_at = self._seen
-        self.warnings.append(message)
         if self.on_warning is not None:
             self.on_warning(message)
 

@@ -123,7 +123,7 @@ def identify(machine: str, output: str | Path, *, driver: str = "sim",
         if absent and chosen != tuple(AXES):
             raise ConfigError("axes", f"the log did not excite axis {', '.join(absent)} "
                               f"(it holds {''.join(log.axes)})")
-        log.axes = [a for a in log.axes if a in chosen] or log.axes
+        log.axes = [a for a in log.axes if a in chosen]
         where = Path(from_log)
         where = where if where.is_dir() else where.parent
     else:

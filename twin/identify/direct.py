@@ -34,9 +34,7 @@ def regress_gains(problem: Problem, base: MachineConfig
     log, period = problem.log, problem.base.controller.period
     pieces = log.data["piece"].astype(int)
     values, halfs = {}, {}
-    for k, a in enumerate(AXES):
-        if a not in problem.axes:
-            continue
+    for k, a in problem.excited:
         r = base.axes[a].transmission.ratio
         rows = []
         for i, piece in enumerate(log.plan):
@@ -88,9 +86,7 @@ def coast_regression(problem: Problem, params: dict[str, AxisParams]
     window = max(5, 2 * round(0.05 / period) + 1)
     carriage, at_motor = _carriage_inertia(base), axis_figures(base)
     out = {}
-    for k, a in enumerate(AXES):
-        if a not in problem.axes:
-            continue
+    for k, a in problem.excited:
         ax = base.axes[a]
         m, r = ax.mechanics, ax.transmission.ratio
         rows, rhs = [], []
@@ -133,9 +129,7 @@ def limit_inertia(problem: Problem, params: dict[str, AxisParams]) -> dict[str, 
     large = 0.5 * max((abs(q.value) for q in log.plan if q.experiment == "steps"),
                       default=0.0)
     out = {}
-    for k, a in enumerate(AXES):
-        if a not in problem.axes:
-            continue
+    for k, a in problem.excited:
         ax = base.axes[a]
         p = params[a]
         j_total = p.inertia + carriage[a]
@@ -180,9 +174,7 @@ def lost_motion(problem: Problem, params: dict[str, AxisParams]
     speed = max((abs(p.value) for p in log.plan if p.experiment == "crossings"),
                 default=0.0)
     out = {}
-    for k, a in enumerate(AXES):
-        if a not in problem.axes:
-            continue
+    for k, a in problem.excited:
         home = log.data[f"home_{a}"]
         pos = problem.pos[:, k]
 

@@ -301,9 +301,7 @@ def fit(base: MachineConfig, log: IdentLog, *,
     n = len(pos)
     residual, nrmse = {}, {}
     fm, hm = fit_mask[:n], held[:n]
-    for k, a in enumerate(AXES):
-        if a not in axes:
-            continue
+    for k, a in problem.excited:
         residual[a] = {
             "position_um": float(np.sqrt(np.mean((pos[fm, k] - problem.pos[:n][fm, k]) ** 2))
                                  * 1e6),

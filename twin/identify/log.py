@@ -21,7 +21,7 @@ import numpy as np
 from twin.config import AXES, MachineConfig
 from twin.errors import ConfigError
 from twin.identify.plan import EXPERIMENTS, Piece
-from twin.runrecord import write_text_atomic
+from twin.jsonio import write_json_atomic
 
 __all__ = ["COLUMNS", "FORMAT", "IdentLog", "io_signature"]
 
@@ -94,7 +94,7 @@ class IdentLog:
                "axes": list(self.axes),
                "plan": [p.to_dict() for p in self.plan],
                "data": {k: self.data[k].tolist() for k in COLUMNS}}
-        return write_text_atomic(path, json.dumps(doc) + "\n")
+        return write_json_atomic(path, doc, indent=None)
 
     @classmethod
     def load(cls, path: str | Path) -> IdentLog:

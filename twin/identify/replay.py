@@ -194,6 +194,8 @@ class Problem:
     def __init__(self, base: MachineConfig, log: IdentLog):
         self.base, self.log = base, log
         self.axes = tuple(a for a in AXES if a in log.axes)
+        self.excited = [(k, a) for k, a in enumerate(AXES) if a in self.axes]
+        """(column, axis) of each excited axis, in the machine's axis order."""
         self.pos, self.tacho = measured(log, base)
         self.replays = 0
         self.mains_phase: float | None = None
@@ -212,9 +214,7 @@ class Problem:
         pos, tacho = self.simulate(params, until)
         m = mask[:until]
         out = {}
-        for k, a in enumerate(AXES):
-            if a not in self.axes:
-                continue
+        for k, a in self.excited:
             dp = (pos[m, k] - self.pos[:until][m, k]) / SIGMA_POSITION
             dt = (tacho[m, k] - self.tacho[:until][m, k]) / SIGMA_TACHO
             out[a] = np.concatenate([dp, dt])

@@ -44,8 +44,10 @@ Error codes (``GCodeError.code``)
 
 from __future__ import annotations
 
+import codecs
 import io
 import os
+import threading
 from collections.abc import Iterable, Iterator
 
 from twin.controller.gcode.arcs import ArcTolerance, arc_sweep
@@ -61,6 +63,7 @@ from twin.controller.gcode.items import (
     ProgramEnd,
 )
 from twin.controller.gcode.modal import ModalState
+from twin.errors import byte_place
 
 __all__ = [
     "EVENT_KINDS",
@@ -161,28 +164,35 @@ def decode_program(data: bytes, encoding: str = "utf-8") -> tuple[str, list[str]
 
         line 3, column 12 (byte 57): 1 byte not UTF-8 (0xe9), read as U+FFFD
 
-    At most 20 notes (then how many more)."""
-    notes: list[str] = []
-    pos, total = 0, 0
-    while True:
-        try:
-            data[pos:].decode(encoding)
-            break
-        except UnicodeDecodeError as exc:
-            start, end = pos + exc.start, pos + exc.end
-            total += 1
-            if len(notes) < 20:
-                line = data.count(b"\n", 0, start) + 1
-                column = start - (data.rfind(b"\n", 0, start) + 1) + 1
-                n = end - start
-                notes.append(f"line {line}, column {column} (byte {start}): {n} byte"
-                             f"{'s' if n > 1 else ''} not {encoding.upper()} "
-                             f"({data[start:end].hex(' ', 1) if n > 1 else hex(data[start])}), "
-                             "read as U+FFFD")
-            pos = end
-    if total > len(notes):
-        notes.append(f"… and {total - len(notes)} more such places")
-    return data.decode(encoding, errors="replace"), notes
+    At most 20 notes (then how many more). One pass over the bytes, however many are bad."""
+    _bad.places = places = []
+    text = data.decode(encoding, errors=_NOTE_BAD_BYTES)
+    notes = []
+    for start, end in places[:20]:
+        line, column = byte_place(data, start)
+        n = end - start
+        notes.append(f"line {line}, column {column} (byte {start}): {n} byte"
+                     f"{'s' if n > 1 else ''} not {encoding.upper()} "
+                     f"({data[start:end].hex(' ', 1) if n > 1 else hex(data[start])}), "
+                     "read as U+FFFD")
+    if len(places) > len(notes):
+        notes.append(f"… and {len(places) - len(notes)} more such places")
+    return text, notes
+
+
+_NOTE_BAD_BYTES = "twin.gcode.note-bad-bytes"
+_bad = threading.local()
+
+
+def _note_bad_bytes(exc: UnicodeError) -> tuple[str, int]:
+    """The ``replace`` error handler that also notes where (``decode_program``)."""
+    if not isinstance(exc, UnicodeDecodeError):
+        raise exc
+    _bad.places.append((exc.start, exc.end))
+    return "\ufffd", exc.end
+
+
+codecs.register_error(_NOTE_BAD_BYTES, _note_bad_bytes)
 
 
 def read_file(path: str | os.PathLike[str], *, start: tuple[float, float] = (0.0, 0.0),
