@@ -5,6 +5,7 @@ a record never says RUNNING."""
 
 from __future__ import annotations
 
+import ctypes
 import json
 import os
 import signal
@@ -19,7 +20,7 @@ import rerun.chunk as rc
 from twin.controller.controller import ControllerStatus
 from twin.jsonio import json_text
 from twin.run import RunSpec, run
-from twin.run_end import RunInterrupted, final_status
+from twin.run_end import RunInterrupted, Terminated, final_status
 from twin.telemetry.sink import NullSink
 
 # a long dwell: the run is still going when the signal comes (the twin simulates it)
@@ -94,6 +95,40 @@ def test_a_signal_while_the_record_is_written_waits_for_it(tmp_path):
     assert json.loads((tmp_path / "late.json").read_text()) == json.loads(json_text(summary))
     assert sink.calls[-1] == ("close", True)
     assert signal.getsignal(signal.SIGTERM) is signal.SIG_DFL   # handlers given back
+
+
+def _signal_inside_a_c_callback(signum: int) -> None:
+    """Deliver ``signum`` to this process while Python runs inside a ctypes callback, where
+    the exception its handler raises is printed and dropped (as it is when numba compiles a
+    kernel and LLVM calls back to write its cache)."""
+    def inside() -> None:
+        os.kill(os.getpid(), signum)
+        for _ in range(1000):   # the handler runs at the next bytecode boundaries
+            pass
+
+    ctypes.CFUNCTYPE(None)(inside)()
+
+
+def test_a_stop_signal_lost_in_a_c_callback_still_stops_the_run(tmp_path, monkeypatch):
+    fired: list[float] = []
+    lost: list[type] = []
+    monkeypatch.setattr(sys, "unraisablehook", lambda u: lost.append(u.exc_type))
+
+    def progress(t: float, _max_time: float) -> None:
+        if not fired:
+            fired.append(t)
+            _signal_inside_a_c_callback(signal.SIGINT)
+
+    program = tmp_path / "dwell.ngc"
+    program.write_text("G4 P600\nM30\n")
+    result = run(RunSpec(program=str(program)), out_dir=tmp_path, run_id="lost",
+                 rerun="none", progress=progress)
+    assert lost == [Terminated]                 # the handler's raise was dropped
+    summary = result.summary
+    assert summary["status"] == "ABORTED" and summary["aborted"] == "interrupted (Ctrl-C)"
+    assert summary["controller_status"] == "DWELLING"
+    assert summary["sim_time_s"] <= fired[0] + 0.25 + 1e-9   # at the next checkpoint
+    assert signal.getsignal(signal.SIGINT) is signal.default_int_handler
 
 
 def test_a_run_cut_by_max_time_says_timeout(tmp_path):

@@ -37,6 +37,7 @@ from twin.run_end import (
     RunInterrupted,
     deferred_signals,
     final_status,
+    raise_caught,
     signal_name,
     stop_signals,
 )
@@ -120,7 +121,7 @@ def run(spec: RunSpec, *, out_dir: str | Path = "runs", rerun: str = "file",
     t_wall = time.perf_counter()
     late: list[int] = []
     try:
-        with stop_signals():
+        with stop_signals(loop.caught):
             loop.run_lockstep() if p.plant is not None else loop.run_paced()
     except KeyboardInterrupt as exc:
         aborted = f"interrupted ({signal_name(exc)})"
@@ -152,6 +153,7 @@ class _Loop:
         self.rt_granted = False
         self.warn = warn
         self.deadline_warnings: list[str] = []
+        self.caught: list[int] = []   # stop signals, checked at every telemetry checkpoint
         self.period = p.cfg.controller.period
         self.max_time = max_time
         self.limit = round(max_time / self.period)
@@ -224,6 +226,7 @@ class _Loop:
                 append(row())
                 self.ticks += 1
                 if self.ticks % every == 0:
+                    raise_caught(self.caught)
                     self.drain()
                     self._batch()
         finally:
@@ -253,6 +256,7 @@ class _Loop:
             drv.write(ctrl.tick(drv.read()))
             self.ticks += 1
             if self.ticks % self.every == 0:
+                raise_caught(self.caught)
                 t0 = clock()
                 if loop.start + t + self.period - t0 > 1.5 * cost[0] and self._batch():
                     cost[0] = clock() - t0

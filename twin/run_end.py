@@ -17,7 +17,7 @@ if TYPE_CHECKING:
     from twin.run_setup import RunResult
 
 __all__ = ["READY", "STOP_SIGNALS", "RunInterrupted", "Terminated", "deferred_signals",
-           "final_status", "signal_name", "stop_signals"]
+           "final_status", "raise_caught", "signal_name", "stop_signals"]
 
 READY = (ControllerStatus.IDLE, ControllerStatus.FINISHED)
 """Controller states at rest for good (a run that ends in one has nothing in progress)."""
@@ -29,8 +29,8 @@ STOP_SIGNALS = tuple(getattr(signal, n) for n in ("SIGINT", "SIGTERM", "SIGHUP")
 
 
 class Terminated(KeyboardInterrupt):
-    """SIGTERM or SIGHUP, raised in the main thread where Ctrl-C raises KeyboardInterrupt:
-    the run takes the same path (safe stop, record written)."""
+    """A stop signal, raised in the main thread as KeyboardInterrupt is: every stop signal
+    takes the same path (safe stop, record written)."""
 
     def __init__(self, signum: int):
         super().__init__(signal.Signals(signum).name)
@@ -48,7 +48,9 @@ class RunInterrupted(KeyboardInterrupt):
 
 def signal_name(exc: BaseException) -> str:
     """How an interruption is named in a record: ``Ctrl-C``, or the signal's name."""
-    return signal.Signals(exc.signum).name if isinstance(exc, Terminated) else "Ctrl-C"
+    if isinstance(exc, Terminated) and exc.signum != signal.SIGINT:
+        return signal.Signals(exc.signum).name
+    return "Ctrl-C"
 
 
 def final_status(status: ControllerStatus, aborted: str | None, max_time: float,
@@ -92,13 +94,23 @@ def _handling(signals: tuple[int, ...], handler: Callable[[int, Any], None]
             signal.signal(s, old)
 
 
-def stop_signals() -> contextlib.AbstractContextManager[None]:
-    """While the loop runs: SIGTERM and SIGHUP raise ``Terminated`` as SIGINT raises
-    KeyboardInterrupt, so every stop signal takes the one shutdown path."""
+def stop_signals(caught: list[int]) -> contextlib.AbstractContextManager[None]:
+    """While the loop runs: a stop signal is appended to ``caught`` and raised as
+    ``Terminated``. The exception can be lost: a handler runs wherever the main thread is,
+    and an exception raised inside a C callback (numba compiling a kernel and writing its
+    cache through an LLVM callback, say) is printed and dropped. So the loop also checks
+    ``caught`` at its checkpoints (``raise_caught``) and the signal is never lost."""
     def stop(signum: int, _frame: Any) -> None:
+        caught.append(signum)
         raise Terminated(signum)
 
-    return _handling(tuple(s for s in STOP_SIGNALS if s != signal.SIGINT), stop)
+    return _handling(STOP_SIGNALS, stop)
+
+
+def raise_caught(caught: list[int]) -> None:
+    """Raise ``Terminated`` for a stop signal whose handler's exception was lost."""
+    if caught:
+        raise Terminated(caught[0])
 
 
 def deferred_signals(caught: list[int]) -> contextlib.AbstractContextManager[None]:
