@@ -364,3 +364,55 @@ def test_a_counter_step_the_axis_cannot_make_is_a_fault_naming_the_axis():
         assert module.log[-2:] == [(5, 0, False), (16, 0, [0, 0, module.log[-1][2][2]])]
     finally:
         module.close()
+
+
+class _HeldClock:
+    """``time`` for the driver; ``perf_counter`` runs ``offset`` seconds ahead of the real
+    one (a hold of this process is simulated by raising it)."""
+
+    offset = 0.0
+
+    def perf_counter(self) -> float:
+        return time.perf_counter() + self.offset
+
+    def __getattr__(self, name):
+        return getattr(time, name)
+
+
+class _HoldingModule(FakeModule):
+    """Holds the client's clock for ``hold`` s when it answers its first counter read."""
+
+    def __init__(self, clock: _HeldClock, hold: float):
+        self.clock, self.hold, self.reads = clock, hold, 0
+        super().__init__()
+
+    def _answer(self, frame: bytes):
+        if frame[7] == 4:                            # read input registers: the counters
+            self.reads += 1
+            if self.reads == 1:
+                self.clock.offset += self.hold      # answered, then the client is held
+        return super()._answer(frame)
+
+
+def test_a_process_held_after_an_answer_does_not_make_an_honest_step_implausible(monkeypatch):
+    # CI saw it: the answer to one read arrived, then this process was held before it took
+    # its time stamp; the next read, an ordinary period later in the process's time, showed
+    # the table's travel over the whole hold. The samples lie between the first read's
+    # request and the second read's answer, so that is the time to judge a step by.
+    import twin.hardware.modbus as modbus
+
+    clock = _HeldClock()
+    module = _HoldingModule(clock, hold=0.010)
+    module.ir.update({0: 0, 1: 1000, 2: 0, 3: 1000})
+    try:
+        drv = ModbusDriver("127.0.0.1", module.port, timeout=0.25, counts_per_s=[2e4, 2e4])
+        monkeypatch.setattr(modbus, "time", clock)
+        drv.read()                               # held 10 ms between answer and stamp
+        module.ir[1] = 1000 + 200                # 10 ms at 20 000 counts/s
+        assert drv.read().encoder_counts.tolist() == [1200, 1000]
+        module.ir[1] = 1200 + 400                # 400 counts in well under a millisecond
+        with pytest.raises(DriverError, match="axis x: implausible counter step of 400"):
+            drv.read()
+        drv.close()
+    finally:
+        module.close()

@@ -149,7 +149,7 @@ class ModbusDriver:
         self._rate = None if counts_per_s is None else [float(v) for v in counts_per_s]
         self._wrap = [1 << int(b) for b in counter_bits]
         self._last_counts: list[int] | None = None
-        self._last_read = 0.0
+        self._last_sent = 0.0   # when the last read's first request went out
         self._plan()
         self._connect(connect_timeout)
         self._t0 = time.perf_counter()
@@ -163,6 +163,7 @@ class ModbusDriver:
     def read(self) -> Inputs:
         """Sample counters, tachos, switches and drive status in one pass of requests."""
         self._check_usable()
+        sent = time.perf_counter()
         ir: dict[int, int] = {}
         for start, count in self._ir_spans:
             resp = self._request(f"read_input_registers({start}, count={count})",
@@ -198,18 +199,25 @@ class ModbusDriver:
             ready = ready and (ax.drive_ready is None or di[ax.drive_ready])
         now = time.perf_counter()
         if self._rate is not None:
-            self._check_plausible(counts.tolist(), now)
+            self._check_plausible(counts.tolist(), sent, now)
         return Inputs(encoder_counts=counts, tacho_volts=tacho, limit_min=flags[0],
                       limit_max=flags[1], home=flags[2], drive_ready=bool(ready),
                       time=now - self._t0)
 
-    def _check_plausible(self, counts: list[int], now: float) -> None:
+    def _check_plausible(self, counts: list[int], sent: float, now: float) -> None:
         """(With ``counts_per_s``.) Modbus/TCP has no checksum: a flipped byte in a counter
-        answer would be a jump of the table. A step larger than the axis can travel since
-        the last read (at ``counts_per_s``, over that time plus a millisecond, plus two
-        counts) is taken for a corrupted answer: a fault naming the axis."""
+        answer would be a jump of the table. A step larger than the axis can travel between
+        the two samples (at ``counts_per_s``, over that time plus a millisecond, plus two
+        counts) is taken for a corrupted answer: a fault naming the axis.
+
+        The time between the samples is bounded from above by the time from sending the
+        last read (``sent`` then) to receiving this one (``now``): the module latched each
+        sample somewhere in between. Time stamps taken only on receipt were not safe: a
+        loaded machine that held this process for a few milliseconds between an answer and
+        its time stamp made the next honest step look too fast (CI saw 826 counts "in
+        2.2 ms")."""
         last, self._last_counts = self._last_counts, counts
-        dt, self._last_read = now - self._last_read, now
+        dt, self._last_sent = now - self._last_sent, sent
         if last is None:
             return
         for k, a in enumerate(AXES):
