@@ -32,7 +32,7 @@ __all__ = ["SplineCurve"]
 _GL_X, _GL_W = np.polynomial.legendre.leggauss(8)
 _GL_X, _GL_W = 0.5 * (_GL_X + 1.0), 0.5 * _GL_W  # on [0, 1]
 _GL_PY = tuple(zip(_GL_X.tolist(), _GL_W.tolist(), strict=True))
-_hypot = math.hypot
+_sqrt = math.sqrt  # norms as sqrt(x·x + y·y): the compiled path (cyclic.py) computes the same
 _RTOL = 1e-13  # quadrature acceptance, relative
 _MAX_LEVELS = 40  # sub-interval halvings (a cusp, |r'| = 0, would stop here)
 _MAX_NEWTON = 60
@@ -139,7 +139,8 @@ class SplineCurve:
         acc, dt = 0.0, t1 - t0
         for x, w in _GL_PY:
             t = t0 + dt * x
-            acc += w * _hypot(bx + t * (cx + t * dx), by + t * (cy + t * dy))
+            ex, ey = bx + t * (cx + t * dx), by + t * (cy + t * dy)
+            acc += w * _sqrt(ex * ex + ey * ey)
         return acc * dt
 
     def _locate(self, s: float) -> tuple[list[float], float]:
@@ -164,7 +165,7 @@ class SplineCurve:
             else:
                 lo = t
             _, _, vx, vy, _, _ = _derivatives_py(row, t)
-            v = math.hypot(vx, vy)
+            v = _sqrt(vx * vx + vy * vy)
             new = t - f / v if v > 0.0 else 0.5 * (lo + hi)
             if not lo <= new <= hi:
                 new = 0.5 * (lo + hi)
@@ -219,12 +220,19 @@ class SplineCurve:
         clipped by the caller)."""
         row, t = self._locate(s)
         x, y, vx, vy, ax, ay = _derivatives_py(row, t)
-        speed = math.hypot(vx, vy)
+        speed = _sqrt(vx * vx + vy * vy)
         cross, dot = vx * ay - vy * ax, vx * ax + vy * ay
-        cube = speed**3
+        cube = speed * speed * speed
         # κ = (r′ × r″)/|r′|³ and dκ/ds = (dκ/dt)/|r′|, with r‴ = 6·d
-        rate = (vx * row[7] - vy * row[6]) * 6.0 / cube - 3.0 * cross * dot / (cube * speed**2)
+        rate = (vx * row[7] - vy * row[6]) * 6.0 / cube - 3.0 * cross * dot / (cube * (speed
+                                                                                      * speed))
         return x, y, vx / speed, vy / speed, cross / cube, rate / speed
+
+    def kernel_tables(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """The scalar path's tables for the compiled tick (``cyclic.curve_frame``):
+        sub-interval start arc lengths (J,), the table ``k, a, b, length, inverse
+        coefficients`` (J, 4 + degree + 1) and the coefficient rows (K, 8)."""
+        return self._sub_s0, self._table, self._rows
 
     def _derivatives(self, s: np.ndarray):
         k, t = self._locate_many(s)

@@ -43,8 +43,11 @@ from collections.abc import Iterable, Mapping, Sequence
 from enum import IntEnum
 from typing import Any
 
+import numpy as np
+
 from twin.config import AXES, AxisConfig, ControllerSettings, MachineConfig
 from twin.controller.corner import CornerModel, SeedCornerModel
+from twin.controller.cyclic import FALLBACK, steady_tick
 from twin.controller.encoder import EncoderUnwrapper
 from twin.controller.gcode.items import Move
 from twin.controller.geometry import Line
@@ -106,6 +109,8 @@ columns ``regulator.TERMS``: p, i, d, ff, dcu), drive enable, active block index
 and ``ControllerStatus`` code."""
 
 _INTEGER_FIELDS = ("enable", "block", "line", "status")
+_STATUS = tuple(ControllerStatus)
+_REG_STATUS = tuple(RegulatorStatus)
 _START_TOLERANCE = 1e-6
 """Largest distance (m) between the table and the first point of a program it may run."""
 _FAULTS = {RegulatorStatus.FOLLOWING_ERROR: ControllerStatus.FOLLOWING_ERROR,
@@ -156,6 +161,11 @@ class Controller:
         ``settings.settle_timeout``).
     record_capacity : int
         Rows per chunk of the record.
+    compiled : bool
+        Run the steady ticks (moving along or dwelling in one block, no switch closed, drives
+        ready, not homing, the extended interface) in one compiled kernel
+        (``cyclic.steady_tick``); every other tick, and every tick with False, takes the
+        plain Python path, the reference the kernel reproduces bit for bit.
 
     Raises
     ------
@@ -174,7 +184,7 @@ class Controller:
                  dcu_order: int | None = None, mode: str = "extended",
                  corner_model: CornerModel | None = None, lookahead: int | None = None,
                  start: Sequence[float] | None = None, settle_time: float = 0.25,
-                 record_capacity: int = 65536):
+                 record_capacity: int = 65536, compiled: bool = True):
         if sorted(axes) != sorted(AXES):
             raise ConfigError("axes", f"must be {AXES}, got {tuple(axes)}")
         if not (math.isfinite(settle_time) and settle_time >= 0.0):
@@ -212,15 +222,18 @@ class Controller:
         """Record: one row per tick, fields ``RECORD_FIELDS``; ``record.as_arrays()``."""
         self.outputs = Outputs()
         """Outputs: written in place and returned by every ``tick``."""
-        self._held = [0.0, 0.0]
+        self._held = np.zeros(2)
         self.error: TwinError | None = None
         """The exception behind ``PROGRAM_ERROR``, if any."""
         self.status = ControllerStatus.IDLE
         self._ticks = 0
         self._settled = 0.0
-        self._limits_prev = [False] * 4
+        self._limits_prev = np.zeros(4, dtype=bool)
         self._homing: tuple[int, float] | None = None
         self._home_latch: float | None = None
+        # the kernel's integer arithmetic unwraps counters of up to 62 bits
+        self.compiled = bool(compiled) and mode == "extended" and all(
+            ax.encoder.bits <= 62 for ax in self.axes)
         self.interpolator = self._interpolator(self._blocks(program, start), start)
         if program is not None:
             self.status = ControllerStatus.RUNNING
@@ -259,12 +272,62 @@ class Controller:
     def _interpolator(self, blocks: Iterable[Any], start: Sequence[float] | None
                       ) -> Interpolator:
         return Interpolator(blocks, period=self.period, start=start, mode=self.mode,
-                            counts_per_metre=[ax.counts_per_metre for ax in self.axes])
+                            counts_per_metre=[ax.counts_per_metre for ax in self.axes],
+                            tables=self.compiled)
 
     # ------------------------------------------------------------------ the cyclic path
     def tick(self, inputs: Inputs) -> Outputs:
         """Run one period: read ``inputs``, compute and return the outputs (never raises
         for expected conditions; see ``status``)."""
+        if self.compiled and self._tick_compiled(inputs):
+            return self.outputs
+        return self._tick_python(inputs)
+
+    def _tick_compiled(self, inputs: Inputs) -> bool:
+        """A steady tick in the compiled kernel; False (nothing changed) when this tick
+        needs the Python path."""
+        status = self.status
+        if status is not ControllerStatus.RUNNING and status is not ControllerStatus.DWELLING:
+            return False
+        interp = self.interpolator
+        cur = interp._cur
+        if cur is None or self._homing is not None or self.regulator._latched:
+            return False
+        tables = cur.tables
+        tau = interp._tau + interp.period
+        if tables is None or not tau < cur.duration or not self.encoder._ready:
+            return False
+        enc, reg, ref, rec = self.encoder, self.regulator, interp.reference, self.record
+        chunk, row = rec.slot()
+        geo, pieces, starts, table, coef = tables
+        code = steady_tick(
+            inputs.encoder_counts, inputs.tacho_volts, inputs.limit_min, inputs.limit_max,
+            inputs.drive_ready, self._limits_prev, enc.state_int, enc.state_float,
+            enc.position, geo, pieces, starts, table, coef, tau, self._ticks + 1,
+            self.period, ref.position, ref.velocity, ref.acceleration, ref.jerk, reg._par,
+            reg._st, reg.output, reg.error, reg.terms, reg._limit, reg._lsb, reg._code_min,
+            reg._code_max, self._held, self.outputs.dac_volts, chunk, row, cur.index,
+            cur.line)
+        if code == FALLBACK:
+            return False
+        rec.advance()
+        self._ticks += 1
+        interp._ticks += 1
+        interp._tau = tau
+        ref.time = interp._ticks * interp.period
+        ref.block, ref.line = cur.index, cur.line
+        rcode = code >> 5
+        reg.status = _REG_STATUS[rcode]
+        if rcode >= RegulatorStatus.FOLLOWING_ERROR:
+            reg._latched = reg.status
+        self.status = status = _STATUS[code & 31]
+        self.outputs.enable = status < ControllerStatus.FINISHED
+        if interp._pending is not None or not interp._ready:
+            interp._prepare()                  # the interpolator's read-ahead step
+        return True
+
+    def _tick_python(self, inputs: Inputs) -> Outputs:
+        """``tick`` in plain Python: every case, and the reference of the compiled path."""
         self._ticks += 1
         enc = self.encoder
         if not enc.ready:

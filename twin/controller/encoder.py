@@ -75,12 +75,16 @@ class EncoderUnwrapper:
 
     Notes
     -----
-    The unwrapped count is kept as a Python integer, so it never overflows however long the
-    machine runs; the position is ``origin + count / counts_per_metre``. ``update`` is on the
-    cyclic path and uses scalar arithmetic only (no array allocation beyond the result).
+    The state is two small arrays the compiled tick (``cyclic.steady_tick``) shares:
+    ``state_int`` (3, n) int64 holds the last raw sample, the unwrapped count and the counter
+    width, ``state_float`` (2, n) the origin (m) and counts per metre. The count is int64:
+    it overflows after 2^63 counts, 1.8·10^12 m at the rig's resolution. The last sample is
+    kept modulo 2^bits in int64's signed range (only its residue matters). The position is
+    ``origin + count / counts_per_metre``. ``update`` is on the cyclic path and uses scalar
+    arithmetic only (no array allocation beyond the result).
     """
 
-    __slots__ = ("_bits", "_count", "_cpm", "_last", "_origin", "_ready", "position")
+    __slots__ = ("_bits", "_cpm", "_ready", "position", "state_float", "state_int")
 
     def __init__(self, counts_per_metre: Sequence[float], *, bits: int | Sequence[int] = 32):
         cpm = [float(c) for c in counts_per_metre]
@@ -95,9 +99,12 @@ class EncoderUnwrapper:
                 raise ConfigError("bits", f"must be in 8 … 64, got {b}")
         self._cpm = cpm
         self._bits = bit_list
-        self._last = [0] * n
-        self._count = [0] * n
-        self._origin = [0.0] * n
+        self.state_int = np.zeros((3, n), dtype=np.int64)
+        """ndarray (3, n) int64: last raw sample, unwrapped count, counter width (bit)."""
+        self.state_int[2] = bit_list
+        self.state_float = np.zeros((2, n))
+        """ndarray (2, n): origin (m), counts per metre."""
+        self.state_float[1] = cpm
         self._ready = False
         self.position = np.zeros(n)
         """ndarray, shape (n,): the latest unwrapped position (m), updated in place."""
@@ -115,7 +122,7 @@ class EncoderUnwrapper:
     @property
     def counts(self) -> tuple[int, ...]:
         """Unwrapped counts accumulated since ``reset`` (counts)."""
-        return tuple(self._count)
+        return tuple(int(c) for c in self.state_int[1])
 
     def reset(self, raw: Sequence[int], *, position: Sequence[float] | None = None) -> None:
         """Take ``raw`` as the reference sample and declare the table to be at ``position``.
@@ -129,10 +136,12 @@ class EncoderUnwrapper:
         """
         n = len(self._cpm)
         pos = [0.0] * n if position is None else [float(p) for p in position]
+        st = self.state_int
         for k in range(n):
-            self._last[k] = int(raw[k]) % (1 << self._bits[k])
-            self._count[k] = 0
-            self._origin[k] = pos[k]
+            last = int(raw[k]) % (1 << self._bits[k])
+            st[0, k] = last - (1 << 64) if last >= 1 << 63 else last
+            st[1, k] = 0
+            self.state_float[0, k] = pos[k]
             self.position[k] = pos[k]
         self._ready = True
 
@@ -143,7 +152,7 @@ class EncoderUnwrapper:
         the configured home position.
         """
         for k in range(len(self._cpm)):
-            self._origin[k] += float(offset[k])
+            self.state_float[0, k] += float(offset[k])
             self.position[k] += float(offset[k])
 
     def update(self, raw: Sequence[int]) -> np.ndarray:
@@ -164,11 +173,12 @@ class EncoderUnwrapper:
         if not self._ready:
             self.reset(raw)
             return self.position
-        pos = self.position
+        pos, st, origin = self.position, self.state_int, self.state_float[0]
         for k in range(len(self._cpm)):
             r = int(raw[k])
             half = 1 << (self._bits[k] - 1)
-            self._count[k] += ((r - self._last[k] + half) % (half << 1)) - half
-            self._last[k] = r
-            pos[k] = self._origin[k] + self._count[k] / self._cpm[k]
+            count = int(st[1, k]) + ((r - int(st[0, k]) + half) % (half << 1)) - half
+            st[1, k] = count
+            st[0, k] = r
+            pos[k] = float(origin[k]) + count / self._cpm[k]
         return pos

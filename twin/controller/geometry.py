@@ -380,6 +380,10 @@ class SplinePath(Segment):
             x, y = (self.start if s == 0.0 else self.end).tolist()
         return x, y, tx, ty, k, rate
 
+    def kernel_tables(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """The curve's tables for the compiled tick (``SplineCurve.kernel_tables``)."""
+        return self._curve.kernel_tables()
+
     def _points(self, s):
         return self._curve.points_at(s)
 

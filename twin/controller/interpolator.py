@@ -44,6 +44,7 @@ from typing import Any
 
 import numpy as np
 
+from twin.controller.cyclic import block_tables
 from twin.controller.gcode.items import Dwell
 from twin.controller.geometry import Arc, Line, Segment
 from twin.controller.planner import PlannedBlock
@@ -113,7 +114,8 @@ class _Active:
     """A prepared block or dwell (internal)."""
 
     __slots__ = ("block", "cx", "cy", "duration", "end", "index", "k", "kind", "line",
-                 "profile", "r", "s0", "segment", "sign", "th0", "ux", "uy", "x0", "y0")
+                 "profile", "r", "s0", "segment", "sign", "tables", "th0", "ux", "uy", "x0",
+                 "y0")
 
 
 class Interpolator:
@@ -134,12 +136,16 @@ class Interpolator:
         Encoder resolution per axis (counts/m); required for ``"traditional"``.
     on_event : callable, optional
         Called as ``on_event(time, item)`` when a pass-through item is reached.
+    tables : bool
+        Give every block and dwell the flat arrays of the compiled tick
+        (``cyclic.block_tables``, as ``tables`` of the active state; None where the kernel
+        cannot run it). Off, nothing is built.
     """
 
     def __init__(self, blocks: Iterable[Any], *, period: float = 5e-3,
                  start: Sequence[float] | None = None, mode: str = "extended",
                  counts_per_metre: Sequence[float] | None = None,
-                 on_event: Callable[[float, Any], None] | None = None):
+                 on_event: Callable[[float, Any], None] | None = None, tables: bool = False):
         if not (math.isfinite(period) and period > 0.0):
             raise ConfigError("period", f"must be finite and > 0 (s), got {period!r}")
         if mode not in INTERPOLATOR_MODES:
@@ -153,6 +159,7 @@ class Interpolator:
         self.period = float(period)
         self.mode = mode
         self.on_event = on_event
+        self._tables = tables
         self.reference = Reference()
         """Reference: the output of the last ``update``."""
         self.error: TwinError | None = None
@@ -270,6 +277,7 @@ class Interpolator:
                                  limits=block.limits)
         stop.duration = stop.profile.duration
         stop.end = self._evaluate(stop, stop.duration)[:2]
+        stop.tables = block_tables(stop) if self._tables else None
         self._tau = 0.0
         if stop.duration <= 0.0:
             self._hold = stop.end
@@ -341,6 +349,7 @@ class Interpolator:
         act = _Active()
         act.kind, act.duration, act.end = _DWELL, item.duration, self._hold
         act.index, act.line = self.reference.block, item.line
+        act.tables = block_tables(act) if self._tables else None
         return act
 
     def _activate(self, block: PlannedBlock) -> _Active:
@@ -363,6 +372,7 @@ class Interpolator:
             act.th0 = math.atan2(act.y0 - act.cy, act.x0 - act.cx)
         else:
             act.kind = _CURVE
+        act.tables = block_tables(act) if self._tables else None
         return act
 
     def _evaluate(self, cur: _Active, tau: float) -> tuple[float, ...]:

@@ -104,6 +104,21 @@ class Record:
         if len(pending) >= BLOCK:
             self._commit()
 
+    def slot(self) -> tuple[np.ndarray, int]:
+        """Where the next row goes, for a writer that fills it in place (the compiled tick):
+        ``(chunk, i)``, the row ``chunk[i]``; ``advance()`` then counts it. Waiting rows are
+        moved in first, so the order of rows is kept."""
+        if self._pending:
+            self._commit()
+        if self._i == self.capacity:
+            self._n_full += self.capacity
+            self._new_chunk()
+        return self._chunk, self._i
+
+    def advance(self) -> None:
+        """Count the row written at ``slot()``."""
+        self._i += 1
+
     def _commit(self) -> None:
         """Move the waiting rows into the chunks."""
         if not self._pending:
