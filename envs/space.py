@@ -36,7 +36,7 @@ from twin.controller.linear import LinearAxisModel
 from twin.controller.regulator import RegulatorGains, default_gains
 from twin.errors import ConfigError
 
-__all__ = ["ALPHA_SPAN", "DIM", "KI_DECADES", "TuningSettings", "TuningSpace"]
+__all__ = ["ALPHA_SPAN", "DIM", "KI_DECADES", "NAMES", "TuningSettings", "TuningSpace"]
 
 ALPHA_SPAN = (0.02, 0.2, 0.5)
 """Relative half-range of α1, α2, α3 around the analytic values (1)."""
@@ -44,6 +44,8 @@ KI_DECADES = 3.0
 """Decades of ``ki`` below ``kp0·K_v`` the positive half of the ki coordinate spans."""
 _PER_AXIS = ("kp", "ki", "a1", "a2", "a3")
 DIM = len(AXES) * len(_PER_AXIS) + 1
+NAMES = (*(f"{n}_{a}" for a in AXES for n in _PER_AXIS), "max_jerk")
+"""Coordinate names: ``kp_x, ki_x, a1_x, a2_x, a3_x, kp_y, …, max_jerk``."""
 """Length of a tuning vector: five coordinates per axis and the jerk limit (11)."""
 
 
@@ -128,8 +130,8 @@ class TuningSpace:
 
     @property
     def names(self) -> tuple[str, ...]:
-        """Coordinate names: ``kp_x, ki_x, a1_x, a2_x, a3_x, kp_y, …, max_jerk``."""
-        return (*(f"{n}_{a}" for a in AXES for n in _PER_AXIS), "max_jerk")
+        """Coordinate names (``NAMES``)."""
+        return NAMES
 
     @property
     def dim(self) -> int:

@@ -72,6 +72,13 @@ class TuneSpec:
         starts afresh and loads nothing it finds there.
     weights : dict
         Cost weights by metric (``envs.evaluation.Weights``).
+    worker : bool
+        Optuna: join the study as one of its workers (``optuna_job.run_worker``): run its
+        trials until the study's run budget (set by the first worker's ``max_runs``) is
+        spent and nothing is left in flight, then write the study's best settings.
+    heartbeat_s, grace_s : int
+        Optuna: heartbeat interval of a running trial, and the age of the last heartbeat
+        after which its worker is taken for dead (s).
     """
 
     method: str
@@ -90,6 +97,9 @@ class TuneSpec:
     policy_runs: int = 5
     resume: bool = False
     weights: dict[str, float] = field(default_factory=dict)
+    worker: bool = False
+    heartbeat_s: int = 5
+    grace_s: int = 20
 
     def __post_init__(self) -> None:
         if self.method not in METHODS:
@@ -105,8 +115,22 @@ class TuneSpec:
                 or self.workers < 1:
             raise ConfigError("workers", f"must be an integer >= 1, got {self.workers!r}")
         Weights.from_mapping(self.weights)
+        if self.worker and self.method != "optuna":
+            raise ConfigError("worker", f"workers join Optuna studies; --method is "
+                              f"{self.method!r}")
+        for name in ("heartbeat_s", "grace_s"):
+            value = getattr(self, name)
+            if isinstance(value, bool) or not isinstance(value, int) or value < 1:
+                raise ConfigError(name, f"must be an integer >= 1 (s), got {value!r}")
+        if self.grace_s <= self.heartbeat_s:
+            raise ConfigError("grace_s", f"must exceed heartbeat_s ({self.heartbeat_s} s), "
+                              f"got {self.grace_s}")
         if self.policy is not None and not Path(self.policy).is_file():
             raise ConfigError("policy", f"no such file: {self.policy}")
+
+    def study_name(self, cfg: MachineConfig) -> str:
+        """The Optuna study: ``study``, or ``<machine>-<program>``."""
+        return self.study or f"{cfg.name}-{self.program}"
 
 
 @dataclass
@@ -159,11 +183,13 @@ def _search(spec: TuneSpec, ev: Evaluator, files: dict[str, Path],
         run_cma(ev, budget_s=spec.budget_s, max_evals=spec.max_runs, seed=spec.seed)
         return ev.trials
     if spec.method == "optuna":
-        from tuning.optuna_job import default_storage, run_optuna
+        from tuning.optuna_job import default_storage, run_optuna, run_worker
 
-        return run_optuna(ev, storage=spec.storage or default_storage(spec.out_dir),
-                          study_name=spec.study or f"{ev.tuning.cfg.name}-{spec.program}",
-                          budget_s=spec.budget_s, max_trials=spec.max_runs, seed=spec.seed)
+        job = run_worker if spec.worker else run_optuna
+        return job(ev, storage=spec.storage or default_storage(spec.out_dir),
+                   study_name=spec.study_name(ev.tuning.cfg), budget_s=spec.budget_s,
+                   max_trials=spec.max_runs, seed=spec.seed, heartbeat_s=spec.heartbeat_s,
+                   grace_s=spec.grace_s)
     from tuning.sb3_job import apply_policy, train
 
     policy = spec.policy
@@ -193,6 +219,12 @@ def tune(spec: TuneSpec, *, on_trial: Callable[[Trial], None] | None = None,
     """
     start = time.perf_counter()
     cfg: MachineConfig = load_machine(spec.machine)
+    if spec.method == "optuna" and spec.storage:   # a shared study: checked before writing
+        from tuning.optuna_job import check_study, study_identity
+
+        belief = None if spec.controller_model is None else load_machine(spec.controller_model)
+        check_study(spec.storage, spec.study_name(cfg), study_identity(
+            cfg, belief, spec.program, Weights.from_mapping(spec.weights)))
     out = output_dir(spec.out_dir)
     with folder_lock(out):
         return _tune_in(spec, cfg, out, start, on_trial, progress)

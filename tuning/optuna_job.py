@@ -12,14 +12,31 @@ trial would stay RUNNING for ever, so each job, at its start and after every tri
 and re-enqueues those that started more than the grace period ago
 (``fail_trials_without_heartbeat``). Every finished trial keeps its cost terms, metrics and
 settings as user attributes, so a report can be rebuilt from the database alone.
+
+A study knows what it tunes: the machine (name and configuration hash), the controller's
+model, the program, the cost weights and the coordinates are user attributes written when
+it is created, and a job that opens it for anything else is refused (``ConfigError`` naming
+the study and the storage, its password masked), as is a storage that cannot be reached.
+
+Workers (``run_worker``, ``twin tune --worker``) share a study's *run budget*, stored with
+it when it is created: the baseline plus N tuning runs. A trial runs only while fewer than
+the budget's trials are complete, running or waiting before it (trial numbers are handed
+out atomically by the database, so workers agree without talking to each other); a trial
+that failed (its worker died) no longer counts, and its retry takes its place. A worker
+stops when the budget is spent and nothing is left running or waiting, so every worker then
+sees the same finished study and writes the same best settings.
 """
 
 from __future__ import annotations
 
+import dataclasses
 import math
 import multiprocessing
+import os
+import socket
 import time
 import warnings
+import zlib
 from collections.abc import Callable
 from datetime import datetime
 from pathlib import Path
@@ -34,12 +51,17 @@ try:
 except ImportError:  # optuna < 4.9 (pyproject allows >= 4.0)
     from optuna.storages import RetryFailedTrialCallback as RetryHeartbeatStaleTrialCallback
 
+from envs.evaluation import Weights
 from envs.gain_tuning import Tuning
+from envs.space import NAMES
 from tuning.evaluator import Evaluator, Trial
+from twin.config import MachineConfig
+from twin.config.loader import machine_identity
 from twin.errors import ConfigError
 
-__all__ = ["default_storage", "fail_trials_without_heartbeat", "open_study", "run_optuna",
-           "study_trials"]
+__all__ = ["check_study", "default_storage", "fail_trials_without_heartbeat", "masked",
+           "open_study",
+           "run_optuna", "run_worker", "storage_url", "study_identity", "study_trials"]
 
 HEARTBEAT_S = 5
 """Heartbeat interval of a running trial (s)."""
@@ -52,27 +74,172 @@ def default_storage(out_dir: Path) -> str:
     return f"sqlite:///{(Path(out_dir) / 'optuna.db').resolve()}"
 
 
+def storage_url(url: str) -> str:
+    """``url`` as SQLAlchemy takes it: a PostgreSQL URL without a driver
+    (``postgresql://``, ``postgres://``) uses psycopg 3, the driver the project installs."""
+    for bare in ("postgresql://", "postgres://"):
+        if url.startswith(bare):
+            return "postgresql+psycopg://" + url[len(bare):]
+    return url
+
+
+def masked(url: str) -> str:
+    """``url`` with its password replaced by ``***`` (for messages)."""
+    try:
+        return sqlalchemy.engine.make_url(url).render_as_string(hide_password=True)
+    except Exception:   # not even a URL: hide whatever sits between ':' and '@'
+        head, at, tail = url.rpartition("@")
+        if not at:
+            return url
+        scheme, _, user = head.partition("://")
+        return f"{scheme}://{user.split(':', 1)[0]}:***@{tail}"
+
+
+def _without_password(text: str, url: str) -> str:
+    try:
+        password = sqlalchemy.engine.make_url(url).password
+    except Exception:
+        password = None
+    return text.replace(str(password), "***") if password else text
+
+
 def open_storage(url: str, *, heartbeat_s: int = HEARTBEAT_S,
                  grace_s: int = GRACE_S) -> RDBStorage:
-    """The study database at ``url`` with the heartbeat and the retry of dead trials."""
+    """The study database at ``url`` with the heartbeat and the retry of dead trials.
+
+    Raises
+    ------
+    ConfigError
+        (field ``storage``) The URL is malformed, names a database driver that is not
+        installed, or the server cannot be reached or refuses the credentials; the message
+        names the URL with its password masked.
+    """
     optuna.logging.set_verbosity(optuna.logging.WARNING)
-    with warnings.catch_warnings():   # the heartbeat is "experimental" in optuna 5
-        warnings.simplefilter("ignore", optuna.exceptions.ExperimentalWarning)
-        return RDBStorage(url, heartbeat_interval=heartbeat_s, grace_period=grace_s,
-                          heartbeat_stale_trial_callback=RetryHeartbeatStaleTrialCallback(
-                              max_retry=2))
+
+    def create() -> RDBStorage:
+        with warnings.catch_warnings():   # the heartbeat is "experimental" in optuna 5
+            warnings.simplefilter("ignore", optuna.exceptions.ExperimentalWarning)
+            return RDBStorage(storage_url(url), heartbeat_interval=heartbeat_s,
+                              grace_period=grace_s,
+                              heartbeat_stale_trial_callback=RetryHeartbeatStaleTrialCallback(
+                                  max_retry=2),
+                              engine_kwargs=_engine_options(url))
+
+    try:
+        if not storage_url(url).startswith("postgresql"):
+            return create()
+        # Workers started together on an empty database would all create Optuna's tables
+        # (CREATE TYPE races: "duplicate key ... pg_type"): one at a time, under a lock of
+        # the server's that ends with the session
+        engine = sqlalchemy.create_engine(storage_url(url), **_engine_options(url))
+        try:
+            with engine.connect() as conn:
+                conn.execute(sqlalchemy.text("SELECT pg_advisory_lock(:key)"),
+                             {"key": _SCHEMA_LOCK})
+                try:
+                    return create()
+                finally:
+                    conn.execute(sqlalchemy.text("SELECT pg_advisory_unlock(:key)"),
+                                 {"key": _SCHEMA_LOCK})
+        finally:
+            engine.dispose()
+    except (sqlalchemy.exc.SQLAlchemyError, ImportError, ValueError, OSError) as exc:
+        reason = str(getattr(exc, "orig", None) or exc).strip().splitlines()
+        reason = " ".join(line.strip() for line in reason[:3])
+        raise ConfigError("storage", f"cannot open the study database {masked(url)}: "
+                          f"{_without_password(reason, url)}") from None
+
+
+_SCHEMA_LOCK = int.from_bytes(b"xy-twin!", "big") >> 1
+"""PostgreSQL advisory lock held while a worker creates or checks the study tables."""
+
+
+def _engine_options(url: str) -> dict[str, Any]:
+    """A server that does not answer fails in seconds, not a TCP timeout's minutes."""
+    if storage_url(url).startswith("postgresql+psycopg://"):
+        return {"connect_args": {"connect_timeout": 10}, "pool_pre_ping": True}
+    return {}
+
+
+def study_identity(cfg: MachineConfig, belief: MachineConfig | None, program: str,
+                   weights: Weights) -> dict[str, Any]:
+    """What a study tunes: machine and controller-model names and configuration hashes,
+    program, cost weights and coordinates (stored with the study, checked on joining)."""
+    belief = belief or cfg
+    return {"machine": cfg.name,
+            "machine_config_sha256": machine_identity(cfg)["config_sha256"],
+            "controller_model": belief.name,
+            "controller_model_config_sha256": machine_identity(belief)["config_sha256"],
+            "program": program,
+            "weights": {k: float(v) for k, v in dataclasses.asdict(weights).items()},
+            "coordinates": list(NAMES)}
+
+
+def _check_identity(found: dict[str, Any] | None, identity: dict[str, Any] | None, name: str,
+                    storage: RDBStorage) -> None:
+    if identity is None or found is None or found == identity:
+        return
+    where = storage.engine.url.render_as_string(hide_password=True)
+    differ = sorted(k for k in set(found) | set(identity) if found.get(k) != identity.get(k))
+    raise ConfigError("study", f"study {name!r} in {where} tunes something else: "
+                      + "; ".join(f"{k} is {found.get(k)!r} there, {identity.get(k)!r} here"
+                                  for k in differ[:3]))
+
+
+def check_study(url: str, name: str, identity: dict[str, Any]) -> None:
+    """Before a job writes anything: the storage opens, and study ``name``, if it exists,
+    tunes what ``identity`` says (``ConfigError`` otherwise; nothing is created)."""
+    storage = open_storage(url)
+    try:
+        study_id = storage.get_study_id_from_name(name)
+    except KeyError:
+        return
+    _check_identity(storage.get_study_user_attrs(study_id).get("identity"), identity, name,
+                    storage)
+
+
+def _identity(tuning: Tuning) -> dict[str, Any]:
+    return study_identity(tuning.cfg, tuning.belief, tuning.program, tuning.weights)
 
 
 def open_study(url: str | RDBStorage, name: str, names: tuple[str, ...], *, seed: int = 0,
-               heartbeat_s: int = HEARTBEAT_S, grace_s: int = GRACE_S) -> optuna.Study:
+               heartbeat_s: int = HEARTBEAT_S, grace_s: int = GRACE_S,
+               identity: dict[str, Any] | None = None, budget: int | None = None,
+               baseline: Trial | None = None) -> optuna.Study:
     """Create or load study ``name`` in ``url`` (minimisation, multivariate TPE); an open
-    storage is used as it is (its own heartbeat and grace period)."""
+    storage is used as it is (its own heartbeat and grace period).
+
+    ``identity`` (``study_identity``) is stored with a new study and checked against an
+    existing one; ``budget`` (trials: the baseline plus the tuning runs) is stored with a new
+    study, which keeps it for every worker; ``baseline`` becomes the first trial of a study
+    this call created (the one creator among workers that start together).
+
+    Raises
+    ------
+    ConfigError
+        (field ``study``) The study tunes something else.
+    """
     storage = url if isinstance(url, RDBStorage) else open_storage(
         url, heartbeat_s=heartbeat_s, grace_s=grace_s)
     sampler = optuna.samplers.TPESampler(seed=seed, multivariate=True, n_startup_trials=10)
-    study = optuna.create_study(storage=storage, study_name=name, direction="minimize",
-                                sampler=sampler, load_if_exists=True)
-    study.set_user_attr("coordinates", list(names))
+    try:   # exactly one of the workers that start a study at once creates it
+        study = optuna.create_study(storage=storage, study_name=name, direction="minimize",
+                                    sampler=sampler)
+        created = True
+    except optuna.exceptions.DuplicatedStudyError:
+        study = optuna.load_study(storage=storage, study_name=name, sampler=sampler)
+        created = False
+    stored = study.user_attrs
+    found = stored.get("identity")
+    _check_identity(found, identity, name, storage)
+    if identity is not None and found is None:
+        study.set_user_attr("identity", identity)
+    if "coordinates" not in stored:
+        study.set_user_attr("coordinates", list(names))
+    if budget is not None and "budget" not in stored:
+        study.set_user_attr("budget", int(budget))
+    if created and baseline is not None:
+        _seed_baseline(study, baseline, names)
     fail_trials_without_heartbeat(study, storage)
     return study
 
@@ -143,13 +310,15 @@ def _attrs(trial: Trial) -> dict[str, Any]:
 
 def _objective(evaluator: Evaluator, names: tuple[str, ...], end: int | None = None
                ) -> Callable[[optuna.Trial], float]:
-    """The objective; with ``end``, a trial numbered ``end`` or above is not run (pruned,
+    """The objective (each trial notes the host and process that runs it, user attribute
+    ``worker``); with ``end``, a trial numbered ``end`` or above is not run (pruned,
     and this process stops): the storage numbers trials atomically, so every process of a
     job sees the same bound and the job runs at most ``end`` − its first number trials."""
     def objective(trial: optuna.Trial) -> float:
         if end is not None and trial.number >= end:
             trial.study.stop()
             raise optuna.TrialPruned(f"the job's --max-runs is spent (trial {trial.number})")
+        trial.set_user_attr("worker", f"{socket.gethostname()}:{os.getpid()}")
         x = [trial.suggest_float(n, -1.0, 1.0) for n in names]
         result = evaluator.evaluate([x])[0]
         for key, value in _attrs(result).items():
@@ -177,7 +346,7 @@ def _worker(url: str, name: str, tuning: Tuning, budget_s: float, seed: int,
             end: int | None = None) -> None:
     names = tuning.space.names
     storage = open_storage(url)
-    study = open_study(storage, name, names, seed=seed)
+    study = open_study(storage, name, names, seed=seed, identity=_identity(tuning))
     study.optimize(_objective(Evaluator(tuning), names, end), timeout=budget_s,
                    callbacks=[_check_after_each_trial(storage)])
 
@@ -196,7 +365,7 @@ def run_optuna(evaluator: Evaluator, *, storage: str, study_name: str, budget_s:
         raise ConfigError("budget_s", f"must be a finite number > 0 (s), got {budget_s!r}")
     names = evaluator.tuning.space.names
     db = open_storage(storage, heartbeat_s=heartbeat_s, grace_s=grace_s)
-    study = open_study(db, study_name, names, seed=seed)
+    study = open_study(db, study_name, names, seed=seed, identity=_identity(evaluator.tuning))
     _seed_baseline(study, evaluator.baseline, names)
     # --max-runs bounds the job, all its processes together: trial numbers from here on
     end = None if max_trials is None else len(study.trials) + max_trials
@@ -217,5 +386,83 @@ def run_optuna(evaluator: Evaluator, *, storage: str, study_name: str, budget_s:
             p.join(timeout=max(1.0, budget_s - (time.perf_counter() - start)) + 60.0)
             if p.is_alive():
                 p.terminate()
+    evaluator.trials.extend(local.trials)
+    return study_trials(study)
+
+
+_LIVE = (optuna.trial.TrialState.COMPLETE, optuna.trial.TrialState.RUNNING,
+         optuna.trial.TrialState.WAITING)
+"""Trial states that hold a place in a study's run budget."""
+
+
+def _within_budget(evaluator: Evaluator, names: tuple[str, ...], budget: int
+                   ) -> Callable[[optuna.Trial], float]:
+    """The objective of a worker: a trial runs only while fewer than ``budget`` trials are
+    live (complete, running, waiting) before it; otherwise it is pruned, unrun."""
+    run = _objective(evaluator, names)
+
+    def objective(trial: optuna.Trial) -> float:
+        ahead = sum(1 for t in trial.study.get_trials(deepcopy=False)
+                    if t.number < trial.number and t.state in _LIVE)
+        if ahead >= budget:
+            raise optuna.TrialPruned(f"the study's budget of {budget} trials is spent")
+        return run(trial)
+
+    return objective
+
+
+def run_worker(evaluator: Evaluator, *, storage: str, study_name: str, budget_s: float,
+               max_trials: int | None = None, seed: int = 0, heartbeat_s: int = HEARTBEAT_S,
+               grace_s: int = GRACE_S, poll_s: float = 1.0) -> list[Trial]:
+    """Join study ``study_name`` in ``storage`` and run its trials until its run budget is
+    spent and nothing is left running or waiting (or ``budget_s`` of wall time has passed);
+    returns the study's finished trials, the baseline first.
+
+    The first worker creates the study with its budget, ``max_trials`` tuning runs after the
+    analytic baseline; a worker that joins an existing study takes the study's budget
+    (``max_trials``, if given, must agree). A worker waits for the trials others are still
+    running, and fails and re-runs those whose worker died (heartbeat), so that when it
+    stops the study is finished, whichever worker stops last.
+
+    Raises
+    ------
+    ConfigError
+        The storage cannot be opened, the study tunes something else, it has no budget and
+        none was given, or a different one was.
+    """
+    if not (math.isfinite(budget_s) and budget_s > 0.0):
+        raise ConfigError("budget_s", f"must be a finite number > 0 (s), got {budget_s!r}")
+    names = evaluator.tuning.space.names
+    db = open_storage(storage, heartbeat_s=heartbeat_s, grace_s=grace_s)
+    # workers a scheduler starts with one command line must not draw the same points: the
+    # sampler's seed is this one's, salted with the host and process
+    salt = zlib.crc32(f"{socket.gethostname()}:{os.getpid()}".encode())
+    study = open_study(db, study_name, names, seed=(seed * 1_000_003 + salt) % 2**32,
+                       identity=_identity(evaluator.tuning),
+                       budget=None if max_trials is None else max_trials + 1,
+                       baseline=evaluator.baseline)
+    total = study.user_attrs.get("budget")
+    if total is None:
+        raise ConfigError("max_runs", f"study {study_name!r} in {masked(storage)} has no run "
+                          "budget: give the first worker --max-runs")
+    if max_trials is not None and total != max_trials + 1:
+        raise ConfigError("max_runs", f"study {study_name!r} in {masked(storage)} has a "
+                          f"budget of {total - 1} runs, not {max_trials}")
+    local = Evaluator(evaluator.tuning, 1, evaluator.on_trial)
+    objective = _within_budget(local, names, total)
+    checks = [_check_after_each_trial(db)]
+    deadline = time.monotonic() + budget_s
+    while time.monotonic() < deadline:
+        trials = study.get_trials(deepcopy=False)
+        live = sum(1 for t in trials if t.state in _LIVE)
+        waiting = any(t.state == optuna.trial.TrialState.WAITING for t in trials)
+        if live < total or waiting:
+            study.optimize(objective, n_trials=1, callbacks=checks)
+            continue
+        if not any(t.state == optuna.trial.TrialState.RUNNING for t in trials):
+            break                                   # spent, and nothing left in flight
+        time.sleep(poll_s)                          # others' trials: finished, or dead
+        optuna.storages.fail_stale_trials(study)
+        fail_trials_without_heartbeat(study, db)
     evaluator.trials.extend(local.trials)
     return study_trials(study)

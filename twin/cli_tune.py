@@ -14,14 +14,15 @@ from rich.console import Console
 from rich.progress import BarColumn, Progress, TextColumn, TimeElapsedColumn
 
 from twin.cli_common import CONTROLLER_MODEL_HELP, err, fail
-from twin.errors import TwinError
+from twin.errors import ConfigError, TwinError
 from twin.jsonio import json_text
 
 __all__ = ["register"]
 
 
 def tune(
-    method: str = typer.Option(..., "--method", help="analytic, cma, optuna, ppo or sac."),
+    method: str | None = typer.Option(None, "--method", help="analytic, cma, optuna, ppo or "
+                                      "sac (--worker: optuna)."),
     machine: str = typer.Option("tomsk_xy", "--machine", "-m",
                                 help="Machine preset name or TOML file (the plant the "
                                      "tuning runs are on)."),
@@ -30,10 +31,23 @@ def tune(
     program: str = typer.Option("default", "--program", help="Tuning program: default, "
                                 "compact (default shrunk to 5 %), tiny, corner, spline_line."),
     budget_s: float = typer.Option(600.0, "--budget-s", help="Wall-time budget (s)."),
-    storage: str | None = typer.Option(None, "--storage", help="Optuna storage URL "
-                                       "(default sqlite:///OUT/optuna.db; postgresql://… "
-                                       "lets workers on several hosts share a study)."),
-    study: str | None = typer.Option(None, "--study", help="Optuna study name."),
+    storage: str | None = typer.Option(None, "--storage", envvar="TWIN_TUNE_STORAGE",
+                                       help="Optuna storage URL (default "
+                                       "sqlite:///OUT/optuna.db; postgresql://user:password@"
+                                       "host/db lets workers on several hosts share a "
+                                       "study)."),
+    study: str | None = typer.Option(None, "--study", help="Optuna study name (default "
+                                     "MACHINE-PROGRAM)."),
+    worker: bool = typer.Option(False, "--worker", help="Join the Optuna study as a worker "
+                                "(for a cluster scheduler): run its trials until the "
+                                "study's run budget is spent and none is in flight, write "
+                                "the study's best settings, exit 0. The first worker sets "
+                                "the budget with --max-runs."),
+    heartbeat_s: int = typer.Option(5, "--heartbeat-s", min=1, help="Optuna: heartbeat "
+                                    "interval of a running trial (s)."),
+    grace_s: int = typer.Option(20, "--grace-s", min=2, help="Optuna: a trial whose "
+                                "heartbeat is older than this is taken for dead, failed "
+                                "and run again (s)."),
     workers: int = typer.Option(2, "--workers", min=1, help="Worker processes (CMA, "
                                 "Optuna) or parallel environments (PPO, SAC)."),
     seed: int = typer.Option(0, "--seed"),
@@ -55,12 +69,16 @@ def tune(
     from tuning.jobs import TuneSpec
     from tuning.jobs import tune as run_job
 
+    if method is None and not worker:
+        fail(ConfigError("method", "is required: analytic, cma, optuna, ppo or sac"))
+    method = method or "optuna"
     try:
         spec = TuneSpec(method=method, machine=machine, controller_model=controller_model,
                         program=program, budget_s=budget_s,
                         out_dir=out, storage=storage, study=study, workers=workers,
                         seed=seed, max_runs=max_runs, policy=policy, train_steps=train_steps,
-                        resume=resume)
+                        resume=resume, worker=worker, heartbeat_s=heartbeat_s,
+                        grace_s=grace_s)
         training = method in ("ppo", "sac") and policy is None
         with Progress(TextColumn(f"[bold]{method}"), BarColumn(),
                       TextColumn("{task.description}"), TimeElapsedColumn(), console=err,

@@ -47,7 +47,7 @@ import numpy as np
 
 from twin.config import AXES, AxisConfig, ControllerSettings, MachineConfig
 from twin.controller.corner import CornerModel, SeedCornerModel
-from twin.controller.cyclic import FALLBACK, steady_tick
+from twin.controller.cyclic import FALLBACK, steady_tick, warm_up
 from twin.controller.encoder import EncoderUnwrapper
 from twin.controller.gcode.items import Move
 from twin.controller.geometry import Line
@@ -234,6 +234,8 @@ class Controller:
         # the kernel's integer arithmetic unwraps counters of up to 62 bits
         self.compiled = bool(compiled) and mode == "extended" and all(
             ax.encoder.bits <= 62 for ax in self.axes)
+        if self.compiled:
+            warm_up()
         self.interpolator = self._interpolator(self._blocks(program, start), start)
         if program is not None:
             self.status = ControllerStatus.RUNNING
@@ -302,7 +304,7 @@ class Controller:
         geo, pieces, starts, table, coef = tables
         code = steady_tick(
             inputs.encoder_counts, inputs.tacho_volts, inputs.limit_min, inputs.limit_max,
-            inputs.drive_ready, self._limits_prev, enc.state_int, enc.state_float,
+            bool(inputs.drive_ready), self._limits_prev, enc.state_int, enc.state_float,
             enc.position, geo, pieces, starts, table, coef, tau, self._ticks + 1,
             self.period, ref.position, ref.velocity, ref.acceleration, ref.jerk, reg._par,
             reg._st, reg.output, reg.error, reg.terms, reg._limit, reg._lsb, reg._code_min,

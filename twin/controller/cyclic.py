@@ -40,7 +40,7 @@ from twin.controller.geometry import Arc, Line
 from twin.controller.profiles.profile import Blend, Polynomial
 from twin.controller.regulator import _regulate
 
-__all__ = ["FALLBACK", "G_SIZE", "block_tables", "steady_tick"]
+__all__ = ["FALLBACK", "G_SIZE", "block_tables", "steady_tick", "warm_up"]
 
 FALLBACK = -1
 """``steady_tick``'s answer when the tick needs the Python path (nothing was changed)."""
@@ -341,3 +341,24 @@ def steady_tick(counts, tacho, limit_min, limit_max, drive_ready, limits_prev, e
     out[29] = line
     out[30] = status
     return 32 * rc + status
+
+
+_warm = False
+
+
+def warm_up() -> None:
+    """Load (or compile) ``steady_tick`` for the argument types ``Controller`` passes, once
+    per process: a first tick that compiled would stall a paced loop for seconds (the
+    deadline policy stops a run after 4 lost periods). Called when a compiled controller is
+    built; the call itself returns ``FALLBACK`` at once (drives not ready)."""
+    global _warm
+    if _warm:
+        return
+    two, flags = np.zeros(2), np.zeros(2, dtype=bool)
+    table = np.zeros((1, 1))
+    steady_tick(np.zeros(2, dtype=np.int64), two, flags, flags, False,
+                np.zeros(4, dtype=bool), np.zeros((3, 2), dtype=np.int64), np.ones((2, 2)),
+                two, np.zeros(G_SIZE), np.zeros((1, 7)), np.zeros(1), table, table, 0.0, 1,
+                1e-3, two, two, two, two, np.zeros((2, 10)), np.zeros((2, 5)), two, two,
+                np.zeros((2, 5)), 10.0, 0.0, 0, 0, two, two, np.zeros((1, 31)), 0, 0, 0)
+    _warm = True
