@@ -69,6 +69,23 @@ def test_unknown_key_lists_valid_ones():
         load_machine("tomsk_xy").with_overrides({"controller.regulator.gain": 1.0})
 
 
+@pytest.mark.parametrize("table", ["machine", "axis_defaults.mechanics", "axes.y.converter",
+                                   "controller", "controller.regulator", "simulation"])
+def test_an_unknown_key_in_any_table_of_a_machine_file_is_refused(table):
+    import tomllib
+
+    from twin.config.loader import MACHINES_DIR
+
+    doc = tomllib.loads((MACHINES_DIR / "tomsk_xy.toml").read_text())
+    node = doc
+    for part in table.split("."):
+        node = node.setdefault(part, {})
+    node["speling_mistake"] = 1.0
+    with pytest.raises(ConfigError) as exc:
+        machine_from_toml_dict(doc)
+    assert exc.value.field.endswith("speling_mistake") and "unknown key" in str(exc.value)
+
+
 def test_missing_parameter_is_named():
     doc = {"machine": {"name": "m"}, "axis_defaults": {}, "controller": {}}
     with pytest.raises(ConfigError, match=r"axes\.x\.mechanics: missing"):

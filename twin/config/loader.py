@@ -198,12 +198,20 @@ def read_toml(path: str | Path, field: str | None = None) -> dict[str, Any]:
                           f"invalid TOML: {exc}") from None
 
 
+_MACHINE_KEYS = ("description", "name")
+"""The keys of a machine file's ``[machine]`` table."""
+
+
 def machine_from_toml_dict(doc: dict[str, Any], *, source: str = "<dict>") -> MachineConfig:
     """Validate a parsed machine document (``[machine]``, ``[axis_defaults]``, ``[axes]``...)."""
     doc = copy.deepcopy(doc)
     head = doc.pop("machine", None)
     if not isinstance(head, dict) or "name" not in head:
         raise ConfigError("machine.name", "missing")
+    for key in head:
+        if key not in _MACHINE_KEYS:
+            raise ConfigError(f"machine.{key}", "unknown key; valid: "
+                              f"{', '.join(_MACHINE_KEYS)}")
     defaults = doc.pop("axis_defaults", {})
     axes_over = doc.pop("axes", {})
     if not isinstance(axes_over, dict):
