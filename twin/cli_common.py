@@ -12,6 +12,7 @@ from typing import Any
 
 import typer
 from rich.console import Console
+from rich.markup import escape
 from rich.table import Table
 
 __all__ = ["CONTROLLER_MODEL_HELP", "METRIC_ROWS", "RUN_ROWS", "err", "fail",
@@ -29,7 +30,7 @@ err = Console(stderr=True)
 
 def fail(exc: BaseException) -> None:
     """Print ``exc`` (which names its place) on stderr and exit with code 2."""
-    err.print(f"[bold red]error:[/] {exc}", highlight=False, soft_wrap=True)
+    err.print(f"[bold red]error:[/] {escape(str(exc))}", highlight=False, soft_wrap=True)
     raise typer.Exit(2)
 
 

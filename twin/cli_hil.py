@@ -12,6 +12,7 @@ import dataclasses
 import json
 import os
 import selectors
+import socket
 import subprocess
 import sys
 import tempfile
@@ -82,8 +83,8 @@ def hil_server(
         try:
             plant = hil_plant(cfg, start=None if start is None else np.asarray(start) * 1e-3,
                               noise=noise)
-        except ValueError as exc:
-            raise ConfigError("--from", str(exc)) from None
+        except ConfigError as exc:
+            raise ConfigError("--from", exc.message) from None
     except TwinError as exc:
         fail(exc)
 
@@ -110,10 +111,19 @@ def hil_server(
                   f"{rmap.module.device_id}), drive interval {plant.drive_dt * 1e3:g} ms, "
                   f"watchdog {watchdog_ms:g} ms; Ctrl-C stops", highlight=False)
 
-    stats = serve_hil(plant, rmap, host=host, port=port, watchdog=watchdog_ms * 1e-3,
-                      sync_phase=None if no_sync else sync_phase,
-                      output_window=window_ms * 1e-3,
-                      on_ready=ready)
+    try:
+        socket.getaddrinfo(host, port, type=socket.SOCK_STREAM)
+    except (OSError, UnicodeError) as exc:
+        fail(ConfigError("--host", f"cannot bind {host!r}: {exc}"))
+    try:
+        stats = serve_hil(plant, rmap, host=host, port=port, watchdog=watchdog_ms * 1e-3,
+                          sync_phase=None if no_sync else sync_phase,
+                          output_window=window_ms * 1e-3,
+                          on_ready=ready)
+    except (OSError, RuntimeError) as exc:   # pymodbus: "Could not start listen" (in use)
+        if "listen" not in str(exc) and not isinstance(exc, OSError):
+            raise
+        fail(ConfigError("--port", f"cannot listen on {host}:{port}: {exc}"))
     if as_json:  # stdout carried the one ready object; the statistics go to stderr
         sys.stderr.write(json_text({"hil_stats": dataclasses.asdict(stats)}) + "\n")
         return

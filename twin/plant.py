@@ -37,7 +37,7 @@ import numpy as np
 from twin import plant_loop
 from twin.config import AXES, MachineConfig
 from twin.drive import Drives
-from twin.errors import SimulationError
+from twin.errors import ConfigError, SimulationError
 from twin.model import load_model, passive_parameters, resolve_machine
 from twin.plant_records import (
     FINE_FIELDS,
@@ -189,8 +189,8 @@ class Plant:
             x = np.asarray(positions, dtype=float)
             if x.shape != (2,) or not all(lo <= xi <= hi for xi, (lo, hi)
                                           in zip(x.tolist(), self._travel, strict=True)):
-                raise ValueError(f"positions must be (2,) within the travel {self._travel} m, "
-                                 f"got {positions!r}")
+                raise ConfigError("start", f"must be 2 positions within the travel "
+                                  f"{self._travel} m, got {x.ravel().tolist()} m")
             self._table_pos[:] = x
             self._rotor_pos[:] = x / self._ratio
             d.qvel[:] = 0.0

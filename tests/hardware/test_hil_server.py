@@ -216,7 +216,7 @@ def test_a_limit_switch_during_a_run_disables_the_drive_and_keeps_the_record(tmp
 
 @pytest.mark.parametrize(("args", "words"), [
     (("--machine", "no_such_machine"), "machine: no machine file"),
-    (("--from", "999", "5"), "--from: positions must be (2,) within the travel"),
+    (("--from", "999", "5"), "--from: must be 2 positions within the travel"),
     (("--map", "missing.toml"), "register_map: no such file"),
     (("--set", "axes.x.mechanics.carriage_mass=-1"), "axes.x.mechanics.carriage_mass"),
 ])
