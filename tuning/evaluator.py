@@ -11,7 +11,8 @@ from __future__ import annotations
 import math
 import multiprocessing
 from collections.abc import Callable, Sequence
-from concurrent.futures import ProcessPoolExecutor
+from concurrent.futures import ProcessPoolExecutor, as_completed
+from concurrent.futures.process import BrokenProcessPool
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -22,7 +23,10 @@ from envs.gain_tuning import Tuning
 from twin.config import MachineConfig, load_machine
 from twin.errors import ConfigError
 
-__all__ = ["Evaluator", "Trial", "baseline_trial"]
+__all__ = ["MAX_POOL_RESTARTS", "Evaluator", "Trial", "baseline_trial"]
+
+MAX_POOL_RESTARTS = 3
+"""How often ``Evaluator.evaluate`` replaces a pool that lost a worker, per call."""
 
 
 @dataclass(frozen=True)
@@ -153,16 +157,40 @@ class Evaluator:
         """The cheapest trial so far (the baseline if none is cheaper)."""
         return min([self.baseline, *self.trials], key=lambda tr: tr.cost)
 
-    def evaluate(self, xs: Sequence[Sequence[float]]) -> list[Trial]:
-        """Evaluate vectors (in parallel with ``workers`` > 1), in order."""
+    def evaluate(self, xs: Sequence[Sequence[float]], *,
+                 on_each: Callable[[int, Trial], None] | None = None) -> list[Trial]:
+        """Evaluate vectors (in parallel with ``workers`` > 1); returns them in order.
+
+        ``on_each(k, trial)`` is called as each evaluation ends (in the order they end). A
+        worker process that dies (an OOM kill, say) breaks the pool: a new pool is started
+        and the evaluations that had not ended are run again, up to ``MAX_POOL_RESTARTS``
+        times; the ones that ended are kept.
+        """
         xs = [np.asarray(x, dtype=float) for x in xs]
+        out: list[Trial | None] = [None] * len(xs)
+
+        def done(k: int, trial: Trial) -> None:
+            out[k] = self._record(trial)
+            if on_each is not None:
+                on_each(k, trial)
+
         if self.workers == 1 or len(xs) == 1:
-            out = []
-            for x in xs:
-                out.append(self._record(_trial(self.tuning, x)))
-            return out
-        pool = self._ensure_pool()
-        return [self._record(tr) for tr in pool.map(_work, xs)]
+            for k, x in enumerate(xs):
+                done(k, _trial(self.tuning, x))
+            return out  # type: ignore[return-value]
+        for restart in range(MAX_POOL_RESTARTS + 1):
+            pool = self._ensure_pool()
+            futures = {pool.submit(_work, xs[k]): k for k, t in enumerate(out) if t is None}
+            try:
+                for future in as_completed(futures):
+                    done(futures[future], future.result())
+                break
+            except BrokenProcessPool:
+                self._pool = None          # dead: the next round starts a fresh one
+                pool.shutdown(wait=False, cancel_futures=True)
+                if restart == MAX_POOL_RESTARTS:
+                    raise
+        return out  # type: ignore[return-value]
 
     def _record(self, trial: Trial) -> Trial:
         self.trials.append(trial)

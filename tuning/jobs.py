@@ -69,7 +69,9 @@ class TuneSpec:
     resume : bool
         PPO/SAC: continue training from the newest checkpoint this job wrote in
         ``out_dir/checkpoints`` (checked against its SHA-256 manifest); otherwise training
-        starts afresh and loads nothing it finds there.
+        starts afresh and loads nothing it finds there. CMA: replay the trial log
+        ``out_dir/cma_trials.jsonl`` into the same seeded search and run only what it
+        lacks; otherwise the log starts afresh.
     weights : dict
         Cost weights by metric (``envs.evaluation.Weights``).
     worker : bool
@@ -180,7 +182,9 @@ def _search(spec: TuneSpec, ev: Evaluator, files: dict[str, Path],
     if spec.method == "analytic":
         return []
     if spec.method == "cma":
-        run_cma(ev, budget_s=spec.budget_s, max_evals=spec.max_runs, seed=spec.seed)
+        run_cma(ev, budget_s=spec.budget_s, max_evals=spec.max_runs, seed=spec.seed,
+                log=spec.out_dir / "cma_trials.jsonl", resume=spec.resume)
+        files["log"] = spec.out_dir / "cma_trials.jsonl"
         return ev.trials
     if spec.method == "optuna":
         from tuning.optuna_job import default_storage, run_optuna, run_worker

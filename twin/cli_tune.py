@@ -58,7 +58,9 @@ def tune(
                                        "SB3 .zip: load only files from a trusted source."),
     train_steps: int = typer.Option(4096, "--train-steps", min=1,
                                     help="PPO/SAC: tuning runs to train for."),
-    resume: bool = typer.Option(False, "--resume", help="PPO/SAC: continue training from "
+    resume: bool = typer.Option(False, "--resume", help="CMA: replay OUT/cma_trials.jsonl "
+                                "into the same seeded search and run only what it lacks. "
+                                "PPO/SAC: continue training from "
                                 "the newest checkpoint this job wrote in OUT/checkpoints "
                                 "(checked against its SHA-256 manifest; any other file "
                                 "there is refused, never loaded)."),
