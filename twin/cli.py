@@ -16,6 +16,7 @@ from typing import Any
 
 import typer
 from rich.console import Console
+from rich.markup import escape
 from rich.progress import BarColumn, Progress, TextColumn, TimeElapsedColumn
 from rich.table import Table
 
@@ -94,6 +95,12 @@ def _run(program: Path | None, machine: str, profile: str | None, planner: str |
     if rerun == "serve":
         _keep_serving()
     _report(summary, out, as_json)
+    if "summary_error" in summary:   # not saved: printed, so that nothing is lost
+        err.print(f"[bold red]error:[/] {escape(summary['summary_error'])}", highlight=False,
+                  soft_wrap=True)
+        if not as_json:
+            sys.stderr.write(json_text({k: v for k, v in summary.items()
+                                        if k not in ("config", "spec")}) + "\n")
     if summary["status"] != "FINISHED":
         raise typer.Exit(1)
 

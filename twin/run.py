@@ -285,6 +285,12 @@ class _Loop:
         finish = getattr(self.sink, "finish", None)
         if finish is not None:
             finish()
+        lost = getattr(self.sink, "failed", None)   # the recording could not be written
+        if lost is not None:
+            recording = None
+            if aborted is None and fault is None:
+                fault = ("RECORDING", f"the recording could not be written ({lost}); the run "
+                         "went on to its end")
         rec = ctrl.record.as_arrays()
         if self.truth is not None:
             rec.update(self.truth.as_arrays())
@@ -325,7 +331,12 @@ class _Loop:
             summary["warnings"] = list(self.deadline_warnings)
         if p.notes:
             summary["input_warnings"] = list(p.notes)
-        write_json_atomic(out / f"{run_id}.json", summary)
+        if lost is not None:
+            summary["recording_error"] = lost
+        try:
+            write_json_atomic(out / f"{run_id}.json", summary)
+        except OSError as exc:   # a full disk: the caller prints it instead
+            summary["summary_error"] = f"the summary could not be written: {exc}"
         self.sink.close()
         fine = None
         if self.kept is not None:

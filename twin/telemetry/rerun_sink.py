@@ -8,6 +8,7 @@ logged row by row in the cyclic path, so telemetry stays a small share of a run.
 from __future__ import annotations
 
 import atexit
+import contextlib
 import os
 import shutil
 import socket
@@ -87,6 +88,8 @@ class RerunSink:
         elif blueprint:
             self._rec.send_blueprint(blueprint)
         self._closed = self._finished = False
+        self.failed: str | None = None
+        """Why the recording could not be written (set by ``finish``), or None."""
 
     # -- Sink protocol ------------------------------------------------------------------
     def static_path(self, entity: str, points: np.ndarray, *,
@@ -128,20 +131,38 @@ class RerunSink:
 
     def finish(self) -> None:
         """Flush and complete the file, still under its ``.partial`` name (a run writes its
-        summary between this and :meth:`close`)."""
+        summary between this and :meth:`close`).
+
+        A recording that could not be written (a full disk, an I/O error: rerun's file
+        writer stops, and the flush reports it) is not an exception here: ``failed`` says
+        why, the incomplete ``.partial`` is removed (it holds the space the summary needs)
+        and nothing is published."""
         if self._finished:
             return
         self._finished = True
-        self._rec.flush()
-        self._rec.disconnect()
+        try:
+            self._rec.flush()
+        except (RuntimeError, OSError) as exc:
+            self.failed = str(exc) or type(exc).__name__
+            if self._partial is not None:   # rerun says only that its writer stopped
+                with contextlib.suppress(OSError):
+                    fs = os.statvfs(self._partial.parent)
+                    if fs.f_bavail * fs.f_frsize < 1 << 20:
+                        self.failed += "; the file system is full"
+        with contextlib.suppress(RuntimeError, OSError):
+            self._rec.disconnect()
+        if self.failed is not None and self._partial is not None:
+            self._partial.unlink(missing_ok=True)
 
     def close(self) -> None:
-        """Finish the file and publish it: rename ``.partial`` to the final name (atomic)."""
+        """Finish the file and publish it: rename ``.partial`` to the final name (atomic);
+        a failed recording is not published."""
         if self._closed:
             return
         self.finish()
         self._closed = True
-        if self._partial is not None and self.path is not None and self._partial.exists():
+        if self.failed is None and self._partial is not None and self.path is not None \
+                and self._partial.exists():
             os.replace(self._partial, self.path)
 
     def __enter__(self) -> RerunSink:
