@@ -101,3 +101,20 @@ def test_wildcard_override_sets_both_axes():
 def test_unknown_preset():
     with pytest.raises(ConfigError, match=r"presets: .*tomsk_xy"):
         load_machine("no_such_machine")
+
+
+def test_a_period_that_is_not_whole_drive_intervals_is_refused_naming_it():
+    # laser_belt's 3.5 ms period is 14 of its 0.25 ms timesteps; with the schema's default
+    # timestep (0.2 ms) it is 17.5 drive intervals, which the twin cannot step
+    import tomllib
+
+    from twin.config.loader import MACHINES_DIR
+
+    doc = tomllib.loads((MACHINES_DIR / "laser_belt.toml").read_text())
+    del doc["simulation"]["timestep"]
+    with pytest.raises(ConfigError) as exc:
+        machine_from_toml_dict(doc)
+    assert exc.value.field == "controller.period" and "0.0002 s × 1" in exc.value.message
+    with pytest.raises(ConfigError, match="whole number of the twin's drive intervals"):
+        load_machine("tomsk_xy").with_overrides({"controller.period": 3.3e-3})
+    assert load_machine("tomsk_xy").with_overrides({"controller.period": 3e-3})

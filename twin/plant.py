@@ -148,6 +148,25 @@ class Plant:
         self._extent = np.zeros(4)  # lowest and highest table sample of each axis in a step
         self._u = np.zeros(2)
         self.reset()
+        if self._compiled:
+            self._warm_up()
+
+    def _warm_up(self) -> None:
+        """Compile the drive loop now, not in a run's first period: it calls MuJoCo through
+        a C pointer, so numba cannot cache it, and compiling takes 0.6 s (seconds on a
+        loaded machine): a paced loop would miss its deadlines, and a stop signal would
+        land inside LLVM. The call is the real one with no interval (``n = 0``), so the
+        types match and nothing moves; it only quantises a zero request into ``u``, which
+        every step writes anew."""
+        params, state, tables, _, log, sub, scratch = self.drives.kernel_arrays()
+        plant_loop.step_intervals(
+            *self._addresses, 0, self._substeps, params, state, tables, np.zeros(2), self._dac,
+            self._u, self._noise_block, log, self.drives.n_step, self.drives.dt,
+            self.drives.enabled, self._passive, self._has_passive, self._drive_torque, sub,
+            scratch, self._torque, self._slide_force, self._table_pos, self._table_vel,
+            self._rotor_pos, self._rotor_vel, self._ratio, self._samples[:0], self._extent,
+            self._ring, self._ring_n, self._out)
+        self._u[:] = 0.0
 
     @classmethod
     def from_machine(cls, machine: str | Path | MachineConfig, *, noise: bool = True,

@@ -96,7 +96,8 @@ def test_diverging_physics_raises_instead_of_a_silent_nan_state(tmp_path, monkey
     # blows up, and MuJoCo's auto-reset is off so the plant must notice and say so.
     monkeypatch.chdir(tmp_path)  # MuJoCo logs the warning to ./MUJOCO_LOG.TXT
     cfg = Plant.from_machine("tomsk_xy").config.with_overrides(
-        {"simulation.timestep": 1e-2, "simulation.drive_substeps": 1})
+        {"simulation.timestep": 1e-2, "simulation.drive_substeps": 1,
+         "controller.period": 1e-2})
     plant = Plant(cfg)
     with pytest.raises(SimulationError, match="diverged"):
         for _ in range(1000):

@@ -510,6 +510,15 @@ class MachineConfig(_Validated):
     def _check(self) -> None:
         if tuple(sorted(self.axes)) != AXES:
             raise ConfigError("axes", f"must define exactly {AXES}, got {tuple(self.axes)}")
+        # the twin advances whole drive intervals per controller period
+        sim, period = self.simulation, self.controller.period
+        drive = sim.timestep * sim.drive_substeps
+        n = round(period / drive)
+        if n < 1 or abs(n * drive - period) > 1e-9 * drive:
+            raise ConfigError("controller.period", f"must be a whole number of the twin's "
+                              f"drive intervals (simulation.timestep × drive_substeps = "
+                              f"{sim.timestep:g} s × {sim.drive_substeps} = {drive:g} s), got "
+                              f"{period:g} s")
 
     def with_overrides(self, overrides: dict[str, Any]) -> MachineConfig:
         """A copy with dotted-path overrides applied and validated again.
