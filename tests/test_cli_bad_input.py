@@ -46,3 +46,18 @@ def test_a_port_in_use_is_refused_naming_it():
         done = _twin("hil-server", "--port", str(port))
     assert done.returncode == 2 and "Traceback" not in done.stderr
     assert f"--port: cannot listen on 127.0.0.1:{port}" in done.stderr
+
+
+@pytest.mark.parametrize("name", ["nope", "compact"])
+def test_an_unknown_builtin_program_is_refused_naming_the_valid_ones(name, tmp_path):
+    done = _twin("run", "--builtin", name, "--rerun", "none", "--out", str(tmp_path))
+    assert done.returncode == 2 and "Traceback" not in done.stderr
+    text = " ".join(done.stderr.split())
+    assert f"builtin: unknown built-in program '{name}'" in text and "spline_line" in text
+
+
+def test_version():
+    from importlib.metadata import version
+
+    done = _twin("--version")
+    assert done.returncode == 0 and done.stdout.strip() == f"xy-twin {version('xy-twin')}"

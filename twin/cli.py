@@ -37,8 +37,21 @@ OutOpt = typer.Option(Path("runs"), "--out", help="Directory for run records.")
 JsonOpt = typer.Option(False, "--json", help="Print exactly one JSON object on stdout.")
 
 
+def _version(value: bool) -> None:
+    if value:
+        from importlib.metadata import PackageNotFoundError, version
+
+        try:
+            sys.stdout.write(f"xy-twin {version('xy-twin')}\n")
+        except PackageNotFoundError:   # run from a source tree that was never installed
+            sys.stdout.write("xy-twin (not installed)\n")
+        raise typer.Exit()
+
+
 @app.callback()
-def main() -> None:
+def main(show_version: bool = typer.Option(False, "--version", callback=_version,
+                                           is_eager=True, help="Print the version and exit.")
+         ) -> None:
     """xy-twin: a digital twin of a two-axis CNC cross table."""
 
 

@@ -20,6 +20,7 @@ from twin.config import MachineConfig
 from twin.controller.gcode import Dwell
 from twin.controller.geometry import Arc, Line, Segment, SplinePath
 from twin.controller.planner import MotionBlock, segments_from_program
+from twin.errors import ConfigError
 
 __all__ = ["PROGRAMS", "TABLE2_FEED", "build_program", "default_program", "program_path",
            "spline_line", "square_corner", "table2_move"]
@@ -110,14 +111,16 @@ def square_corner(cfg: MachineConfig, start: Sequence[float], *, angle: float = 
 
 PROGRAMS = {"default": default_program, "spline_line": table2_move,
             "corner": square_corner}
-"""Built-in programs by name: ``twin run --program-name NAME``."""
+"""Built-in programs by name: ``twin run --builtin NAME``."""
 
 
 def build_program(name: str, cfg: MachineConfig, start: Sequence[float],
                   **options: Any) -> list[Any]:
     """A built-in program by name (see ``PROGRAMS``)."""
     if name not in PROGRAMS:
-        raise ValueError(f"unknown built-in program {name!r}; valid: {', '.join(PROGRAMS)}")
+        raise ConfigError("builtin", f"unknown built-in program {name!r}; valid: "
+                          f"{', '.join(PROGRAMS)} (the tuning programs compact and tiny run "
+                          "only in twin tune)")
     return PROGRAMS[name](cfg, start, **options)
 
 
