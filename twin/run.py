@@ -262,11 +262,20 @@ class _Loop:
                     cost[0] = clock() - t0
             return True
 
+        # No cyclic garbage collection inside the paced loop: a full collection of a large
+        # heap (a test runner's, a notebook's) takes tens of milliseconds, which is several
+        # lost periods; the loop makes no reference cycles, so one collection before it
+        # leaves nothing for later.
+        paused = gc.isenabled()
+        gc.collect()
+        gc.disable()
         try:
             with fifo_priority(self.rt_priority) as granted:
                 self.rt_granted = granted
                 self.stats = loop.run(step, max_ticks=self.limit, policy=policy)
         finally:
+            if paused:
+                gc.enable()
             self.stats = self.stats or loop.last_stats()
 
     def finish(self, spec: RunSpec, run_id: str, out: Path, recording: str | None,
