@@ -187,7 +187,8 @@ def _search(spec: TuneSpec, ev: Evaluator, files: dict[str, Path],
         files["log"] = spec.out_dir / "cma_trials.jsonl"
         return ev.trials
     if spec.method == "optuna":
-        from tuning.optuna_job import default_storage, run_optuna, run_worker
+        from tuning.optuna_job import run_optuna, run_worker
+        from tuning.study_storage import default_storage
 
         job = run_worker if spec.worker else run_optuna
         return job(ev, storage=spec.storage or default_storage(spec.out_dir),
@@ -224,7 +225,7 @@ def tune(spec: TuneSpec, *, on_trial: Callable[[Trial], None] | None = None,
     start = time.perf_counter()
     cfg: MachineConfig = load_machine(spec.machine)
     if spec.method == "optuna" and spec.storage:   # a shared study: checked before writing
-        from tuning.optuna_job import check_study, study_identity
+        from tuning.study_storage import check_study, study_identity
 
         belief = None if spec.controller_model is None else load_machine(spec.controller_model)
         check_study(spec.storage, spec.study_name(cfg), study_identity(

@@ -16,7 +16,7 @@ import optuna
 import pytest
 
 from tests.tuning.postgres import PASSWORD, postgres_server
-from tuning.optuna_job import storage_url
+from tuning.study_storage import storage_url
 
 COMPLETE, FAIL, RUNNING, WAITING = (optuna.trial.TrialState.COMPLETE,
                                     optuna.trial.TrialState.FAIL,
