@@ -56,6 +56,38 @@ def test_default_program_finishes_and_writes_both_records(default_run):
     assert "axes" in saved["config"]          # the full configuration, to repeat the run
 
 
+def test_the_streamed_summary_is_the_whole_record_summary(default_run):
+    """The summary is computed while the run goes, from the rows the telemetry sends; it is
+    what the metrics give on the whole kept record."""
+    from twin.runrecord import run_summary
+
+    want = run_summary(default_run.record, default_run.path)
+    got = default_run.summary
+    for key, value in want.items():
+        if isinstance(value, dict):
+            assert got[key] == pytest.approx(value, rel=1e-12, abs=0.0), key
+        else:
+            assert got[key] == pytest.approx(value, rel=1e-12, abs=0.0), key
+
+
+def test_a_run_that_does_not_keep_its_record_releases_it_and_says_the_same(
+        default_run, tmp_path):
+    """``twin run``'s way: the record is released as it is consumed, so memory does not
+    grow with the run; the summary is the same as the kept run's."""
+    from twin.run_setup import RECORD_CHUNK
+
+    machine = default_run.summary["machine"]
+    lean = run(RunSpec(machine=machine), out_dir=tmp_path, run_id="lean", keep_record=False)
+    n = default_run.summary["ticks"]["due"]
+    assert n > 2 * RECORD_CHUNK                      # long enough to release something
+    assert len(lean.record["t"]) <= 2 * RECORD_CHUNK
+    np.testing.assert_array_equal(lean.record["position"],
+                                  default_run.record["position"][-len(lean.record["t"]):])
+    for key, value in default_run.summary.items():
+        if key.endswith("_um") or key in ("cycle_time_s", "productivity_mm_per_min"):
+            assert lean.summary[key] == pytest.approx(value, rel=1e-12, abs=0.0), key
+
+
 def test_rrd_matches_the_simulation_record_sample_for_sample(default_run):
     rec = default_run.record
     scalars = _rrd_scalars(default_run.summary["recording"])

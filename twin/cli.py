@@ -96,7 +96,9 @@ def _run(program: Path | None, machine: str, profile: str | None, planner: str |
             def warn(message: str) -> None:
                 bar.console.print(f"[yellow]warning:[/] {message}", highlight=False)
 
-            result = run(spec, out_dir=out, rerun=rerun, progress=progress, warn=warn)
+            # the record goes to the file as it grows: memory does not grow with the run
+            result = run(spec, out_dir=out, rerun=rerun, progress=progress, warn=warn,
+                         keep_record=False)
     except RunInterrupted as exc:   # the record was complete: report it, then stop
         _report(exc.result.summary, out, as_json)
         raise typer.Exit(128 + exc.signum) from None
@@ -205,7 +207,7 @@ def demo(machine: str = MachineOpt, out: Path = OutOpt, as_json: bool = JsonOpt,
             with _progress() as bar:
                 task = bar.add_task(f"DCU order {order}", total=None)
                 result = run(RunSpec(machine=machine, controller_model=controller_model,
-                                     dcu_order=order), out_dir=out,
+                                     dcu_order=order), out_dir=out, keep_record=False,
                              progress=lambda t, _m, task=task, bar=bar, o=order:
                              bar.update(task, description=f"DCU {o}: {t:.1f} s"))
         except TwinError as exc:

@@ -42,6 +42,7 @@ from twin.run_end import (
     stop_signals,
 )
 from twin.run_setup import (
+    RECORD_CHUNK,
     Prepared,
     RunResult,
     RunSpec,
@@ -51,7 +52,7 @@ from twin.run_setup import (
     model_options,
     prepare,
 )
-from twin.runrecord import make_sink, parse_command, run_summary, ticks_dict
+from twin.runrecord import RunSummary, make_sink, parse_command, run_summary, ticks_dict
 from twin.telemetry.channels import TelemetryWriter
 from twin.telemetry.sink import Sink
 
@@ -64,7 +65,8 @@ def run(spec: RunSpec, *, out_dir: str | Path = "runs", rerun: str = "file",
         progress: Callable[[float, float], None] | None = None,
         prepared: Prepared | None = None,
         commands: Sequence[Callable[[Controller], None]] = (),
-        keep_fine: bool = False, warn: Callable[[str], None] | None = None) -> RunResult:
+        keep_fine: bool = False, warn: Callable[[str], None] | None = None,
+        keep_record: bool = True) -> RunResult:
     """Run ``spec`` and write ``<run_id>.rrd`` and ``<run_id>.json`` into ``out_dir``.
 
     On the twin (``driver="sim"``) the loop runs in lock-step, as fast as the machine allows;
@@ -103,6 +105,11 @@ def run(spec: RunSpec, *, out_dir: str | Path = "runs", rerun: str = "file",
         Keep the twin's drive-rate samples in ``RunResult.fine`` (they always go to the
         telemetry and into the summary's elastic oscillation; kept, they cost 88 bytes per
         drive interval).
+    keep_record : bool
+        Keep the whole per-tick record in ``RunResult.record``. Without it (``twin run``)
+        the record is released as the telemetry and the running summary consume it, so
+        memory does not grow with the run, and ``RunResult.record`` holds only the last
+        rows (at most two chunks, ``RECORD_CHUNK`` rows each).
     """
     run_id = run_id or time.strftime("%Y%m%d-%H%M%S-") + uuid.uuid4().hex[:6]
     out = output_dir(out_dir)   # before the driver is opened: a bad folder costs nothing
@@ -115,8 +122,8 @@ def run(spec: RunSpec, *, out_dir: str | Path = "runs", rerun: str = "file",
     except BaseException:
         p.driver.close()        # whatever fails once the driver is open closes it
         raise
-    loop = _Loop(p, sink, spec.max_time, pending, progress, spec.rt_priority, keep_fine,
-                 warn)
+    loop = _Loop(p, sink, spec.time_limit(p.cfg), pending, progress, spec.rt_priority, keep_fine,
+                 warn, keep_record)
     aborted = fault = None
     t_wall = time.perf_counter()
     late: list[int] = []
@@ -147,7 +154,8 @@ class _Loop:
     def __init__(self, p: Prepared, sink: Sink, max_time: float,
                  pending: list[Callable[[Controller], None]],
                  progress: Callable[[float, float], None] | None, rt_priority: int = 0,
-                 keep_fine: bool = False, warn: Callable[[str], None] | None = None):
+                 keep_fine: bool = False, warn: Callable[[str], None] | None = None,
+                 keep_record: bool = True):
         self.p, self.sink, self.pending, self.progress = p, sink, pending, progress
         self.rt_priority = rt_priority
         self.rt_granted = False
@@ -162,7 +170,10 @@ class _Loop:
         # few enough that send overhead stays small).
         self.every = 50
         self._next_batch = time.perf_counter() + BATCH_WALL
-        self.truth = Record(TRUTH_FIELDS) if p.plant is not None else None
+        self.truth = (Record(TRUTH_FIELDS, capacity=RECORD_CHUNK) if p.plant is not None
+                      else None)
+        self.keep_record = keep_record
+        self.summary = RunSummary(p.path)   # fed as the telemetry goes out
         self.writer = TelemetryWriter(sink, p.path, truth_record=self.truth,
                                       fine_fields=FINE_FIELDS)
         self.names = {int(s): s.name for s in ControllerStatus}
@@ -203,10 +214,22 @@ class _Loop:
         if now < self._next_batch:
             return False
         self._next_batch = now + BATCH_WALL
-        self.writer.flush(self.p.controller.record, status_names=self.names)
+        self._flush()
         if self.progress is not None:
             self.progress(self.ticks * self.period, self.max_time)
         return True
+
+    def _flush(self) -> None:
+        """Send the rows recorded since the last flush to the telemetry and the running
+        summary; release them unless the whole record is kept."""
+        record = self.p.controller.record
+        sent = self.writer.flush(record, status_names=self.names)
+        if sent is not None:
+            self.summary.feed(*sent)
+        if not self.keep_record:
+            record.release(len(record))
+            if self.truth is not None:
+                self.truth.release(len(record))
 
     def run_lockstep(self) -> None:
         """The twin: as fast as the machine allows (the hot loop: locals only, and the
@@ -288,7 +311,7 @@ class _Loop:
                 self.truth.append(p.plant.truth_row())
         p.driver.close()
         self.drain()
-        self.writer.flush(ctrl.record, status_names=self.names)
+        self._flush()
         # the recording is completed, but published under its final name only after the
         # summary is written: a .rrd never stands without its .json
         finish = getattr(self.sink, "finish", None)
@@ -300,9 +323,9 @@ class _Loop:
             if aborted is None and fault is None:
                 fault = ("RECORDING", f"the recording could not be written ({lost}); the run "
                          "went on to its end")
-        rec = ctrl.record.as_arrays()
+        rec = ctrl.record.as_arrays(ctrl.record.first)
         if self.truth is not None:
-            rec.update(self.truth.as_arrays())
+            rec.update(self.truth.as_arrays(ctrl.record.first))
         # the twin's own clock: with a simulated timer the ticks are not one period apart
         sim_time = p.plant.time if p.plant is not None else self.ticks * self.period
         schedule = getattr(p.driver, "schedule", None)
@@ -316,7 +339,7 @@ class _Loop:
                                    "driver": spec.driver,
                                    "machine_file": machine_identity(p.cfg),
                                    "controller_model_file": machine_identity(p.belief or p.cfg)}
-        summary.update(run_summary(rec, p.path))
+        summary.update(self.summary.result())
         if self.meter is not None:
             summary["elastic_oscillation_um"] = self.meter.peak * 1e6
         summary.update({

@@ -57,8 +57,10 @@ class RunSpec:
         Interpolator interface: "extended" (float v/a/j channels) or "traditional".
     dry_run : bool
         Run the controller without driving the motors.
-    max_time : float
-        Stop after this much controller time (s).
+    max_time : float or None
+        Stop after this much controller time (s); None: the machine's longest program
+        (``controller.max_program_time``, judged on a lower bound of a program's time) with
+        a quarter more, plus ``controller.settle_timeout``.
     start : (float, float) or None
         Table position at the start (m); None: the home keyframe.
     commands : tuple of str
@@ -84,7 +86,7 @@ class RunSpec:
     overrides: Mapping[str, Any] = field(default_factory=dict)
     mode: str = "extended"
     dry_run: bool = False
-    max_time: float = 3600.0
+    max_time: float | None = None
     start: tuple[float, float] | None = None
     commands: tuple[str, ...] = ()
     driver: str = "sim"
@@ -102,6 +104,13 @@ class RunSpec:
         if self.dcu_order is not None:
             sets["controller.regulator.dcu_order"] = self.dcu_order
         return load_machine(self.machine).with_overrides(sets)
+
+    def time_limit(self, cfg: MachineConfig) -> float:
+        """``max_time``, or the machine's default for it (s)."""
+        if self.max_time is not None:
+            return self.max_time
+        c = cfg.controller
+        return 1.25 * c.max_program_time + c.settle_timeout
 
     def belief(self, cfg: MachineConfig | None = None) -> MachineConfig:
         """The controller's model of the machine: ``controller_model``, or the machine
@@ -147,8 +156,22 @@ class RunResult:
 
 
 def axis_models(cfg: MachineConfig) -> list[LinearAxisModel]:
-    """The linear reference → position model of each axis, from the drive model."""
-    return [LinearAxisModel(*axis_transfer_function(cfg.axes[a])) for a in AXES]
+    """The linear reference → position model of each axis, from the drive model.
+
+    Raises
+    ------
+    ConfigError
+        Naming the axis, when its motor, converter, tacho and speed-loop settings give a
+        model the controller cannot derive its gains from (an unstable speed loop)."""
+    models = []
+    for a in AXES:
+        try:
+            models.append(LinearAxisModel(*axis_transfer_function(cfg.axes[a])))
+        except ConfigError as exc:
+            raise ConfigError(f"axes.{a}", f"the drive these motor, converter, tacho and "
+                              f"speed_loop settings give is not a stable linear model "
+                              f"({exc.field}: {exc.message})") from None
+    return models
 
 
 def model_options(belief: MachineConfig) -> dict[str, Any]:
@@ -191,6 +214,11 @@ class Prepared:
     """What was read but is worth a look (bytes of the program that are not UTF-8)."""
 
 
+RECORD_CHUNK = 4096
+"""Rows per chunk of a run's records (20 s at 200 Hz): a run that does not keep its record
+releases it chunk by chunk once the telemetry and the summary have consumed it."""
+
+
 def prepare(spec: RunSpec) -> Prepared:
     """Load the machine, the program and the machine's I/O (the twin, or a driver URL); build
     the controller (checks the program against the work zone before any motion)."""
@@ -212,7 +240,8 @@ def prepare(spec: RunSpec) -> Prepared:
     try:
         items = load_program(spec, cfg, start, notes)
         controller = Controller.from_machine(cfg, items or None, **model_options(belief),
-                                             mode=spec.mode, start=start)
+                                             mode=spec.mode, start=start,
+                                             record_capacity=RECORD_CHUNK)
     except BaseException:
         driver.close()
         raise

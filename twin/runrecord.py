@@ -12,12 +12,12 @@ import numpy as np
 
 from twin.config import AXES
 from twin.controller.controller import Controller
-from twin.controller.summary import summarize
+from twin.controller.summary import RunningSummary
 from twin.errors import ConfigError
 from twin.hardware.realtime import TickStats
 from twin.telemetry.sink import NullSink, Sink
 
-__all__ = ["make_sink", "parse_command", "run_summary", "ticks_dict"]
+__all__ = ["RunSummary", "make_sink", "parse_command", "run_summary", "ticks_dict"]
 
 
 def make_sink(rerun: str, out: Path, run_id: str) -> tuple[Sink, str | None]:
@@ -44,34 +44,94 @@ def ticks_dict(stats: TickStats) -> dict[str, Any]:
                               "jitter_p99_us", "jitter_max_us", "on_time_ratio", "paced")}
 
 
-def run_summary(rec: Mapping[str, np.ndarray], path: list) -> dict[str, Any]:
-    """The metric part of the summary (µm, mm, s) from a run's record.
+SUMMARY_BLOCK = 16384
+"""Samples a run's summary measures at a time (82 s at 200 Hz): a few MB, and a program of
+many segments searched once per block."""
+
+
+class RunSummary:
+    """The metric part of a run's summary (µm, mm, s), fed with the record as it grows, in
+    memory that does not grow with the run (:class:`RunningSummary`).
 
     The actual velocity is the twin's table velocity when the record has it (a simulated
-    run), else the derivative of the measured position (real I/O)."""
-    if len(rec["t"]) < 2 or not path:
-        return {"cycle_time_s": 0.0, "path_length_mm": 0.0}
-    velocity = rec.get("table_velocity")
-    if velocity is None:
-        velocity = np.gradient(rec["position"], rec["t"], axis=0)
-    # No active-block hint: a table lagging several short blocks behind its reference would
-    # be measured against the wrong ones. The exact search over the whole path is cheap.
-    m = summarize(rec["t"], rec["ref_position"], rec["ref_velocity"], rec["position"],
-                  velocity, path)
-    r = m.to_report()
-    return {
-        "cycle_time_s": r["cycle_time_s"],
-        "path_length_mm": r["path_length_mm"],
-        "max_contour_error_um": r["max_contour_error_um"],
-        "rms_contour_error_um": r["rms_contour_error_um"],
-        "max_coordinate_error_um": {a: r[f"max_coordinate_error_{a}_um"] for a in AXES},
-        "max_velocity_error_um_s": {
-            a: m.max_velocity_error[i] * 1e6 for i, a in enumerate(AXES)},
-        "max_vector_error_um": r["max_vector_error_um"],
-        "settling_travel_um": r["settling_travel_um"],
-        "overshoot_um": r["overshoot_um"],
-        "productivity_mm_per_min": r["productivity_mm_per_min"],
-    }
+    run), else the derivative of the measured position (real I/O): numpy's second-order
+    central difference on uneven times, one-sided at the ends, computed across the feeds
+    (each sample waits for the next one)."""
+
+    def __init__(self, path: list):
+        # No active-block hint: a table lagging several short blocks behind its reference
+        # would be measured against the wrong ones. The exact search over the path is cheap.
+        self._running = RunningSummary(path, block=SUMMARY_BLOCK) if path else None
+        self.samples = 0
+        self._held: dict[str, np.ndarray] | None = None   # samples waiting for a derivative
+        self._edge = True                                  # the first sample is not out yet
+
+    def feed(self, rec: Mapping[str, np.ndarray],
+             truth: Mapping[str, np.ndarray] | None = None) -> None:
+        """Add the rows of a controller record (``t``, ``ref_position``, ``ref_velocity``,
+        ``position``) and of the twin's truth record (``table_velocity``) if there is one."""
+        n = len(rec["t"])
+        self.samples += n
+        if self._running is None or n == 0:
+            return
+        cols = {k: np.asarray(rec[k], dtype=float)
+                for k in ("t", "ref_position", "ref_velocity", "position")}
+        velocity = truth.get("table_velocity") if truth is not None else None
+        if velocity is not None:
+            self._running.feed(*cols.values(), velocity)
+            return
+        if self._held is not None:
+            cols = {k: np.concatenate((self._held[k], v)) for k, v in cols.items()}
+        t, pos = cols["t"], cols["position"]
+        if len(t) < 2:
+            self._held = cols
+            return
+        h1, h2 = np.diff(t)[:-1, None], np.diff(t)[1:, None]
+        inner = (-h2 / (h1 * (h1 + h2)) * pos[:-2] + (h2 - h1) / (h1 * h2) * pos[1:-1]
+                 + h1 / (h2 * (h1 + h2)) * pos[2:])       # samples 1 … L−2 of the window
+        if self._edge:                                     # the first sample: forward
+            d = np.concatenate((((pos[1] - pos[0]) / (t[1] - t[0]))[None, :], inner))
+            out = slice(0, len(t) - 1)
+        else:                                              # sample 0 went out last time
+            d, out = inner, slice(1, len(t) - 1)
+        self._running.feed(t[out], cols["ref_position"][out], cols["ref_velocity"][out],
+                           pos[out], d)
+        self._edge = False
+        self._held = {k: v[-2:] for k, v in cols.items()}
+
+    def result(self) -> dict[str, Any]:
+        """The summary's metric keys."""
+        if self.samples < 2 or self._running is None:
+            return {"cycle_time_s": 0.0, "path_length_mm": 0.0}
+        if self._held is not None and not self._edge:       # the last sample: backward
+            h = self._held
+            d = (h["position"][-1] - h["position"][-2]) / (h["t"][-1] - h["t"][-2])
+            self._running.feed(h["t"][-1:], h["ref_position"][-1:], h["ref_velocity"][-1:],
+                               h["position"][-1:], d[None, :])
+            self._held = None
+        m = self._running.result()
+        r = m.to_report()
+        return {
+            "cycle_time_s": r["cycle_time_s"],
+            "path_length_mm": r["path_length_mm"],
+            "max_contour_error_um": r["max_contour_error_um"],
+            "rms_contour_error_um": r["rms_contour_error_um"],
+            "max_coordinate_error_um": {a: r[f"max_coordinate_error_{a}_um"] for a in AXES},
+            "max_velocity_error_um_s": {
+                a: m.max_velocity_error[i] * 1e6 for i, a in enumerate(AXES)},
+            "max_vector_error_um": r["max_vector_error_um"],
+            "settling_travel_um": r["settling_travel_um"],
+            "overshoot_um": r["overshoot_um"],
+            "productivity_mm_per_min": r["productivity_mm_per_min"],
+        }
+
+
+def run_summary(rec: Mapping[str, np.ndarray], path: list) -> dict[str, Any]:
+    """The metric part of the summary (µm, mm, s) from a whole run's record (controller and
+    truth columns in one mapping; see :class:`RunSummary`)."""
+    summary = RunSummary(path)
+    summary.feed(rec, rec)
+    return summary.result()
 
 
 def parse_command(text: str) -> Callable[[Controller], None]:

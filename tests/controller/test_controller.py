@@ -221,6 +221,30 @@ def test_record_reads_any_tail_across_chunks(capacity):
         assert arrays["status"].dtype == np.int64
 
 
+def test_a_released_record_keeps_its_row_numbers_and_frees_whole_chunks():
+    rec = Record([("t", 1), ("v", 2)], capacity=8)
+    rows = np.arange(100 * 3, dtype=float).reshape(100, 3)
+    read = 0
+    for k, row in enumerate(rows):
+        rec.append(row)
+        if k % 13 == 12:           # a reader that consumes the tail, then releases it
+            np.testing.assert_array_equal(rec.table(read), rows[read:k + 1])
+            read = k + 1
+            rec.release(read)
+            assert rec.first <= read < rec.first + 2 * 8
+            assert len(rec._chunks) <= 2
+        if k == 50:
+            rec.capacity = 3       # later chunks are smaller; row numbers stay
+    assert len(rec) == 100
+    np.testing.assert_array_equal(rec.table(read), rows[read:])
+    with pytest.raises(ValueError, match="released"):
+        rec.table(0)
+    chunk, i = rec.slot()          # the in-place writer continues after the released rows
+    chunk[i] = -1.0
+    rec.advance()
+    assert len(rec) == 101 and rec.table(100).tolist() == [[-1.0, -1.0, -1.0]]
+
+
 def test_encoder_wrap_mid_run_is_harmless():
     runs = []
     for offset in ((0, 0), (2**32 - 250_010, 2**32 - 300)):   # x wraps after 50 mm of travel

@@ -17,6 +17,7 @@ Typical use::
 
 from __future__ import annotations
 
+import bisect
 import math
 from collections.abc import Iterable, Sequence
 
@@ -43,11 +44,12 @@ class Record:
         Fields that hold integers (block index, line, status codes); ``as_arrays`` returns
         them as int64. Stored as float64, which is exact up to 2^53.
     capacity : int
-        Rows preallocated in the first chunk (and in each further chunk).
+        Rows preallocated in the first chunk (and in each further chunk; a changed
+        ``capacity`` applies to the chunks allocated after the change).
     """
 
-    __slots__ = ("_chunk", "_chunks", "_fields", "_i", "_integer", "_n_full", "_pending",
-                 "_shapes", "_slices", "capacity", "width")
+    __slots__ = ("_chunk", "_chunks", "_fields", "_i", "_integer", "_pending", "_shapes",
+                 "_slices", "_starts", "capacity", "width")
 
     def __init__(self, fields: Sequence[tuple[str, int | tuple[int, ...]]], *,
                  integer: Iterable[str] = (), capacity: int = 65536):
@@ -75,14 +77,22 @@ class Record:
         self.capacity = int(capacity)
         """int: rows per chunk."""
         self._chunks: list[np.ndarray] = []
+        self._starts: list[int] = []     # the row number of each chunk's first row
         self._pending: list[Sequence[float]] = []
-        self._n_full = 0
+        self._i = 0
         self._new_chunk()
 
     def _new_chunk(self) -> None:
+        start = self._starts[-1] + self._i if self._starts else 0
         self._chunk = np.empty((self.capacity, self.width))
         self._chunks.append(self._chunk)
+        self._starts.append(start)
         self._i = 0
+
+    @property
+    def first(self) -> int:
+        """The first row still held (0 unless rows were released)."""
+        return self._starts[0]
 
     @property
     def fields(self) -> list[tuple[str, tuple[int, ...]]]:
@@ -90,7 +100,7 @@ class Record:
         return list(self._shapes.items())
 
     def __len__(self) -> int:
-        return self._n_full + self._i + len(self._pending)
+        return self._starts[-1] + self._i + len(self._pending)
 
     def append(self, row: Sequence[float]) -> None:
         """Store one row of ``width`` values (in field order, wide fields flattened).
@@ -110,8 +120,7 @@ class Record:
         moved in first, so the order of rows is kept."""
         if self._pending:
             self._commit()
-        if self._i == self.capacity:
-            self._n_full += self.capacity
+        if self._i == len(self._chunk):
             self._new_chunk()
         return self._chunk, self._i
 
@@ -131,35 +140,51 @@ class Record:
         self._pending.clear()
         i = 0
         while i < len(rows):
-            if self._i == self.capacity:
-                self._n_full += self.capacity
+            if self._i == len(self._chunk):
                 self._new_chunk()
-            k = min(len(rows) - i, self.capacity - self._i)
+            k = min(len(rows) - i, len(self._chunk) - self._i)
             self._chunk[self._i:self._i + k] = rows[i:i + k]
             self._i += k
             i += k
 
     def clear(self) -> None:
         """Forget every row and keep one chunk."""
-        self._chunks = [self._chunks[0]]
-        self._chunk = self._chunks[0]
+        self._chunks = [self._chunk]
+        self._starts = [0]
         self._i = 0
-        self._n_full = 0
         self._pending.clear()
+
+    def release(self, upto: int) -> None:
+        """Free the chunks whose rows all lie before row ``upto`` (the current chunk is
+        kept). Row numbers do not change; rows before :attr:`first` can no longer be read.
+        A run that streams its record (telemetry, a running summary) releases what it has
+        consumed, so its memory does not grow with its length."""
+        keep = 0
+        while keep < len(self._chunks) - 1 and self._starts[keep + 1] <= upto:
+            keep += 1
+        if keep:
+            del self._chunks[:keep], self._starts[:keep]
 
     def table(self, start: int = 0) -> np.ndarray:
         """Rows ``start`` … end as one (n − start, width) float64 array (a copy).
 
         Only the chunks that hold those rows are touched, so reading what was appended since
         the last read (``start = previous length``) costs the new rows, not the whole run.
+
+        Raises
+        ------
+        ValueError
+            If ``start`` lies before :attr:`first` (those rows were released).
         """
         self._commit()
         start = max(int(start), 0)
+        if start < self.first:
+            raise ValueError(f"rows before {self.first} were released; asked from {start}")
         if start >= len(self):
             return np.empty((0, self.width))
-        first = start // self.capacity
+        first = bisect.bisect_right(self._starts, start) - 1
         parts = [*self._chunks[first:-1], self._chunk[: self._i]]
-        parts[0] = parts[0][start - first * self.capacity:]
+        parts[0] = parts[0][start - self._starts[first]:]
         if len(parts) == 1:
             return parts[0].copy()
         return np.concatenate(parts, axis=0)

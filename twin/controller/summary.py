@@ -15,19 +15,17 @@ from twin.controller.geometry import Segment
 from twin.controller.io import AXES
 from twin.controller.metrics import (
     _times,
+    _unit,
     _xy,
     contour_error,
     coordinate_error,
-    cycle_time,
-    overshoot,
     productivity,
-    settling_travel,
     velocity_error,
 )
 from twin.errors import ConfigError
 from twin.units import to_mm, to_mm_per_min, to_um
 
-__all__ = ["RunMetrics", "summarize"]
+__all__ = ["RunMetrics", "RunningSummary", "summarize"]
 
 _PER_AXIS = ("max_coordinate_error", "rms_coordinate_error", "max_velocity_error",
              "rms_velocity_error")
@@ -113,13 +111,177 @@ class RunMetrics:
         return report
 
 
-def _rms(values: np.ndarray, axis=None):
-    return np.sqrt(np.mean(np.square(values), axis=axis))
+class RunningSummary:
+    """The metrics of a run fed in blocks of samples, in constant memory: what
+    :func:`summarize` gives on the whole record (to rounding: the RMS values are running
+    sums of squares).
+
+    Blocks are gathered up to ``block`` samples before they are measured, so a program of
+    many segments is searched once per block rather than once per small feed. After the
+    motion only what the after-motion metrics need is kept: the largest overshoot since the
+    last moving sample, and the points since then for the settling travel (compacted to
+    their convex hull past ``block`` points: the point farthest from the final position is
+    a vertex of it). Sample times must increase strictly.
+
+    Parameters
+    ----------
+    path : sequence of Segment
+        The programmed path.
+    t_end : float, optional
+        End of the commanded motion (s); default: the sample after the last moving one.
+    window : int
+        Segments searched on each side of the ``segment`` hint (see :func:`contour_error`).
+    block : int
+        Samples measured at a time (≥ 1).
+    """
+
+    def __init__(self, path: Sequence[Segment], *, t_end: float | None = None,
+                 window: int = 1, block: int = 65536):
+        self.segments = list(path)
+        if not self.segments:
+            raise ValueError("path must hold at least one segment")
+        if block < 1:
+            raise ValueError(f"block must be >= 1 sample, got {block}")
+        self.t_end, self.window, self.block = t_end, window, int(block)
+        last = self.segments[-1]
+        self._target = np.asarray(last.end, dtype=float)
+        self._direction = _unit("direction", last.end_tangent)
+        self._waiting: list[tuple[np.ndarray, ...]] = []
+        self._waiting_n = 0
+        self.samples = 0
+        self._sq = np.zeros(6)         # coordinate x, y; vector; velocity x, y; contour
+        self._max = np.zeros(6)
+        self._first_t = math.nan       # the first moving sample's time
+        self._last = -1                # index of the last moving sample
+        self._stop_t = math.nan        # time of the sample after it
+        self._end_t = math.nan         # time of the last sample
+        self._end_pos = np.full(2, math.nan)
+        self._over = -math.inf         # overshoot past the end, over the tail
+        self._tail: list[np.ndarray] = []   # settling candidates (points, or their hull)
+        self._tail_n = 0
+
+    def feed(self, t, ref_position, ref_velocity, position, velocity, segment=None) -> None:
+        """Add samples: ``t`` (n,), the others (n, 2) as :func:`summarize` takes them."""
+        pos = _xy("position", position)
+        n = pos.shape[0]
+        if n == 0:
+            return
+        part = (_times(t, n).copy(), _xy("ref_position", ref_position, n).copy(),
+                _xy("ref_velocity", ref_velocity, n).copy(), pos.copy(),
+                _xy("velocity", velocity, n).copy(),
+                None if segment is None else np.asarray(segment).copy())
+        self._waiting.append(part)
+        self._waiting_n += n
+        if self._waiting_n >= self.block:
+            self._measure()
+
+    def _measure(self) -> None:
+        if not self._waiting:
+            return
+        t, ref, ref_vel, pos, vel, seg = (
+            None if any(p[k] is None for p in self._waiting)
+            else np.concatenate([p[k] for p in self._waiting]) for k in range(6))
+        self._waiting.clear()
+        self._waiting_n = 0
+        coord = coordinate_error(ref, pos)
+        errors = (np.abs(coord), np.hypot(*coord.T)[:, None],
+                  np.abs(velocity_error(ref_vel, vel)),
+                  contour_error(self.segments, pos, hint=seg, window=self.window)[:, None])
+        values = np.concatenate(errors, axis=1)              # (n, 6)
+        self._sq += np.square(values).sum(axis=0)
+        self._max = np.maximum(self._max, values.max(axis=0))     # NaN stays NaN
+        n0, n = self.samples, len(t)
+        self.samples += n
+        self._end_t, self._end_pos = float(t[-1]), pos[-1].copy()
+        past = (pos - self._target) @ self._direction
+        if self._last == n0 - 1 and self._last >= 0:    # the previous block ended moving
+            self._stop_t = float(t[0])
+        moving = np.flatnonzero(np.any(ref_vel != 0.0, axis=1))
+        if moving.size:
+            j = int(moving[-1])
+            if math.isnan(self._first_t):
+                self._first_t = float(t[moving[0]])
+            self._last = n0 + j
+            self._stop_t = float(t[j + 1]) if j + 1 < n else math.nan
+        if self.t_end is not None:          # a given end: the tails are fixed in time
+            self._extend(past[t >= self.t_end], pos[t > self.t_end])
+        elif moving.size:                   # the tails start again after this motion
+            self._over, self._tail, self._tail_n = -math.inf, [], 0
+            self._extend(past[j + 1:], pos[j + 2:])
+        else:
+            # the tails start one (overshoot) and two (settling) samples after the last
+            # moving one; with no moving sample at all t_end is the first sample's time
+            o = max(self._last + 1 - n0, 0)
+            s = max(self._last + 2 - n0, 0) if self._last >= 0 else max(1 - n0, 0)
+            self._extend(past[o:], pos[s:])
+
+    def _extend(self, past: np.ndarray, points: np.ndarray) -> None:
+        if past.size:
+            self._over = float(np.maximum(self._over, past.max()))   # NaN stays NaN
+        if len(points):
+            self._tail.append(points)
+            self._tail_n += len(points)
+            if self._tail_n > self.block:
+                hull = _hull(np.concatenate(self._tail))
+                self._tail, self._tail_n = [hull], len(hull)
+
+    def result(self) -> RunMetrics:
+        """The metrics of everything fed so far."""
+        self._measure()
+        n = self.samples
+        if n == 0:
+            raise ValueError("a run needs at least one sample")
+        rms = np.sqrt(self._sq / n)
+        if self._last < 0:
+            duration = 0.0
+        else:
+            stop = self._end_t if math.isnan(self._stop_t) else self._stop_t
+            duration = float(stop - self._first_t)
+        over = self._over
+        if self.t_end is None and self._last == n - 1:   # moving to the end: t_end is the
+            over = float((self._end_pos - self._target) @ self._direction)   # last sample
+        travel = (float(np.hypot(*(np.concatenate(self._tail) - self._end_pos).T).max())
+                  if self._tail_n else math.nan)
+        length = math.fsum(seg.length for seg in self.segments)
+        return RunMetrics(
+            samples=n,
+            max_coordinate_error=(float(self._max[0]), float(self._max[1])),
+            rms_coordinate_error=(float(rms[0]), float(rms[1])),
+            max_contour_error=float(self._max[5]),
+            rms_contour_error=float(rms[5]),
+            max_vector_error=float(self._max[2]),
+            rms_vector_error=float(rms[2]),
+            max_velocity_error=(float(self._max[3]), float(self._max[4])),
+            rms_velocity_error=(float(rms[3]), float(rms[4])),
+            settling_travel=travel,
+            overshoot=max(over, 0.0),
+            cycle_time=duration,
+            path_length=length,
+            productivity=productivity(length, duration) if duration > 0.0 else 0.0,
+        )
+
+
+def _hull(points: np.ndarray) -> np.ndarray:
+    """The vertices of the convex hull of points (m, 2): the extremes along the line when
+    they are collinear, the point when they coincide."""
+    from scipy.spatial import ConvexHull, QhullError
+
+    finite = points[np.isfinite(points).all(axis=1)]
+    if len(finite) < len(points):       # a diverged run: keep one NaN, max stays NaN
+        return np.concatenate((_hull(finite) if len(finite) else finite, points[~np.isfinite(
+            points).all(axis=1)][:1]))
+    try:
+        return points[ConvexHull(points).vertices]
+    except (QhullError, ValueError):    # fewer than 3 points, collinear or coincident
+        d = points - points[0]
+        axis = d[np.argmax(np.hypot(*d.T))] if len(points) > 1 else np.zeros(2)
+        along = d @ axis
+        return points[[int(np.argmin(along)), int(np.argmax(along))]]
 
 
 def summarize(t, ref_position, ref_velocity, position, velocity, path: Sequence[Segment], *,
               segment=None, t_end: float | None = None, window: int = 1) -> RunMetrics:
-    """All metrics of a recorded run.
+    """All metrics of a recorded run (:class:`RunningSummary` fed the whole record at once).
 
     Parameters
     ----------
@@ -150,37 +312,6 @@ def summarize(t, ref_position, ref_velocity, position, velocity, path: Sequence[
     n = pos.shape[0]
     if n == 0:
         raise ValueError("a run needs at least one sample")
-    times = _times(t, n)
-    ref_pos = _xy("ref_position", ref_position, n)
-    coord = coordinate_error(ref_pos, pos)
-    vector = np.hypot(*coord.T)
-    vel = velocity_error(_xy("ref_velocity", ref_velocity, n), _xy("velocity", velocity, n))
-    contour = contour_error(path, pos, hint=segment, window=window)
-    moving = np.any(np.asarray(ref_velocity, dtype=float) != 0.0, axis=1)
-    duration = cycle_time(times, moving)
-    if t_end is None:
-        idx = np.flatnonzero(moving)
-        t_end = float(times[min(int(idx[-1]) + 1, n - 1)]) if idx.size else float(times[0])
-    try:
-        travel = settling_travel(times, pos, t_end)
-    except ValueError:
-        travel = math.nan
-    segments = list(path)
-    length = math.fsum(seg.length for seg in segments)
-    return RunMetrics(
-        samples=n,
-        max_coordinate_error=tuple(np.abs(coord).max(axis=0).tolist()),
-        rms_coordinate_error=tuple(_rms(coord, axis=0).tolist()),
-        max_contour_error=float(contour.max()),
-        rms_contour_error=float(_rms(contour)),
-        max_vector_error=float(vector.max()),
-        rms_vector_error=float(_rms(vector)),
-        max_velocity_error=tuple(np.abs(vel).max(axis=0).tolist()),
-        rms_velocity_error=tuple(_rms(vel, axis=0).tolist()),
-        settling_travel=travel,
-        overshoot=overshoot(times, pos, segments[-1].end, segments[-1].end_tangent,
-                            after=t_end),
-        cycle_time=duration,
-        path_length=length,
-        productivity=productivity(length, duration) if duration > 0.0 else 0.0,
-    )
+    running = RunningSummary(path, t_end=t_end, window=window, block=max(n, 1))
+    running.feed(t, ref_position, ref_velocity, pos, velocity, segment)
+    return running.result()

@@ -176,15 +176,18 @@ class TelemetryWriter:
             cols[f"{base}/screw_deflection_um"] = rows[:, c["screw_deflection"] + k] * 1e6
         self.sink.scalars(rows[:, c["t"]], cols)
 
-    def flush(self, record: Record, *, status_names: Mapping[int, str] | None = None) -> None:
+    def flush(self, record: Record, *, status_names: Mapping[int, str] | None = None
+              ) -> tuple[dict[str, np.ndarray], dict[str, np.ndarray] | None] | None:
         """Send the rows appended to ``record`` (and the truth record) since the last flush,
-        and the queued drive-rate samples."""
+        and the queued drive-rate samples. Returns the rows sent, ``(controller columns,
+        truth columns or None)``, for another consumer of the same rows (the run's running
+        summary); None if there were none."""
         n = len(record)
         t0 = time.perf_counter()
         self._flush_fine()
         if n <= self._sent:
             self.wall += time.perf_counter() - t0
-            return
+            return None
         c = record.as_arrays(self._sent)
         tr = self.truth_record.as_arrays(self._sent) if self.truth_record is not None else {}
         t = c["t"]
@@ -207,6 +210,7 @@ class TelemetryWriter:
         self._events(t, c, status_names or {})
         self._sent = n
         self.wall += time.perf_counter() - t0
+        return c, (tr or None)
 
     def _events(self, t: np.ndarray, c: Mapping[str, np.ndarray],
                 names: Mapping[int, str]) -> None:
