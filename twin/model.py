@@ -175,7 +175,6 @@ def build_spec(machine: str | Path | MachineConfig, *, scene: bool = False,
     spec.option.timestep = float(dt)
     home = {}
     for axis in AXES:
-        _check_switches(cfg, axis)
         _apply_axis(spec, cfg, axis)
         r = cfg.axes[axis].transmission.ratio
         x_home = cfg.axes[axis].switches.home
@@ -189,16 +188,6 @@ def load_model(machine: str | Path | MachineConfig, *, scene: bool = False,
                timestep: float | None = None) -> mujoco.MjModel:
     """Compile the model of ``machine`` (see :func:`build_spec` for the arguments)."""
     return build_spec(machine, scene=scene, timestep=timestep).compile()
-
-
-def _check_switches(cfg: MachineConfig, axis: str) -> None:
-    ax = cfg.axes[axis]
-    lo, hi = ax.mechanics.travel
-    for name in ("limit_min", "limit_max", "home"):
-        pos = getattr(ax.switches, name)
-        if not lo <= pos <= hi:
-            raise ConfigError(f"axes.{axis}.switches.{name}",
-                              f"must lie within the travel [{lo}, {hi}] m, got {pos}")
 
 
 def _apply_axis(spec: mujoco.MjSpec, cfg: MachineConfig, axis: str) -> None:

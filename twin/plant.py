@@ -306,8 +306,9 @@ class Plant:
         lo_x, hi_x, lo_y, hi_y = extent.tolist()
         if not math.isfinite(lo_x + hi_x + lo_y + hi_y) or any(w in _BAD_STATE
                                                               for w in warnings):
-            raise SimulationError(f"the plant state diverged (not finite) by t = {d.time:.6f} s"
-                                  f" (MuJoCo warnings: {', '.join(warnings) or 'none'})")
+            raise SimulationError(f"the plant state diverged by t = {d.time:.6f} s: "
+                                  f"{self._diverged(extent)} (MuJoCo warnings: "
+                                  f"{', '.join(warnings) or 'none'})")
         fault_x, fault_y = ro[2] != 0.0, ro[3] != 0.0
         mon_x, mon_y = self._monitors
         hit_x, end_x = mon_x.quick(lo_x, hi_x) or mon_x.update(samples[:, 0].tolist(), t0,
@@ -316,6 +317,21 @@ class Plant:
                                                                self.drive_dt)
         return StepStatus(saturated, FLAGS[2 * hit_x + hit_y], FLAGS[2 * end_x + end_y],
                           FLAGS[2 * fault_x + fault_y], warnings, d.time)
+
+    def _diverged(self, extent: np.ndarray) -> str:
+        """Which axis and which quantity left the finite numbers first (for the message)."""
+        m, d = self.model, self.data
+        for ax, (lo, hi) in zip(AXES, extent.reshape(2, 2).tolist(), strict=True):
+            if not math.isfinite(lo + hi):
+                return f"axis {ax}: the table position is not finite"
+        for j in range(m.njnt):
+            name = m.joint(j).name
+            q, v = d.qpos[m.jnt_qposadr[j]], d.qvel[m.jnt_dofadr[j]]
+            for what, value in (("position", q), ("velocity", v)):
+                if not math.isfinite(value) or abs(value) > 1e9:
+                    axis = name.split("_", 1)[0]
+                    return f"axis {axis}: the {what} of joint {name} is {value:g}"
+        return "a MuJoCo state warning (no state is yet non-finite)"
 
     # ------------------------------------------------------------------ sensing
     def read_into(self, inputs: Any) -> None:

@@ -125,16 +125,16 @@ def test_missing_parameter_names_the_field(tmp_path, section, key):
 
 
 @pytest.mark.parametrize("switch", ["limit_min", "limit_max"])
-def test_switch_outside_the_travel_is_rejected_by_the_model(switch):
+def test_switch_outside_the_travel_is_rejected_by_the_machine_file(switch):
     # (the config itself keeps home between the limits, so home cannot leave the travel alone)
-    cfg = load_machine("tomsk_xy").with_overrides({
-        "axes.y.mechanics.travel": [0.02, 0.15],
-        "axes.y.switches.limit_min": 0.01 if switch == "limit_min" else 0.03,
-        "axes.y.switches.home": 0.04,
-        "axes.y.switches.limit_max": 0.19 if switch == "limit_max" else 0.14,
-    })
-    with pytest.raises(ConfigError, match=rf"axes\.y\.switches\.{switch}: must lie within"):
-        build_spec(cfg)
+    with pytest.raises(ConfigError, match=rf"axes\.y\.switches\.{switch}: must lie within "
+                       r"mechanics\.travel \[0\.02, 0\.15\] m"):
+        load_machine("tomsk_xy").with_overrides({
+            "axes.y.mechanics.travel": [0.02, 0.15],
+            "axes.y.switches.limit_min": 0.01 if switch == "limit_min" else 0.03,
+            "axes.y.switches.home": 0.04,
+            "axes.y.switches.limit_max": 0.19 if switch == "limit_max" else 0.14,
+        })
 
 
 @pytest.mark.parametrize("timestep", [0.0, -1e-4, math.nan])

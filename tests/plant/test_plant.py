@@ -9,7 +9,7 @@ import pytest
 
 from tests.plant.modal import mid_travel
 from twin.config import load_machine
-from twin.errors import SimulationError
+from twin.errors import ConfigError, SimulationError
 from twin.plant import Plant
 
 MACHINES = ["tomsk_xy", "laser_belt"]
@@ -92,12 +92,17 @@ def test_non_finite_dac_raises_and_changes_nothing(bad):
 
 
 def test_diverging_physics_raises_instead_of_a_silent_nan_state(tmp_path, monkeypatch):
-    # A 10 ms step is far beyond the stability limit of the 1 kHz screw mode: the state
+    # A 10 ms step is far beyond the stability limit of the 1 kHz screw mode. The machine
+    # file refuses it, naming the step and the mode; forced past that check, the state
     # blows up, and MuJoCo's auto-reset is off so the plant must notice and say so.
     monkeypatch.chdir(tmp_path)  # MuJoCo logs the warning to ./MUJOCO_LOG.TXT
-    cfg = Plant.from_machine("tomsk_xy").config.with_overrides(
-        {"simulation.timestep": 1e-2, "simulation.drive_substeps": 1,
-         "controller.period": 1e-2})
+    base = Plant.from_machine("tomsk_xy").config
+    with pytest.raises(ConfigError, match=r"simulation.timestep: 0.01 s is too long for "
+                       r"the elastic mode of axis x: ω = 585.8 rad/s"):
+        base.with_overrides({"simulation.timestep": 1e-2, "simulation.drive_substeps": 1,
+                             "controller.period": 1e-2})
+    cfg = base.with_overrides({"simulation.drive_substeps": 1, "controller.period": 1e-2})
+    object.__setattr__(cfg.simulation, "timestep", 1e-2)    # past the schema's check
     plant = Plant(cfg)
     with pytest.raises(SimulationError, match="diverged"):
         for _ in range(1000):
@@ -215,3 +220,20 @@ def test_the_machines_tacho_noise_reaches_a_twin_run(tmp_path):
     assert np.std(noisy - clean) > 0.005               # honoured, not silently ignored
     np.testing.assert_array_equal(noisy, again)         # and seeded
     assert not np.array_equal(noisy, other)
+
+
+@pytest.mark.parametrize(("joint", "axis", "what"), [("y_rotor", "y", "velocity"),
+                                                      ("x", "x", "table position")])
+def test_a_diverged_plant_names_the_axis_and_the_quantity(joint, axis, what):
+    """The schema keeps the physics step inside what it can integrate; should the state
+    still leave the finite numbers, the error says where (the drive checks the rotor speed
+    it is given; the plant checks the table and every joint)."""
+    plant = Plant.from_machine("tomsk_xy")
+    m = plant.model
+    j = m.joint(joint).id
+    if what == "velocity":
+        plant.data.qvel[m.jnt_dofadr[j]] = np.nan
+    else:
+        plant.data.qpos[m.jnt_qposadr[j]] = np.inf
+    with pytest.raises(SimulationError, match=f"(axis|drive) {axis}: .*(speed|{what})"):
+        plant.step(np.zeros(2), 0.005)

@@ -34,7 +34,9 @@ __all__ = [
     "TachoConfig",
     "TimingConfig",
     "TransmissionConfig",
+    "field_meta",
     "field_unit",
+    "range_text",
 ]
 
 AXES = ("x", "y")
@@ -47,8 +49,32 @@ def _spec(unit: str, *, gt: float | None = None, ge: float | None = None,
 
 def _num(default: Any = dataclasses.MISSING, unit: str = "", *, gt: float | None = None,
          ge: float | None = None, le: float | None = None, doc: str = "") -> Any:
-    """A numeric field with its unit and bounds (checked on load)."""
+    """A numeric field with its unit and its physically meaningful range (checked on load;
+    :func:`describe_field` states them)."""
     return field(default=default, metadata=_spec(unit, gt=gt, ge=ge, le=le, doc=doc))
+
+
+ELASTIC_STEP = 0.5
+"""Largest ω·timestep of an axis' elastic mode (see ``MachineConfig._check_elastic_modes``)."""
+
+STIFFNESS_RANGE = (1e3, 1e11)
+"""Range of each stiffness component of a transmission (N/m): a soft belt to a stiff
+ball-screw assembly."""
+
+
+def range_text(meta: Any) -> str:
+    """The range of a numeric field as ``[lo, hi] unit`` (``(`` for an open end)."""
+    lo = f"({meta['gt']:g}" if meta.get("gt") is not None else (
+        f"[{meta['ge']:g}" if meta.get("ge") is not None else "(-inf")
+    hi = f"{meta['le']:g}]" if meta.get("le") is not None else "inf)"
+    unit = meta.get("unit", "")
+    return f"{lo}, {hi}" + (f" {unit}" if unit and unit != "1" else "")
+
+
+def _leaves(value: Any) -> list[Any]:
+    if isinstance(value, tuple | list):
+        return [v for item in value for v in _leaves(item)]
+    return [value]
 
 
 class _Validated:
@@ -60,18 +86,15 @@ class _Validated:
             meta = f.metadata
             if not meta or value is None or isinstance(value, bool):
                 continue
-            values = value if isinstance(value, tuple) else (value,)
-            for v in values:
-                if not isinstance(v, int | float):
+            for v in _leaves(value):
+                if not isinstance(v, int | float) or isinstance(v, bool):
                     continue
-                if not math.isfinite(v):
-                    raise ConfigError(f.name, f"must be finite, got {v}")
-                if meta.get("gt") is not None and not v > meta["gt"]:
-                    raise ConfigError(f.name, f"must be > {meta['gt']}, got {v}")
-                if meta.get("ge") is not None and not v >= meta["ge"]:
-                    raise ConfigError(f.name, f"must be >= {meta['ge']}, got {v}")
-                if meta.get("le") is not None and not v <= meta["le"]:
-                    raise ConfigError(f.name, f"must be <= {meta['le']}, got {v}")
+                inside = (math.isfinite(v)
+                          and (meta.get("gt") is None or v > meta["gt"])
+                          and (meta.get("ge") is None or v >= meta["ge"])
+                          and (meta.get("le") is None or v <= meta["le"]))
+                if not inside:
+                    raise ConfigError(f.name, f"must lie in {range_text(meta)}, got {v:g}")
         self._check()
 
     def _check(self) -> None:
@@ -83,26 +106,33 @@ class _Validated:
 class MechanicsConfig(_Validated):
     """Moving masses, inertias, friction and travel of one axis."""
 
-    carriage_mass: float = _num(unit="kg", gt=0, doc="mass of this axis' carriage alone")
-    travel: tuple[float, float] = _num(unit="m", doc="slide joint range (min, max)")
-    slide_coulomb: float = _num(0.0, "N", ge=0, doc="Coulomb friction of the slide")
-    slide_viscous: float = _num(0.0, "N·s/m", ge=0, doc="viscous friction of the slide")
-    rotor_inertia: float = _num(unit="kg·m²", gt=0, doc="motor rotor + gear, at the motor")
-    rotor_coulomb: float = _num(0.0, "N·m", ge=0, doc="Coulomb friction at the motor shaft")
-    rotor_viscous: float = _num(0.0, "N·m·s/rad", ge=0, doc="viscous friction at the motor")
+    carriage_mass: float = _num(unit="kg", ge=0.01, le=1e5,
+                                doc="mass of this axis' carriage alone")
+    travel: tuple[float, float] = _num(unit="m", ge=-10.0, le=10.0,
+                                       doc="slide joint range (min, max)")
+    slide_coulomb: float = _num(0.0, "N", ge=0, le=1e5, doc="Coulomb friction of the slide")
+    slide_viscous: float = _num(0.0, "N·s/m", ge=0, le=1e7,
+                                doc="viscous friction of the slide")
+    rotor_inertia: float = _num(unit="kg·m²", ge=1e-7, le=10.0,
+                                doc="motor rotor + gear, at the motor")
+    rotor_coulomb: float = _num(0.0, "N·m", ge=0, le=1e3,
+                                doc="Coulomb friction at the motor shaft")
+    rotor_viscous: float = _num(0.0, "N·m·s/rad", ge=0, le=100.0,
+                                doc="viscous friction at the motor")
     slide_breakaway: float = _num(
-        0.0, "N", ge=0, doc="break-away (static) friction of the slide, >= slide_coulomb; "
-        "0 = none above Coulomb")
+        0.0, "N", ge=0, le=1e5, doc="break-away (static) friction of the slide, >= "
+        "slide_coulomb; 0 = none above Coulomb")
     rotor_breakaway: float = _num(
-        0.0, "N·m", ge=0, doc="break-away friction at the motor shaft, >= rotor_coulomb; "
-        "0 = none above Coulomb")
+        0.0, "N·m", ge=0, le=1e3, doc="break-away friction at the motor shaft, >= "
+        "rotor_coulomb; 0 = none above Coulomb")
     stribeck_velocity: float = _num(
-        1e-3, "m/s", gt=0, doc="table speed over which the break-away excess decays "
-        "(Stribeck: exp(-(v/v_s)²)); the rotor's is this over the transmission ratio")
+        1e-3, "m/s", ge=1e-6, le=1.0, doc="table speed over which the break-away excess "
+        "decays (Stribeck: exp(-(v/v_s)²)); the rotor's is this over the transmission ratio")
 
     def _check(self) -> None:
-        if len(self.travel) != 2 or not self.travel[0] < self.travel[1]:
-            raise ConfigError("travel", f"must be (min, max) with min < max, got {self.travel}")
+        if len(self.travel) != 2 or not self.travel[0] + 1e-3 <= self.travel[1]:
+            raise ConfigError("travel", f"must be (min, max) with max at least 1 mm above "
+                              f"min, got {self.travel}")
         for part in ("slide", "rotor"):
             brk, coul = getattr(self, f"{part}_breakaway"), getattr(self, f"{part}_coulomb")
             if 0.0 < brk < coul:
@@ -124,11 +154,15 @@ class TransmissionConfig(_Validated):
     """
 
     kind: str = "screw"
-    gear_ratio: float = _num(unit="1", gt=0, doc="motor revolutions per screw/pulley revolution")
-    lead: float = _num(0.0, "m", ge=0, doc="screw lead (kind = screw)")
-    pulley_radius: float = _num(0.0, "m", ge=0, doc="belt pulley pitch radius (kind = belt)")
+    gear_ratio: float = _num(unit="1", ge=0.01, le=1000.0,
+                             doc="motor revolutions per screw/pulley revolution")
+    lead: float = _num(0.0, "m", ge=0, le=0.1,
+                       doc="screw lead (kind = screw: at least 0.1 mm)")
+    pulley_radius: float = _num(0.0, "m", ge=0, le=0.5,
+                                doc="belt pulley pitch radius (kind = belt: at least 1 mm)")
     stiffness: dict[str, float] = field(default_factory=dict)
-    damping_ratio: float = _num(unit="1", gt=0, le=2, doc="damping of the first elastic mode")
+    damping_ratio: float = _num(unit="1", ge=1e-4, le=2,
+                                doc="damping of the first elastic mode")
     backlash: float = _num(
         0.0, "m", ge=0, le=1e-3, doc="lost motion of gear and nut together, referred to the "
         "table, in series with the screw spring (a dead band of this width); 0 = none")
@@ -136,15 +170,19 @@ class TransmissionConfig(_Validated):
     def _check(self) -> None:
         if self.kind not in ("screw", "belt"):
             raise ConfigError("kind", f"must be 'screw' or 'belt', got {self.kind!r}")
-        if self.kind == "screw" and self.lead <= 0:
-            raise ConfigError("lead", "must be > 0 for a screw transmission")
-        if self.kind == "belt" and self.pulley_radius <= 0:
-            raise ConfigError("pulley_radius", "must be > 0 for a belt transmission")
+        if self.kind == "screw" and not self.lead >= 1e-4:
+            raise ConfigError("lead", f"must lie in [0.0001, 0.1] m for a screw "
+                              f"transmission (kind = 'screw'), got {self.lead:g}")
+        if self.kind == "belt" and not self.pulley_radius >= 1e-3:
+            raise ConfigError("pulley_radius", f"must lie in [0.001, 0.5] m for a belt "
+                              f"transmission (kind = 'belt'), got {self.pulley_radius:g}")
         if not self.stiffness:
             raise ConfigError("stiffness", "needs at least one component (N/m)")
+        lo, hi = STIFFNESS_RANGE
         for name, k in self.stiffness.items():
-            if not isinstance(k, int | float) or not math.isfinite(k) or k <= 0:
-                raise ConfigError(f"stiffness.{name}", f"must be a number > 0 (N/m), got {k!r}")
+            if not isinstance(k, int | float) or not math.isfinite(k) or not lo <= k <= hi:
+                raise ConfigError(f"stiffness.{name}", f"must lie in [{lo:g}, {hi:g}] N/m, "
+                                  f"got {k!r}")
 
     @property
     def ratio(self) -> float:
@@ -163,24 +201,29 @@ class TransmissionConfig(_Validated):
 class SwitchConfig(_Validated):
     """End limit switches and the home switch (table positions where they close)."""
 
-    limit_min: float = _num(unit="m")
-    limit_max: float = _num(unit="m")
-    home: float = _num(unit="m")
-    debounce: float = _num(0.002, "s", ge=0)
-    home_width: float = _num(0.5e-3, "m", gt=0, doc="the home switch is closed over this width")
+    limit_min: float = _num(unit="m", ge=-10.0, le=10.0, doc="where the min end switch closes")
+    limit_max: float = _num(unit="m", ge=-10.0, le=10.0, doc="where the max end switch closes")
+    home: float = _num(unit="m", ge=-10.0, le=10.0, doc="where the home switch closes")
+    debounce: float = _num(0.002, "s", ge=0, le=1.0, doc="a switch reads closed this long "
+                           "after it closes")
+    home_width: float = _num(0.5e-3, "m", ge=1e-6, le=0.1,
+                             doc="the home switch is closed over this width")
 
     def _check(self) -> None:
         if not self.limit_min < self.home < self.limit_max:
-            raise ConfigError("home", "must lie between limit_min and limit_max")
+            raise ConfigError("home", f"must lie between limit_min and limit_max: "
+                              f"{self.limit_min:g} < {self.home:g} < {self.limit_max:g} m "
+                              f"does not hold")
 
 
 @dataclass(frozen=True, kw_only=True)
 class EncoderConfig(_Validated):
     """Rotary encoder on the motor shaft and its hardware counter."""
 
-    counts_per_rev: int = _num(2500, "1/rev", gt=0)
-    bits: int = _num(32, "bit", ge=8, le=64)
-    noise_counts: float = _num(0.0, "count", ge=0, doc="rms sensor noise; 0 = off")
+    counts_per_rev: int = _num(2500, "1/rev", ge=1, le=10**8,
+                               doc="counts per motor revolution (edges of both channels)")
+    bits: int = _num(32, "bit", ge=8, le=64, doc="width of the hardware counter")
+    noise_counts: float = _num(0.0, "count", ge=0, le=1e3, doc="rms sensor noise; 0 = off")
 
 
 # --------------------------------------------------------------------------- drive
@@ -188,13 +231,26 @@ class EncoderConfig(_Validated):
 class MotorConfig(_Validated):
     """Separately excited DC motor (constant field)."""
 
-    rated_voltage: float = _num(unit="V", gt=0)
-    rated_current: float = _num(unit="A", gt=0)
-    rated_speed_rpm: float = _num(unit="rev/min", gt=0)
-    emf_constant: float = _num(unit="V·s/rad", gt=0, doc="k: back-EMF k·ω, torque k·i")
-    armature_resistance: float = _num(unit="Ω", gt=0)
-    armature_inductance: float = _num(unit="H", gt=0)
-    current_limit_factor: float = _num(2.5, "1", gt=0, doc="current limit over rated current")
+    rated_voltage: float = _num(unit="V", ge=1.0, le=1e4, doc="rated armature voltage")
+    rated_current: float = _num(unit="A", ge=0.01, le=1e4, doc="rated armature current")
+    rated_speed_rpm: float = _num(unit="rev/min", ge=1.0, le=1e5, doc="rated speed")
+    emf_constant: float = _num(unit="V·s/rad", ge=1e-4, le=100.0,
+                               doc="k: back-EMF k·ω, torque k·i")
+    armature_resistance: float = _num(unit="Ω", ge=1e-4, le=1e3,
+                                      doc="armature circuit resistance")
+    armature_inductance: float = _num(unit="H", ge=1e-6, le=10.0,
+                                      doc="armature circuit inductance")
+    current_limit_factor: float = _num(2.5, "1", ge=0.1, le=10.0,
+                                       doc="current limit over rated current")
+
+    def _check(self) -> None:
+        emf = self.emf_constant * self.rated_speed
+        if not 0.5 * self.rated_voltage <= emf <= 1.1 * self.rated_voltage:
+            raise ConfigError("emf_constant", f"the back-EMF at the rated speed, emf_constant "
+                              f"× rated_speed_rpm = {emf:.4g} V, must lie within 0.5 … 1.1 "
+                              f"× rated_voltage ({self.rated_voltage:g} V): a motor's data "
+                              f"are consistent, got emf_constant = {self.emf_constant:g} "
+                              f"V·s/rad")
 
     @property
     def rated_speed(self) -> float:
@@ -220,28 +276,36 @@ class ConverterConfig(_Validated):
 
     kind: str = "thyristor"
     model: str | None = None
-    line_voltage: float = _num(100.0, "V", gt=0, doc="thyristor: line-to-line rms U_LL")
-    mains_frequency: float = _num(50.0, "Hz", gt=0)
+    line_voltage: float = _num(100.0, "V", ge=1.0, le=1e4,
+                               doc="thyristor: line-to-line rms U_LL")
+    mains_frequency: float = _num(50.0, "Hz", ge=1.0, le=1e3, doc="frequency of the mains")
     mains_phase: float = _num(0.0, "rad", ge=0, le=2 * math.pi,
                               doc="phase of the mains at time 0 of the twin's clock")
-    pulse_number: int = _num(6, "1", gt=0, doc="6: three-phase bridge; 3: midpoint circuit")
+    pulse_number: int = _num(6, "1", ge=3, le=6,
+                             doc="6: three-phase bridge; 3: midpoint circuit")
     line_inductance: float = _num(
-        0.0, "H", ge=0, doc="commutating inductance per phase (overlap); 0 = instantaneous")
+        0.0, "H", ge=0, le=0.1,
+        doc="commutating inductance per phase (overlap); 0 = instantaneous")
     dcm_compensation: bool = True
     """Thyristor drives: the current regulator adapts to discontinuous conduction (the
     firing unit inverts the discontinuous characteristic; integral control per pulse)."""
-    reversal_pause: float = _num(2e-3, "s", ge=0, doc="current-zero pause at bridge reversal")
-    min_firing_angle: float = _num(0.0, "rad", ge=0, le=math.pi)
-    max_firing_angle: float = _num(math.radians(150.0), "rad", gt=0, le=math.pi)
-    dc_link_voltage: float = _num(0.0, "V", ge=0, doc="pwm: DC link voltage")
-    pwm_frequency: float = _num(0.0, "Hz", ge=0, doc="pwm: switching frequency")
+    reversal_pause: float = _num(2e-3, "s", ge=0, le=0.1,
+                                 doc="current-zero pause at bridge reversal")
+    min_firing_angle: float = _num(0.0, "rad", ge=0, le=math.pi, doc="smallest firing angle")
+    max_firing_angle: float = _num(math.radians(150.0), "rad", gt=0, le=math.pi,
+                                   doc="largest firing angle (inverter limit)")
+    dc_link_voltage: float = _num(0.0, "V", ge=0, le=1e4, doc="pwm: DC link voltage")
+    pwm_frequency: float = _num(0.0, "Hz", ge=0, le=1e6, doc="pwm: switching frequency")
 
     def _check(self) -> None:
         if self.kind not in ("thyristor", "pwm"):
             raise ConfigError("kind", f"must be 'thyristor' or 'pwm', got {self.kind!r}")
-        if self.kind == "pwm" and (self.dc_link_voltage <= 0 or self.pwm_frequency <= 0):
-            raise ConfigError("dc_link_voltage", "pwm converter needs dc_link_voltage and "
-                              "pwm_frequency > 0")
+        if self.kind == "pwm" and not self.dc_link_voltage >= 1.0:
+            raise ConfigError("dc_link_voltage", f"must lie in [1, 10000] V for a pwm "
+                              f"converter, got {self.dc_link_voltage:g}")
+        if self.kind == "pwm" and not self.pwm_frequency >= 100.0:
+            raise ConfigError("pwm_frequency", f"must lie in [100, 1e+06] Hz for a pwm "
+                              f"converter, got {self.pwm_frequency:g}")
         if self.kind == "thyristor" and not self.min_firing_angle < self.max_firing_angle:
             raise ConfigError("max_firing_angle", "must exceed min_firing_angle")
         if self.kind == "thyristor" and self.pulse_number not in (3, 6):
@@ -290,21 +354,26 @@ class ConverterConfig(_Validated):
 class TachoConfig(_Validated):
     """Tachogenerator on the motor shaft: U = K_C·ω, then a first-order filter."""
 
-    gain: float = _num(unit="V·s/rad", gt=0, doc="K_C")
-    filter_time_constant: float = _num(1e-3, "s", ge=0)
-    noise: float = _num(0.0, "V", ge=0, doc="rms noise on the tacho signal; 0 = off")
+    gain: float = _num(unit="V·s/rad", ge=1e-5, le=10.0, doc="K_C")
+    filter_time_constant: float = _num(1e-3, "s", ge=0, le=1.0,
+                                       doc="first-order filter on the tacho signal; 0 = "
+                                       "none, else at least 1e-5 s")
+    noise: float = _num(0.0, "V", ge=0, le=10.0, doc="rms noise on the tacho signal; 0 = off")
     ripple: tuple[tuple[float, float], ...] = ()
     """Ripple of the tacho EMF: ``[[harmonic, amplitude_percent], ...]`` (harmonic per
     revolution > 0, amplitude in % of K_C·ω, 0 ≤ a < 100; at most 4), e.g. ``[[1, 0.5],
     [20, 1.0]]`` for an eccentricity and a commutator ripple."""
 
     def _check(self) -> None:
+        if 0.0 < self.filter_time_constant < 1e-5:
+            raise ConfigError("filter_time_constant", f"must be 0 (no filter) or lie in "
+                              f"[1e-05, 1] s, got {self.filter_time_constant:g}")
         if len(self.ripple) > 4:
             raise ConfigError("ripple", f"at most 4 harmonics, got {len(self.ripple)}")
         for k, (harmonic, amplitude) in enumerate(self.ripple):
-            if not (math.isfinite(harmonic) and harmonic > 0):
-                raise ConfigError(f"ripple[{k}]", f"harmonic must be > 0 (per revolution), "
-                                  f"got {harmonic}")
+            if not (math.isfinite(harmonic) and 0 < harmonic <= 1000):
+                raise ConfigError(f"ripple[{k}]", f"harmonic must lie in (0, 1000] per "
+                                  f"revolution, got {harmonic}")
             if not (math.isfinite(amplitude) and 0.0 <= amplitude < 100.0):
                 raise ConfigError(f"ripple[{k}]", f"amplitude must lie in [0, 100) %, got "
                                   f"{amplitude}")
@@ -314,8 +383,8 @@ class TachoConfig(_Validated):
 class DacConfig(_Validated):
     """The CNC's analog speed reference output."""
 
-    bits: int = _num(12, "bit", ge=1, le=32)
-    full_scale: float = _num(10.0, "V", gt=0, doc="output range is ±full_scale")
+    bits: int = _num(12, "bit", ge=1, le=32, doc="resolution of the DAC")
+    full_scale: float = _num(10.0, "V", ge=0.1, le=100.0, doc="output range is ±full_scale")
     offset: float = _num(0.0, "V", ge=-1.0, le=1.0, doc="the plant's DAC: output at code 0")
     gain_error: float = _num(0.0, "1", ge=-0.5, le=0.5,
                              doc="the plant's DAC: relative error of its gain")
@@ -328,17 +397,19 @@ class SpeedLoopConfig(_Validated):
     speed); only the design choices live here."""
 
     reference_filter: float | None = _num(
-        None, "s", ge=0, doc="T1, filter on the speed reference; None: a²·T_σ (SO rule)")
-    symmetric_optimum_a: float = _num(2.0, "1", gt=1, doc="SO spacing factor a (a=2: classic)")
+        None, "s", ge=0, le=1.0, doc="T1, filter on the speed reference; None: a²·T_σ (SO "
+        "rule)")
+    symmetric_optimum_a: float = _num(2.0, "1", ge=1.2, le=100.0,
+                                      doc="SO spacing factor a (a=2: classic)")
 
 
 @dataclass(frozen=True, kw_only=True)
 class LimitsConfig(_Validated):
     """Kinematic limits of one axis (per-axis) or of the contour."""
 
-    max_velocity: float = _num(unit="m/s", gt=0)
-    max_acceleration: float = _num(unit="m/s²", gt=0)
-    max_jerk: float = _num(unit="m/s³", gt=0)
+    max_velocity: float = _num(unit="m/s", ge=1e-4, le=100.0, doc="largest speed")
+    max_acceleration: float = _num(unit="m/s²", ge=1e-4, le=1e4, doc="largest acceleration")
+    max_jerk: float = _num(unit="m/s³", ge=1e-3, le=1e7, doc="largest jerk")
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -348,13 +419,21 @@ class AxisConfig(_Validated):
     mechanics: MechanicsConfig
     transmission: TransmissionConfig
     switches: SwitchConfig
-    encoder: EncoderConfig
+    encoder: EncoderConfig = field(default_factory=EncoderConfig)
     motor: MotorConfig
-    converter: ConverterConfig
+    converter: ConverterConfig = field(default_factory=ConverterConfig)
     tacho: TachoConfig
-    dac: DacConfig
-    speed_loop: SpeedLoopConfig
+    dac: DacConfig = field(default_factory=DacConfig)
+    speed_loop: SpeedLoopConfig = field(default_factory=SpeedLoopConfig)
     limits: LimitsConfig
+
+    def _check(self) -> None:
+        lo, hi = self.mechanics.travel
+        for name in ("limit_min", "limit_max", "home"):
+            pos = getattr(self.switches, name)
+            if not lo <= pos <= hi:
+                raise ConfigError(f"switches.{name}", f"must lie within mechanics.travel "
+                                  f"[{lo:g}, {hi:g}] m, got {pos:g}")
 
     @property
     def counts_per_metre(self) -> float:
@@ -377,18 +456,23 @@ class RegulatorSettings(_Validated):
     what a tuning job writes (``twin tune`` → ``twin run --set-file``).
     """
 
-    kp: float | tuple[float, float] | None = _num(None, "V/m", ge=0)
-    ki: float | tuple[float, float] | None = _num(None, "V/(m·s)", ge=0)
-    kd: float | tuple[float, float] | None = _num(None, "V·s/m", ge=0)
-    ff1: float | tuple[float, float] | None = _num(None, "V·s/m", ge=0,
+    kp: float | tuple[float, float] | None = _num(None, "V/m", ge=0, le=1e7,
+                                                  doc="proportional gain")
+    ki: float | tuple[float, float] | None = _num(None, "V/(m·s)", ge=0, le=1e9,
+                                                  doc="integral gain")
+    kd: float | tuple[float, float] | None = _num(None, "V·s/m", ge=0, le=1e5,
+                                                  doc="derivative gain")
+    ff1: float | tuple[float, float] | None = _num(None, "V·s/m", ge=0, le=1e5,
                                                    doc="velocity feed-forward")
-    ff2: float | tuple[float, float] | None = _num(None, "V·s²/m", ge=0,
+    ff2: float | tuple[float, float] | None = _num(None, "V·s²/m", ge=0, le=1e4,
                                                    doc="acceleration feed-forward")
-    ff3: float | tuple[float, float] | None = _num(None, "V·s³/m", ge=0,
+    ff3: float | tuple[float, float] | None = _num(None, "V·s³/m", ge=0, le=1e3,
                                                    doc="jerk feed-forward")
-    dcu_order: int = _num(0, "1", ge=0, le=3)
-    dcu_alpha: tuple[tuple[float, float, float], tuple[float, float, float]] | None = None
-    following_error_limit: float = _num(2e-3, "m", gt=0)
+    dcu_order: int = _num(0, "1", ge=0, le=3, doc="order of the derived DCU; 0 = off")
+    dcu_alpha: tuple[tuple[float, float, float], tuple[float, float, float]] | None = _num(
+        None, "V/m", ge=-1e9, le=1e9, doc="the DCU's coefficients, x then y")
+    following_error_limit: float = _num(2e-3, "m", ge=1e-7, le=1.0,
+                                        doc="a larger following error trips the axis")
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -414,7 +498,7 @@ class TimingConfig(_Validated):
     late_probability: float = _num(0.0, "1", ge=0, le=1, doc="chance that a tick is late")
     late_max: float = _num(0.0, "s", ge=0, le=1.0, doc="a late tick comes up to this late")
     skip_probability: float = _num(0.0, "1", ge=0, le=1, doc="chance that a tick is lost")
-    seed: int = _num(0, "1", ge=0)
+    seed: int = _num(0, "1", ge=0, le=2**32 - 1, doc="seed of the timer's randomness")
 
     def _check(self) -> None:
         if self.rearm not in ("absolute", "relative"):
@@ -460,26 +544,29 @@ class DeadlineConfig(_Validated):
 class ControllerSettings(_Validated):
     """The CNC: period, contour limits, planner and regulator settings."""
 
-    period: float = _num(5e-3, "s", gt=0, le=0.1)
+    period: float = _num(5e-3, "s", ge=1e-4, le=0.1, doc="the position loop's period")
     limits: LimitsConfig = field(
         default_factory=lambda: LimitsConfig(max_velocity=0.015, max_acceleration=0.2,
                                              max_jerk=5.0))
-    rapid_velocity: float = _num(0.015, "m/s", gt=0)
-    contour_tolerance: float = _num(20e-6, "m", gt=0)
+    rapid_velocity: float = _num(0.015, "m/s", ge=1e-4, le=100.0, doc="speed of G0 moves")
+    contour_tolerance: float = _num(20e-6, "m", ge=1e-9, le=1.0,
+                                    doc="largest deviation from the path at a corner (a "
+                                    "study of corners without this limit sets 1 m)")
     profile: str = "parabolic"
     planner: str = "lookahead"
-    lookahead: int = _num(64, "blocks", ge=1)
+    lookahead: int = _num(64, "blocks", ge=1, le=100_000,
+                          doc="blocks the planner looks ahead")
     soft_limits: bool = True
     """Refuse motion outside the work zone (the travel between the end switches)."""
     in_position_tolerance: float = _num(
-        1e-6, "m", gt=0, le=1e-3, doc="after the motion the loop stays closed until every "
+        1e-6, "m", ge=1e-9, le=1e-3, doc="after the motion the loop stays closed until every "
         "axis' following error is within this (seed 000: 1 µm positioning accuracy)")
-    settle_timeout: float = _num(2.0, "s", gt=0, le=60.0,
+    settle_timeout: float = _num(2.0, "s", ge=1e-3, le=60.0,
                                  doc="longest wait for the in-position tolerance")
-    min_feed: float = _num(1e-6, "m/s", gt=0, le=1.0, doc="slowest programmed feed "
+    min_feed: float = _num(1e-6, "m/s", ge=1e-9, le=1.0, doc="slowest programmed feed "
                            "accepted (0.06 mm/min): a slower F is refused at its line")
     max_program_time: float = _num(
-        86400.0, "s", gt=0, le=3.2e7, doc="longest a program may take, judged by a lower "
+        86400.0, "s", ge=1.0, le=3.2e7, doc="longest a program may take, judged by a lower "
         "bound (every move at its full feed, plus the dwells): beyond it the program is "
         "refused at the line that passes it")
     regulator: RegulatorSettings = field(default_factory=RegulatorSettings)
@@ -491,9 +578,9 @@ class ControllerSettings(_Validated):
 class SimulationConfig(_Validated):
     """Physics integration of the twin (chosen by the convergence test)."""
 
-    timestep: float = _num(2e-4, "s", gt=0, le=1e-2)
-    drive_substeps: int = _num(5, "1", ge=1, doc="physics steps per drive update")
-    seed: int = _num(0, "1", ge=0)
+    timestep: float = _num(2e-4, "s", ge=1e-6, le=1e-2, doc="MuJoCo's time step")
+    drive_substeps: int = _num(5, "1", ge=1, le=1000, doc="physics steps per drive update")
+    seed: int = _num(0, "1", ge=0, le=2**32 - 1, doc="seed of the sensor noise")
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -516,9 +603,37 @@ class MachineConfig(_Validated):
         n = round(period / drive)
         if n < 1 or abs(n * drive - period) > 1e-9 * drive:
             raise ConfigError("controller.period", f"must be a whole number of the twin's "
-                              f"drive intervals (simulation.timestep × drive_substeps = "
+                              f"drive intervals (simulation.timestep × "
+                              f"simulation.drive_substeps = "
                               f"{sim.timestep:g} s × {sim.drive_substeps} = {drive:g} s), got "
                               f"{period:g} s")
+        self._check_elastic_modes()
+
+    def _check_elastic_modes(self) -> None:
+        """The physics step must resolve each axis' fastest elastic mode: the screw spring
+        between the moving mass (the X axis carries the Y carriage) and the rotor reflected
+        to the table, ω² = k·(1/m + r²/J). MuJoCo integrates the spring explicitly; with
+        ω·timestep ≤ ELASTIC_STEP a period of the mode spans at least 2π/0.5 ≈ 12.6 steps
+        (a longer step diverges, and a run would stop with a diverged plant)."""
+        dt = self.simulation.timestep
+        mass = {"x": self.axes["x"].mechanics.carriage_mass
+                + self.axes["y"].mechanics.carriage_mass,
+                "y": self.axes["y"].mechanics.carriage_mass}
+        for ax in AXES:
+            a = self.axes[ax]
+            k, r, j = a.transmission.axial_stiffness, a.transmission.ratio, \
+                a.mechanics.rotor_inertia
+            omega = math.sqrt(k * (1.0 / mass[ax] + r * r / j))
+            if omega * dt > ELASTIC_STEP:
+                raise ConfigError(
+                    "simulation.timestep", f"{dt:g} s is too long for the elastic mode of "
+                    f"axis {ax}: ω = {omega:.4g} rad/s from axes.{ax}.transmission.stiffness "
+                    f"({k:.4g} N/m in series), the moving mass {mass[ax]:g} kg "
+                    f"(axes.{ax}.mechanics.carriage_mass"
+                    + (", axes.y.mechanics.carriage_mass" if ax == "x" else "")
+                    + f") and axes.{ax}.mechanics.rotor_inertia ({j:g} kg·m² through the "
+                    f"axes.{ax}.transmission); it needs simulation.timestep <= "
+                    f"{ELASTIC_STEP:g}/ω = {ELASTIC_STEP / omega:.3g} s")
 
     def with_overrides(self, overrides: dict[str, Any]) -> MachineConfig:
         """A copy with dotted-path overrides applied and validated again.
@@ -539,10 +654,10 @@ class MachineConfig(_Validated):
         return _build(raw, self.source)
 
 
-def field_unit(path: str) -> str:
-    """The unit of the machine field at a dotted ``path`` (``"axes.x.tacho.gain"`` →
-    ``"V·s/rad"``), from the schema's metadata; ``""`` for a field without one (a string, a
-    flag, a table) or an unknown path."""
+def field_meta(path: str) -> dict[str, Any]:
+    """The schema's metadata of the machine field at a dotted ``path`` (unit, bounds ``gt``,
+    ``ge``, ``le`` and ``doc``; see :func:`range_text`); ``{}`` for a field without one (a
+    string, a flag, a table) or an unknown path. A stiffness component's is its range."""
     import typing
 
     node: Any = MachineConfig
@@ -550,19 +665,28 @@ def field_unit(path: str) -> str:
     i = 0
     while i < len(parts):
         if not dataclasses.is_dataclass(node):
-            return ""
+            return {}
         hints = typing.get_type_hints(node)
         f = next((f for f in dataclasses.fields(node) if f.name == parts[i]), None)
         if f is None:
-            return ""
+            return {}
         if i == len(parts) - 1:
-            return str(f.metadata.get("unit", "")) if f.metadata else ""
+            return dict(f.metadata) if f.metadata else {}
         tp = hints[f.name]
         if typing.get_origin(tp) is dict:  # axes.<name>.…, stiffness.<name>
             value_type = typing.get_args(tp)[1]
             if i + 1 == len(parts) - 1:
-                return "N/m" if f.name == "stiffness" else ""
+                return (_spec("N/m", ge=STIFFNESS_RANGE[0], le=STIFFNESS_RANGE[1],
+                              doc="one component of the series stiffness, at the table")
+                        if f.name == "stiffness" else {})
             node, i = value_type, i + 2
             continue
         node, i = tp, i + 1
-    return ""
+    return {}
+
+
+def field_unit(path: str) -> str:
+    """The unit of the machine field at a dotted ``path`` (``"axes.x.tacho.gain"`` →
+    ``"V·s/rad"``), from the schema's metadata; ``""`` for a field without one (a string, a
+    flag, a table) or an unknown path."""
+    return str(field_meta(path).get("unit", ""))
