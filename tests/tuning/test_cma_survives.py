@@ -82,6 +82,56 @@ def test_a_killed_cma_job_resumes_into_the_same_search(tmp_path):
     assert (out / "best.toml").read_bytes() == (tmp_path / "whole" / "best.toml").read_bytes()
 
 
+def _pool_workers(pid: int) -> list[int]:
+    """The job's evaluator processes: its children started by multiprocessing's spawn."""
+    children = Path(f"/proc/{pid}/task/{pid}/children").read_text().split()
+    out = []
+    for child in children:
+        try:
+            cmdline = Path(f"/proc/{child}/cmdline").read_bytes()
+        except OSError:
+            continue
+        if b"spawn_main" in cmdline:
+            out.append(int(child))
+    return out
+
+
+def test_a_job_whose_worker_is_killed_finishes_with_its_outputs(tmp_path):
+    """``twin tune --method cma --workers 2``: one evaluator process SIGKILLed mid-run (an
+    OOM kill, say). The job replaces it, reruns what it was evaluating and finishes: exit 0,
+    ``best.toml`` and ``result.json``, every evaluation logged once."""
+    runs = 11                            # one generation: the kill lands inside its batch
+    out = tmp_path / "job"
+    cmd = _job(out, runs=runs)
+    cmd[cmd.index("--workers") + 1] = "2"
+    proc = subprocess.Popen(cmd, env=ENV, stdout=subprocess.PIPE, stderr=subprocess.PIPE,
+                            text=True, preexec_fn=_niced)
+    killed = None
+    try:
+        deadline = time.monotonic() + 200.0
+        while killed is None:            # after the first evaluations, inside a batch
+            assert time.monotonic() < deadline and proc.poll() is None
+            time.sleep(0.05)
+            log = out / "cma_trials.jsonl"
+            if log.exists() and len(log.read_text().splitlines()) >= 3:
+                workers = _pool_workers(proc.pid)
+                if workers:
+                    killed = workers[0]
+                    os.kill(killed, signal.SIGKILL)
+        stdout, stderr = proc.communicate(timeout=300)
+    finally:
+        if proc.poll() is None:
+            proc.kill()
+            proc.wait()
+    assert proc.returncode == 0, stderr[-2000:]
+    summary = json.loads(stdout)
+    assert summary["runs"] == runs
+    assert (out / "best.toml").is_file() and (out / "result.json").is_file()
+    entries = _entries(out)
+    assert len(entries) == runs                              # each evaluation logged once
+    assert len({(e["generation"], e["index"]) for e in entries}) == runs
+
+
 def test_without_resume_the_log_starts_afresh(tmp_path):
     out = tmp_path / "job"
     out.mkdir()
