@@ -118,3 +118,39 @@ def test_a_period_that_is_not_whole_drive_intervals_is_refused_naming_it():
     with pytest.raises(ConfigError, match="whole number of the twin's drive intervals"):
         load_machine("tomsk_xy").with_overrides({"controller.period": 3.3e-3})
     assert load_machine("tomsk_xy").with_overrides({"controller.period": 3e-3})
+
+
+def test_the_schema_choices_are_the_controllers():
+    from twin.config.schema import PLANNERS, PROFILES
+    from twin.controller.planner import MODES
+    from twin.controller.profiles.laws import LAWS
+
+    assert PROFILES == LAWS and PLANNERS == MODES
+
+
+@pytest.mark.parametrize("machine", ["tomsk_xy", "laser_belt"])
+def test_every_field_states_its_range_and_meaning(machine):
+    """``twin machines --fields``: each field with its value, range (or choices) and
+    meaning; every number lies inside its range."""
+    import json
+
+    from typer.testing import CliRunner
+
+    from twin.cli import app
+
+    result = CliRunner().invoke(app, ["machines", "--fields", machine, "--json"])
+    assert result.exit_code == 0, result.output
+    rows = json.loads(result.output)["fields"]
+    assert len(rows) > 100
+    for row in rows:
+        if row["field"] in ("name", "description"):
+            continue
+        assert row["meaning"], row["field"]
+        assert row["range"] or row["field"].endswith(".ripple"), row["field"]
+        values = row["value"] if isinstance(row["value"], list) else [row["value"]]
+        for v in values:
+            if isinstance(v, bool) or not isinstance(v, int | float):
+                continue
+            lo, hi = row["range"].split(" ")[0:2]
+            low, high = float(lo[1:-1]), float(hi.rstrip("]").rstrip(")"))
+            assert (low < v if lo[0] == "(" else low <= v) and v <= high, row

@@ -244,10 +244,17 @@ def machines(
     diff: tuple[str, str] | None = typer.Option(
         None, "--diff", help="Show where two machine files (presets or TOML) differ: "
         "--diff A B."),
+    fields: str | None = typer.Option(
+        None, "--fields", metavar="MACHINE", help="Every field of MACHINE (a preset or a "
+        "TOML file) with its value, unit, allowed range and meaning."),
 ) -> None:
-    """List the machine presets and their key figures, or compare two machines."""
+    """List the machine presets and their key figures, compare two machines, or show every
+    field of one with its range."""
     if diff is not None:
         _machine_diff(*diff, as_json)
+        return
+    if fields is not None:
+        _machine_fields(fields, as_json)
         return
     rows = []
     for name in available_machines():
@@ -274,6 +281,34 @@ def machines(
         table.add_column(key)
     for r in rows:
         table.add_row(*(f"{r[k]:g}" if isinstance(r[k], float) else str(r[k]) for k in keys))
+    Console().print(table)
+
+
+def _machine_fields(machine: str, as_json: bool) -> None:
+    """``twin machines --fields M``: every leaf with its value, unit, range and meaning."""
+    from twin.config.loader import flatten
+    from twin.config.schema import field_meta, range_text
+
+    try:
+        cfg = load_machine(machine)
+    except TwinError as exc:
+        fail(exc)
+    rows = []
+    for path, value in flatten(cfg).items():
+        meta = field_meta(path)
+        rows.append({"field": path, "value": value, "unit": meta.get("unit", ""),
+                     "range": range_text(meta) if {"gt", "ge", "le", "choices"} & {
+                         k for k, v in meta.items() if v is not None} else "",
+                     "meaning": meta.get("doc", "")})
+    if as_json:
+        _emit({"machine": cfg.name, "fields": rows}, True)
+        return
+    table = Table(title=f"{cfg.name}: fields")
+    for key in ("field", "value", "range", "meaning"):
+        table.add_column(key, overflow="fold")
+    for r in rows:
+        value = f"{r['value']:g}" if isinstance(r["value"], float) else str(r["value"])
+        table.add_row(r["field"], value, r["range"] or r["unit"], r["meaning"])
     Console().print(table)
 
 

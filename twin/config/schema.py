@@ -57,13 +57,33 @@ def _num(default: Any = dataclasses.MISSING, unit: str = "", *, gt: float | None
 ELASTIC_STEP = 0.5
 """Largest ω·timestep of an axis' elastic mode (see ``MachineConfig._check_elastic_modes``)."""
 
+def _choice(default: Any, choices: tuple[Any, ...], doc: str) -> Any:
+    """A field that takes one of ``choices`` (checked on load)."""
+    return field(default=default, metadata={"choices": choices, "doc": doc})
+
+
+def _flag(default: bool, doc: str) -> Any:
+    """A true/false field."""
+    return field(default=default, metadata={"choices": (True, False), "doc": doc})
+
+
+PROFILES = ("trapezoid", "parabolic", "cosine", "cubic", "jerk-limited")
+"""The acceleration laws (``twin.controller.profiles.laws.LAWS``; a test keeps them equal)."""
+
+PLANNERS = ("lookahead", "stop")
+"""The planner's modes (``twin.controller.planner.MODES``)."""
+
 STIFFNESS_RANGE = (1e3, 1e11)
 """Range of each stiffness component of a transmission (N/m): a soft belt to a stiff
 ball-screw assembly."""
 
 
 def range_text(meta: Any) -> str:
-    """The range of a numeric field as ``[lo, hi] unit`` (``(`` for an open end)."""
+    """The range of a numeric field as ``[lo, hi] unit`` (``(`` for an open end), or the
+    choices of a field that takes one of them (``one of a, b``)."""
+    if meta.get("choices"):
+        return "one of " + ", ".join(
+            str(c).lower() if isinstance(c, bool) else str(c) for c in meta["choices"])
     lo = f"({meta['gt']:g}" if meta.get("gt") is not None else (
         f"[{meta['ge']:g}" if meta.get("ge") is not None else "(-inf")
     hi = f"{meta['le']:g}]" if meta.get("le") is not None else "inf)"
@@ -84,6 +104,11 @@ class _Validated:
         for f in dataclasses.fields(self):  # type: ignore[arg-type]
             value = getattr(self, f.name)
             meta = f.metadata
+            choices = meta.get("choices")
+            flag = choices == (True, False)
+            if choices and value is not None and (value not in choices or (
+                    flag and not isinstance(value, bool))):
+                raise ConfigError(f.name, f"must be {range_text(meta)}, got {value!r}")
             if not meta or value is None or isinstance(value, bool):
                 continue
             for v in _leaves(value):
@@ -153,7 +178,7 @@ class TransmissionConfig(_Validated):
     series combination of ``stiffness`` components (N/m, referred to the table).
     """
 
-    kind: str = "screw"
+    kind: str = _choice("screw", ("screw", "belt"), "a lead screw, or a belt on a pulley")
     gear_ratio: float = _num(unit="1", ge=0.01, le=1000.0,
                              doc="motor revolutions per screw/pulley revolution")
     lead: float = _num(0.0, "m", ge=0, le=0.1,
@@ -274,8 +299,11 @@ class ConverterConfig(_Validated):
     period held constant). A PWM bridge is always ``"mean"``.
     """
 
-    kind: str = "thyristor"
-    model: str | None = None
+    kind: str = _choice("thyristor", ("thyristor", "pwm"),
+                        "a pair of thyristor converters, or a PWM transistor bridge")
+    model: str | None = _choice(None, ("pulse", "mean"), "how a thyristor converter is "
+                                "simulated: the conducting pair's voltage, or the mean of "
+                                "each firing period; default pulse (thyristor), mean (pwm)")
     line_voltage: float = _num(100.0, "V", ge=1.0, le=1e4,
                                doc="thyristor: line-to-line rms U_LL")
     mains_frequency: float = _num(50.0, "Hz", ge=1.0, le=1e3, doc="frequency of the mains")
@@ -286,7 +314,8 @@ class ConverterConfig(_Validated):
     line_inductance: float = _num(
         0.0, "H", ge=0, le=0.1,
         doc="commutating inductance per phase (overlap); 0 = instantaneous")
-    dcm_compensation: bool = True
+    dcm_compensation: bool = _flag(True, "the current regulator adapts to discontinuous "
+                                   "conduction")
     """Thyristor drives: the current regulator adapts to discontinuous conduction (the
     firing unit inverts the discontinuous characteristic; integral control per pulse)."""
     reversal_pause: float = _num(2e-3, "s", ge=0, le=0.1,
@@ -359,7 +388,9 @@ class TachoConfig(_Validated):
                                        doc="first-order filter on the tacho signal; 0 = "
                                        "none, else at least 1e-5 s")
     noise: float = _num(0.0, "V", ge=0, le=10.0, doc="rms noise on the tacho signal; 0 = off")
-    ripple: tuple[tuple[float, float], ...] = ()
+    ripple: tuple[tuple[float, float], ...] = field(default=(), metadata={
+        "doc": "tacho ripple: at most 4 [harmonic per revolution in (0, 1000], amplitude % "
+               "in [0, 100)]"})
     """Ripple of the tacho EMF: ``[[harmonic, amplitude_percent], ...]`` (harmonic per
     revolution > 0, amplitude in % of K_C·ω, 0 ≤ a < 100; at most 4), e.g. ``[[1, 0.5],
     [20, 1.0]]`` for an eccentricity and a commutator ripple."""
@@ -494,7 +525,8 @@ class TimingConfig(_Validated):
     """
 
     granularity: float = _num(0.0, "s", ge=0, le=1.0, doc="OS clock tick; 0 = exact")
-    rearm: str = "absolute"
+    rearm: str = _choice("absolute", ("absolute", "relative"),
+                         "a periodic timer, or one re-armed by its handler")
     late_probability: float = _num(0.0, "1", ge=0, le=1, doc="chance that a tick is late")
     late_max: float = _num(0.0, "s", ge=0, le=1.0, doc="a late tick comes up to this late")
     skip_probability: float = _num(0.0, "1", ge=0, le=1, doc="chance that a tick is lost")
@@ -552,11 +584,12 @@ class ControllerSettings(_Validated):
     contour_tolerance: float = _num(20e-6, "m", ge=1e-9, le=1.0,
                                     doc="largest deviation from the path at a corner (a "
                                     "study of corners without this limit sets 1 m)")
-    profile: str = "parabolic"
-    planner: str = "lookahead"
+    profile: str = _choice("parabolic", PROFILES, "the acceleration law")
+    planner: str = _choice("lookahead", PLANNERS, "look ahead over the blocks, or stop at "
+                           "every node")
     lookahead: int = _num(64, "blocks", ge=1, le=100_000,
                           doc="blocks the planner looks ahead")
-    soft_limits: bool = True
+    soft_limits: bool = _flag(True, "refuse motion outside the work zone")
     """Refuse motion outside the work zone (the travel between the end switches)."""
     in_position_tolerance: float = _num(
         1e-6, "m", ge=1e-9, le=1e-3, doc="after the motion the loop stays closed until every "
