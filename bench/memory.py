@@ -7,8 +7,11 @@ in a fresh process; the process's peak resident set (``ru_maxrss`` of that child
 ``wait4``) is its figure. A run keeps neither its per-tick record nor the recording in
 memory, so the peak should not grow with the program beyond a small constant.
 
-``--kept`` also runs each program through the API with the whole record kept
-(``run(keep_record=True)``), the cost that bounded streaming avoids.
+``--none`` also runs each with ``--rerun none``: the twin's own memory, without rerun's
+index of the recording's chunks (what an ``.rrd`` footer needs, and ``rerun rrd verify``
+requires; it grows with the number of chunks sent). ``--kept`` also runs each program
+through the API with the whole record kept (``run(keep_record=True)``), the cost that
+bounded streaming avoids.
 
 Prints one JSON object: per length, the simulated seconds, ticks, peak RSS (MB) and wall
 time, and ``growth_mb``, the peak at the longest program minus the peak at the shortest.
@@ -71,6 +74,8 @@ def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     ap.add_argument("--minutes", default="1,10,60",
                     help="program lengths, simulated minutes (comma-separated)")
+    ap.add_argument("--none", action="store_true",
+                    help="also run each without a recording (--rerun none)")
     ap.add_argument("--kept", action="store_true",
                     help="also run each with the whole record kept (the API's default)")
     args = ap.parse_args()
@@ -88,15 +93,21 @@ def main() -> None:
                    "ticks": summary["ticks"]["due"], "status": summary["status"],
                    "peak_rss_mb": round(rss, 1), "wall_s": round(wall, 1),
                    "rrd_mb": round(Path(summary["recording"]).stat().st_size / 2**20, 1)}
+            if args.none:
+                none_rss, _, _ = measure([twin, "run", str(path), "--out", str(out),
+                                          "--rerun", "none", "--json"])
+                row["peak_rss_no_recording_mb"] = round(none_rss, 1)
             if args.kept:
                 kept_rss, _, _ = measure([python, "-c", KEPT, str(path), str(out)])
                 row["peak_rss_kept_record_mb"] = round(kept_rss, 1)
             rows.append(row)
             for f in out.iterdir():          # a 60 min recording is large: free the space
                 f.unlink()
-    print(json.dumps({"machine": "tomsk_xy", "runs": rows,
-                      "growth_mb": round(rows[-1]["peak_rss_mb"] - rows[0]["peak_rss_mb"], 1)},
-                     indent=1))
+    growth = {"growth_mb": round(rows[-1]["peak_rss_mb"] - rows[0]["peak_rss_mb"], 1)}
+    if args.none:
+        growth["growth_no_recording_mb"] = round(
+            rows[-1]["peak_rss_no_recording_mb"] - rows[0]["peak_rss_no_recording_mb"], 1)
+    print(json.dumps({"machine": "tomsk_xy", "runs": rows, **growth}, indent=1))
 
 
 if __name__ == "__main__":

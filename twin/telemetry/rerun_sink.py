@@ -31,6 +31,9 @@ __all__ = ["APPLICATION_ID", "TIMELINE", "RerunSink", "running_rerun", "start_re
 APPLICATION_ID = "xy_twin"
 TIMELINE = "sim_time"
 
+GATHER_WALL = 2.0
+"""Wall seconds of batches a file-only recording gathers into one chunk per entity."""
+
 FLUSH_WALL = 1.0
 """Wall seconds between waits for the recording's writer (``RerunSink._backpressure``)."""
 
@@ -92,8 +95,13 @@ class RerunSink:
             self._rec.send_blueprint(blueprint)
         self._closed = self._finished = False
         self.failed: str | None = None
-        self._flushed = time.perf_counter()
         """Why the recording could not be written (set by ``finish``), or None."""
+        self._flushed = self._sent = time.perf_counter()
+        # A file alone gathers the batches into fewer, larger chunks: rerun keeps an index
+        # entry per chunk for the file's footer (a few kB each); a live viewer gets each
+        # batch at once.
+        self._gather = live is None
+        self._held: dict[str, list[tuple[str, np.ndarray, np.ndarray]]] = {}
 
     # -- Sink protocol ------------------------------------------------------------------
     def static_path(self, entity: str, points: np.ndarray, *,
@@ -107,20 +115,52 @@ class RerunSink:
         array of shape (n, k) sends k series on one entity."""
         if self.failed is not None:
             return
-        index = [rr.TimeColumn(TIMELINE, duration=np.asarray(t, dtype=np.float64))]
+        if self._gather:
+            self._hold("scalars", t, columns)
+            return
+        self._send_scalars(np.asarray(t, dtype=np.float64), columns)
+        self._backpressure()
+
+    def _send_scalars(self, t: np.ndarray, columns: Mapping[str, np.ndarray]) -> None:
+        index = [rr.TimeColumn(TIMELINE, duration=t)]
         for entity, values in columns.items():
             self._rec.send_columns(entity, indexes=index,
                                    columns=rr.Scalars.columns(scalars=np.asarray(values)))
+
+    def _send_points(self, t: np.ndarray, columns: Mapping[str, np.ndarray]) -> None:
+        index = [rr.TimeColumn(TIMELINE, duration=t)]
+        ones = np.ones(len(t), dtype=np.int64)
+        for entity, values in columns.items():
+            cols = rr.Points2D.columns(positions=np.asarray(values).reshape(-1, 2))
+            self._rec.send_columns(entity, indexes=index, columns=cols.partition(ones))
+
+    def _hold(self, kind: str, t: np.ndarray, columns: Mapping[str, np.ndarray]) -> None:
+        t = np.asarray(t, dtype=np.float64)
+        for entity, values in columns.items():
+            self._held.setdefault(entity, []).append((kind, t, np.asarray(values)))
+        if time.perf_counter() - self._sent >= GATHER_WALL:
+            self._send_held()
+
+    def _send_held(self) -> None:
+        """Send what was gathered: one chunk per entity."""
+        self._sent = time.perf_counter()
+        held, self._held = self._held, {}
+        for entity, parts in held.items():
+            t = np.concatenate([p[1] for p in parts])
+            values = np.concatenate([p[2] for p in parts])
+            send = self._send_scalars if parts[0][0] == "scalars" else self._send_points
+            send(t, {entity: values})
         self._backpressure()
 
     def _backpressure(self) -> None:
         """Wait, about once per ``FLUSH_WALL`` seconds, until what was sent is written.
 
-        A run on the twin makes telemetry many times faster than real time; without a
-        wait, what rerun has not yet written piles up in its queues, and memory grows with
-        the run (measured: 20 MB per half hour of a 50× run). A writer that has failed (a
-        full disk) is found here, mid-run: nothing more is sent, and :meth:`finish` says
-        why."""
+        A run on the twin makes telemetry many times faster than real time; the wait keeps
+        rerun's queues from holding more than a second of it, and a writer that has failed
+        (a full disk) is found here, mid-run: nothing more is sent, and :meth:`finish` says
+        why. (Rerun also keeps an index entry per chunk for the RRD footer that ``rerun rrd
+        verify`` requires; a file-only recording gathers its batches, ``GATHER_WALL``, so
+        that index stays small: ``bench/memory.py``.)"""
         now = time.perf_counter()
         if now - self._flushed < FLUSH_WALL:
             return
@@ -134,12 +174,10 @@ class RerunSink:
         """Send one 2-D point per sample (m) for each entity."""
         if self.failed is not None:
             return
-        t = np.asarray(t, dtype=np.float64)
-        index = [rr.TimeColumn(TIMELINE, duration=t)]
-        ones = np.ones(len(t), dtype=np.int64)
-        for entity, values in columns.items():
-            cols = rr.Points2D.columns(positions=np.asarray(values).reshape(-1, 2))
-            self._rec.send_columns(entity, indexes=index, columns=cols.partition(ones))
+        if self._gather:
+            self._hold("points", t, columns)
+            return
+        self._send_points(np.asarray(t, dtype=np.float64), columns)
 
     def event(self, t: float, text: str, *, level: str = "INFO") -> None:
         """Log a text event on the ``events`` entity at time ``t`` (s)."""
@@ -169,6 +207,7 @@ class RerunSink:
             return
         self._finished = True
         if self.failed is None:
+            self._send_held()
             try:
                 self._rec.flush()
             except (RuntimeError, OSError) as exc:
