@@ -90,7 +90,7 @@ def mutate(doc: dict[str, Any], path: tuple[str, ...], kind: str) -> dict[str, A
         return out
     numbers: dict[str, Any] = {"0": 0, "nan": math.nan, "inf": math.inf, "1e300": 1e300,
                                "1e-300": 1e-300, "2^62": 2**62}
-    if isinstance(old, bool) or isinstance(old, str):
+    if isinstance(old, bool | str):
         return None
     if kind.startswith("range"):
         first = old

@@ -297,8 +297,7 @@ def _machine_fields(machine: str, as_json: bool) -> None:
     for path, value in flatten(cfg).items():
         meta = field_meta(path)
         rows.append({"field": path, "value": value, "unit": meta.get("unit", ""),
-                     "range": range_text(meta) if {"gt", "ge", "le", "choices"} & {
-                         k for k, v in meta.items() if v is not None} else "",
+                     "range": range_text(meta),
                      "meaning": meta.get("doc", "")})
     if as_json:
         _emit({"machine": cfg.name, "fields": rows}, True)

@@ -46,10 +46,6 @@ MODELS_DIR = Path(__file__).parent / "models"
 MODEL_XML = MODELS_DIR / "xy_table.xml"
 SCENE_XML = MODELS_DIR / "scene.xml"
 
-_CARRIED_BY = {"x": ("x", "y"), "y": ("y",)}
-"""Carriages whose mass each slide moves: the Y carriage rides on the X carriage."""
-
-
 @dataclass(frozen=True)
 class AxisMechanics:
     """Analytic two-mass model of one axis: rotor (reflected) — screw spring — table.
@@ -128,7 +124,7 @@ def axis_mechanics(cfg: MachineConfig, axis: str) -> AxisMechanics:
     ax = cfg.axes[axis]
     return AxisMechanics(
         ratio=ax.transmission.ratio,
-        moving_mass=sum(cfg.axes[a].mechanics.carriage_mass for a in _CARRIED_BY[axis]),
+        moving_mass=cfg.moving_masses()[axis],
         rotor_inertia=ax.mechanics.rotor_inertia,
         stiffness=ax.transmission.axial_stiffness,
         damping_ratio=ax.transmission.damping_ratio,

@@ -312,6 +312,6 @@ def summarize(t, ref_position, ref_velocity, position, velocity, path: Sequence[
     n = pos.shape[0]
     if n == 0:
         raise ValueError("a run needs at least one sample")
-    running = RunningSummary(path, t_end=t_end, window=window, block=max(n, 1))
+    running = RunningSummary(path, t_end=t_end, window=window, block=n)
     running.feed(t, ref_position, ref_velocity, pos, velocity, segment)
     return running.result()

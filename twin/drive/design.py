@@ -235,10 +235,9 @@ def axis_inertia(axis: AxisConfig, moving_mass: float | None = None) -> float:
 
 
 def moving_masses(machine: MachineConfig) -> dict[str, float]:
-    """Mass moved by each axis of the cross table (kg): the Y carriage rides on the X one."""
-    mx = machine.axes["x"].mechanics.carriage_mass
-    my = machine.axes["y"].mechanics.carriage_mass
-    return {"x": mx + my, "y": my}
+    """Mass moved by each axis of the cross table (kg): the Y carriage rides on the X one
+    (``MachineConfig.moving_masses``)."""
+    return machine.moving_masses()
 
 
 def design(axis: AxisConfig, *, moving_mass: float | None = None,

@@ -1,0 +1,372 @@
+"""The sections of one axis in a machine file: mechanics, transmission, switches, encoder,
+motor, converter, tacho, DAC, speed loop and limits (each field with its unit and physical
+range, ``twin.config.fields``), and ``AxisConfig``, which gathers them.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+
+from twin.config.fields import Validated, choice, flag, num
+from twin.errors import ConfigError
+
+__all__ = ["STIFFNESS_RANGE", "AxisConfig", "ConverterConfig", "DacConfig", "EncoderConfig",
+           "LimitsConfig", "MechanicsConfig", "MotorConfig", "SpeedLoopConfig", "SwitchConfig",
+           "TachoConfig", "TransmissionConfig"]
+
+STIFFNESS_RANGE = (1e3, 1e11)
+"""Range of each stiffness component of a transmission (N/m): a soft belt to a stiff
+ball-screw assembly."""
+
+
+
+# --------------------------------------------------------------------------- mechanics
+@dataclass(frozen=True, kw_only=True)
+class MechanicsConfig(Validated):
+    """Moving masses, inertias, friction and travel of one axis."""
+
+    carriage_mass: float = num(unit="kg", ge=0.01, le=1e5,
+                               doc="mass of this axis' carriage alone")
+    travel: tuple[float, float] = num(unit="m", ge=-10.0, le=10.0,
+                                      doc="slide joint range (min, max)")
+    slide_coulomb: float = num(0.0, "N", ge=0, le=1e5, doc="Coulomb friction of the slide")
+    slide_viscous: float = num(0.0, "N·s/m", ge=0, le=1e7,
+                               doc="viscous friction of the slide")
+    rotor_inertia: float = num(unit="kg·m²", ge=1e-7, le=10.0,
+                               doc="motor rotor + gear, at the motor")
+    rotor_coulomb: float = num(0.0, "N·m", ge=0, le=1e3,
+                               doc="Coulomb friction at the motor shaft")
+    rotor_viscous: float = num(0.0, "N·m·s/rad", ge=0, le=100.0,
+                               doc="viscous friction at the motor")
+    slide_breakaway: float = num(
+        0.0, "N", ge=0, le=1e5, doc="break-away (static) friction of the slide, >= "
+        "slide_coulomb; 0 = none above Coulomb")
+    rotor_breakaway: float = num(
+        0.0, "N·m", ge=0, le=1e3, doc="break-away friction at the motor shaft, >= "
+        "rotor_coulomb; 0 = none above Coulomb")
+    stribeck_velocity: float = num(
+        1e-3, "m/s", ge=1e-6, le=1.0, doc="table speed over which the break-away excess "
+        "decays (Stribeck: exp(-(v/v_s)²)); the rotor's is this over the transmission ratio")
+
+    def _check(self) -> None:
+        if len(self.travel) != 2 or not self.travel[0] + 1e-3 <= self.travel[1]:
+            raise ConfigError("travel", f"must be (min, max) with max at least 1 mm above "
+                              f"min, got {self.travel}")
+        for part in ("slide", "rotor"):
+            brk, coul = getattr(self, f"{part}_breakaway"), getattr(self, f"{part}_coulomb")
+            if 0.0 < brk < coul:
+                raise ConfigError(f"{part}_breakaway", f"must be >= {part}_coulomb = {coul} "
+                                  f"(or 0 for none), got {brk}")
+
+    def breakaway(self, part: str) -> float:
+        """Break-away friction of ``"slide"`` (N) or ``"rotor"`` (N·m): never below
+        Coulomb (a value of 0 in the file means Coulomb alone)."""
+        return max(getattr(self, f"{part}_breakaway"), getattr(self, f"{part}_coulomb"))
+
+
+@dataclass(frozen=True, kw_only=True)
+class TransmissionConfig(Validated):
+    """Motor → table transmission: a gear then a lead screw (or a belt pulley).
+
+    The compliance of the whole chain is one linear spring (the ``x_screw`` tendon), the
+    series combination of ``stiffness`` components (N/m, referred to the table).
+    """
+
+    kind: str = choice("screw", ("screw", "belt"), "a lead screw, or a belt on a pulley")
+    gear_ratio: float = num(unit="1", ge=0.01, le=1000.0,
+                            doc="motor revolutions per screw/pulley revolution")
+    lead: float = num(0.0, "m", ge=0, le=0.1,
+                      doc="screw lead (kind = screw: at least 0.1 mm)")
+    pulley_radius: float = num(0.0, "m", ge=0, le=0.5,
+                               doc="belt pulley pitch radius (kind = belt: at least 1 mm)")
+    stiffness: dict[str, float] = field(default_factory=dict)
+    damping_ratio: float = num(unit="1", ge=1e-4, le=2,
+                               doc="damping of the first elastic mode")
+    backlash: float = num(
+        0.0, "m", ge=0, le=1e-3, doc="lost motion of gear and nut together, referred to the "
+        "table, in series with the screw spring (a dead band of this width); 0 = none")
+
+    def _check(self) -> None:
+        if self.kind not in ("screw", "belt"):
+            raise ConfigError("kind", f"must be 'screw' or 'belt', got {self.kind!r}")
+        if self.kind == "screw" and not self.lead >= 1e-4:
+            raise ConfigError("lead", f"must lie in [0.0001, 0.1] m for a screw "
+                              f"transmission (kind = 'screw'), got {self.lead:g}")
+        if self.kind == "belt" and not self.pulley_radius >= 1e-3:
+            raise ConfigError("pulley_radius", f"must lie in [0.001, 0.5] m for a belt "
+                              f"transmission (kind = 'belt'), got {self.pulley_radius:g}")
+        if not self.stiffness:
+            raise ConfigError("stiffness", "needs at least one component (N/m)")
+        lo, hi = STIFFNESS_RANGE
+        for name, k in self.stiffness.items():
+            if not isinstance(k, int | float) or not math.isfinite(k) or not lo <= k <= hi:
+                raise ConfigError(f"stiffness.{name}", f"must lie in [{lo:g}, {hi:g}] N/m, "
+                                  f"got {k!r}")
+
+    @property
+    def ratio(self) -> float:
+        """Table travel per motor angle (m/rad)."""
+        if self.kind == "screw":
+            return self.lead / (2.0 * math.pi * self.gear_ratio)
+        return self.pulley_radius / self.gear_ratio
+
+    @property
+    def axial_stiffness(self) -> float:
+        """Series stiffness of all components (N/m)."""
+        return 1.0 / sum(1.0 / k for k in self.stiffness.values())
+
+
+@dataclass(frozen=True, kw_only=True)
+class SwitchConfig(Validated):
+    """End limit switches and the home switch (table positions where they close)."""
+
+    limit_min: float = num(unit="m", ge=-10.0, le=10.0, doc="where the min end switch closes")
+    limit_max: float = num(unit="m", ge=-10.0, le=10.0, doc="where the max end switch closes")
+    home: float = num(unit="m", ge=-10.0, le=10.0, doc="where the home switch closes")
+    debounce: float = num(0.002, "s", ge=0, le=1.0, doc="a switch reads closed this long "
+                          "after it closes")
+    home_width: float = num(0.5e-3, "m", ge=1e-6, le=0.1,
+                            doc="the home switch is closed over this width")
+
+    def _check(self) -> None:
+        if not self.limit_min < self.home < self.limit_max:
+            raise ConfigError("home", f"must lie between limit_min and limit_max: "
+                              f"{self.limit_min:g} < {self.home:g} < {self.limit_max:g} m "
+                              f"does not hold")
+
+
+@dataclass(frozen=True, kw_only=True)
+class EncoderConfig(Validated):
+    """Rotary encoder on the motor shaft and its hardware counter."""
+
+    counts_per_rev: int = num(2500, "1/rev", ge=1, le=10**8,
+                              doc="counts per motor revolution (edges of both channels)")
+    bits: int = num(32, "bit", ge=8, le=64, doc="width of the hardware counter")
+    noise_counts: float = num(0.0, "count", ge=0, le=1e3, doc="rms sensor noise; 0 = off")
+
+
+# --------------------------------------------------------------------------- drive
+@dataclass(frozen=True, kw_only=True)
+class MotorConfig(Validated):
+    """Separately excited DC motor (constant field)."""
+
+    rated_voltage: float = num(unit="V", ge=1.0, le=1e4, doc="rated armature voltage")
+    rated_current: float = num(unit="A", ge=0.01, le=1e4, doc="rated armature current")
+    rated_speed_rpm: float = num(unit="rev/min", ge=1.0, le=1e5, doc="rated speed")
+    emf_constant: float = num(unit="V·s/rad", ge=1e-4, le=100.0,
+                              doc="k: back-EMF k·ω, torque k·i")
+    armature_resistance: float = num(unit="Ω", ge=1e-4, le=1e3,
+                                     doc="armature circuit resistance")
+    armature_inductance: float = num(unit="H", ge=1e-6, le=10.0,
+                                     doc="armature circuit inductance")
+    current_limit_factor: float = num(2.5, "1", ge=0.1, le=10.0,
+                                      doc="current limit over rated current")
+
+    def _check(self) -> None:
+        emf = self.emf_constant * self.rated_speed
+        if not 0.5 * self.rated_voltage <= emf <= 1.1 * self.rated_voltage:
+            raise ConfigError("emf_constant", f"the back-EMF at the rated speed, emf_constant "
+                              f"× rated_speed_rpm = {emf:.4g} V, must lie within 0.5 … 1.1 "
+                              f"× rated_voltage ({self.rated_voltage:g} V): a motor's data "
+                              f"are consistent, got emf_constant = {self.emf_constant:g} "
+                              f"V·s/rad")
+
+    @property
+    def rated_speed(self) -> float:
+        """Rated speed (rad/s)."""
+        return self.rated_speed_rpm * 2.0 * math.pi / 60.0
+
+    @property
+    def current_limit(self) -> float:
+        """Armature current limit (A)."""
+        return self.current_limit_factor * self.rated_current
+
+
+@dataclass(frozen=True, kw_only=True)
+class ConverterConfig(Validated):
+    """Power converter: a non-circulating pair of thyristor converters (6-pulse bridges or
+    3-pulse midpoint circuits), or a PWM transistor bridge.
+
+    ``model`` chooses how a thyristor converter is simulated: ``"pulse"`` (the default: the
+    instantaneous voltage of the conducting pair, discontinuous conduction as the circuit
+    gives it, :mod:`twin.drive.pulse`) or ``"mean"`` (the mean voltage of each firing
+    period held constant). A PWM bridge is always ``"mean"``.
+    """
+
+    kind: str = choice("thyristor", ("thyristor", "pwm"),
+                       "a pair of thyristor converters, or a PWM transistor bridge")
+    model: str | None = choice(None, ("pulse", "mean"), "how a thyristor converter is "
+                               "simulated: the conducting pair's voltage, or the mean of "
+                               "each firing period; default pulse (thyristor), mean (pwm)")
+    line_voltage: float = num(100.0, "V", ge=1.0, le=1e4,
+                              doc="thyristor: line-to-line rms U_LL")
+    mains_frequency: float = num(50.0, "Hz", ge=1.0, le=1e3, doc="frequency of the mains")
+    mains_phase: float = num(0.0, "rad", ge=0, le=2 * math.pi,
+                             doc="phase of the mains at time 0 of the twin's clock")
+    pulse_number: int = num(6, "1", ge=3, le=6,
+                            doc="6: three-phase bridge; 3: midpoint circuit")
+    line_inductance: float = num(
+        0.0, "H", ge=0, le=0.1,
+        doc="commutating inductance per phase (overlap); 0 = instantaneous")
+    dcm_compensation: bool = flag(True, "the current regulator adapts to discontinuous "
+                                  "conduction")
+    """Thyristor drives: the current regulator adapts to discontinuous conduction (the
+    firing unit inverts the discontinuous characteristic; integral control per pulse)."""
+    reversal_pause: float = num(2e-3, "s", ge=0, le=0.1,
+                                doc="current-zero pause at bridge reversal")
+    min_firing_angle: float = num(0.0, "rad", ge=0, le=math.pi, doc="smallest firing angle")
+    max_firing_angle: float = num(math.radians(150.0), "rad", gt=0, le=math.pi,
+                                  doc="largest firing angle (inverter limit)")
+    dc_link_voltage: float = num(0.0, "V", ge=0, le=1e4, doc="pwm: DC link voltage")
+    pwm_frequency: float = num(0.0, "Hz", ge=0, le=1e6, doc="pwm: switching frequency")
+
+    def _check(self) -> None:
+        if self.kind not in ("thyristor", "pwm"):
+            raise ConfigError("kind", f"must be 'thyristor' or 'pwm', got {self.kind!r}")
+        if self.kind == "pwm" and not self.dc_link_voltage >= 1.0:
+            raise ConfigError("dc_link_voltage", f"must lie in [1, 10000] V for a pwm "
+                              f"converter, got {self.dc_link_voltage:g}")
+        if self.kind == "pwm" and not self.pwm_frequency >= 100.0:
+            raise ConfigError("pwm_frequency", f"must lie in [100, 1e+06] Hz for a pwm "
+                              f"converter, got {self.pwm_frequency:g}")
+        if self.kind == "thyristor" and not self.min_firing_angle < self.max_firing_angle:
+            raise ConfigError("max_firing_angle", "must exceed min_firing_angle")
+        if self.kind == "thyristor" and self.pulse_number not in (3, 6):
+            raise ConfigError("pulse_number", f"must be 6 (bridge) or 3 (midpoint circuit), "
+                              f"got {self.pulse_number}")
+        if self.model is None:
+            object.__setattr__(self, "model", "pulse" if self.kind == "thyristor" else "mean")
+        if self.model not in ("pulse", "mean"):
+            raise ConfigError("model", f"must be 'pulse' or 'mean', got {self.model!r}")
+        if self.kind == "pwm" and self.model != "mean":
+            raise ConfigError("model", "a PWM converter is modelled by its mean voltage: "
+                              "'mean'")
+
+    @property
+    def peak_voltage(self) -> float:
+        """Û, peak of the voltage one conducting pair applies (V): √2·U_LL for the bridge,
+        √2·U_LL/√3 (the phase voltage) for the midpoint circuit; the DC link for PWM."""
+        if self.kind != "thyristor":
+            return self.dc_link_voltage
+        u = math.sqrt(2.0) * self.line_voltage
+        return u if self.pulse_number == 6 else u / math.sqrt(3.0)
+
+    @property
+    def max_voltage(self) -> float:
+        """Largest mean output voltage (V): U_d0 = (p/π)·sin(π/p)·Û (1.35·U_LL for the
+        bridge, 0.675·U_LL for the midpoint circuit), or the DC link for PWM."""
+        if self.kind == "thyristor":
+            p = self.pulse_number
+            return p / math.pi * math.sin(math.pi / p) * self.peak_voltage
+        return self.dc_link_voltage
+
+    @property
+    def series_phases(self) -> int:
+        """Line inductances in series with a conducting pair: 2 (bridge), 1 (midpoint)."""
+        return 2 if self.pulse_number == 6 else 1
+
+    @property
+    def firing_period(self) -> float:
+        """Time between firing instants (s): 1/(p·f) for a bridge, 1/f_pwm for PWM."""
+        if self.kind == "thyristor":
+            return 1.0 / (self.pulse_number * self.mains_frequency)
+        return 1.0 / self.pwm_frequency
+
+
+@dataclass(frozen=True, kw_only=True)
+class TachoConfig(Validated):
+    """Tachogenerator on the motor shaft: U = K_C·ω, then a first-order filter."""
+
+    gain: float = num(unit="V·s/rad", ge=1e-5, le=10.0, doc="K_C")
+    filter_time_constant: float = num(1e-3, "s", ge=0, le=1.0,
+                                      doc="first-order filter on the tacho signal; 0 = "
+                                      "none, else at least 1e-5 s")
+    noise: float = num(0.0, "V", ge=0, le=10.0, doc="rms noise on the tacho signal; 0 = off")
+    ripple: tuple[tuple[float, float], ...] = field(default=(), metadata={
+        "doc": "tacho ripple: at most 4 [harmonic per revolution in (0, 1000], amplitude % "
+               "in [0, 100)]"})
+    """Ripple of the tacho EMF: ``[[harmonic, amplitude_percent], ...]`` (harmonic per
+    revolution > 0, amplitude in % of K_C·ω, 0 ≤ a < 100; at most 4), e.g. ``[[1, 0.5],
+    [20, 1.0]]`` for an eccentricity and a commutator ripple."""
+
+    def _check(self) -> None:
+        if 0.0 < self.filter_time_constant < 1e-5:
+            raise ConfigError("filter_time_constant", f"must be 0 (no filter) or lie in "
+                              f"[1e-05, 1] s, got {self.filter_time_constant:g}")
+        if len(self.ripple) > 4:
+            raise ConfigError("ripple", f"at most 4 harmonics, got {len(self.ripple)}")
+        for k, (harmonic, amplitude) in enumerate(self.ripple):
+            if not (math.isfinite(harmonic) and 0 < harmonic <= 1000):
+                raise ConfigError(f"ripple[{k}]", f"harmonic must lie in (0, 1000] per "
+                                  f"revolution, got {harmonic}")
+            if not (math.isfinite(amplitude) and 0.0 <= amplitude < 100.0):
+                raise ConfigError(f"ripple[{k}]", f"amplitude must lie in [0, 100) %, got "
+                                  f"{amplitude}")
+
+
+@dataclass(frozen=True, kw_only=True)
+class DacConfig(Validated):
+    """The CNC's analog speed reference output."""
+
+    bits: int = num(12, "bit", ge=1, le=32, doc="resolution of the DAC")
+    full_scale: float = num(10.0, "V", ge=0.1, le=100.0, doc="output range is ±full_scale")
+    offset: float = num(0.0, "V", ge=-1.0, le=1.0, doc="the plant's DAC: output at code 0")
+    gain_error: float = num(0.0, "1", ge=-0.5, le=0.5,
+                            doc="the plant's DAC: relative error of its gain")
+
+
+@dataclass(frozen=True, kw_only=True)
+class SpeedLoopConfig(Validated):
+    """Speed loop of the drive. The regulator constants are derived in code from the motor
+    and converter by the tuning rules (modulus optimum for current, symmetric optimum for
+    speed); only the design choices live here."""
+
+    reference_filter: float | None = num(
+        None, "s", ge=0, le=1.0, doc="T1, filter on the speed reference; None: a²·T_σ (SO "
+        "rule)")
+    symmetric_optimum_a: float = num(2.0, "1", ge=1.2, le=100.0,
+                                     doc="SO spacing factor a (a=2: classic)")
+
+
+@dataclass(frozen=True, kw_only=True)
+class LimitsConfig(Validated):
+    """Kinematic limits of one axis (per-axis) or of the contour."""
+
+    max_velocity: float = num(unit="m/s", ge=1e-4, le=100.0, doc="largest speed")
+    max_acceleration: float = num(unit="m/s²", ge=1e-4, le=1e4, doc="largest acceleration")
+    max_jerk: float = num(unit="m/s³", ge=1e-3, le=1e7, doc="largest jerk")
+
+
+@dataclass(frozen=True, kw_only=True)
+class AxisConfig(Validated):
+    """Everything about one axis."""
+
+    mechanics: MechanicsConfig
+    transmission: TransmissionConfig
+    switches: SwitchConfig
+    encoder: EncoderConfig = field(default_factory=EncoderConfig)
+    motor: MotorConfig
+    converter: ConverterConfig = field(default_factory=ConverterConfig)
+    tacho: TachoConfig
+    dac: DacConfig = field(default_factory=DacConfig)
+    speed_loop: SpeedLoopConfig = field(default_factory=SpeedLoopConfig)
+    limits: LimitsConfig
+
+    def _check(self) -> None:
+        lo, hi = self.mechanics.travel
+        for name in ("limit_min", "limit_max", "home"):
+            pos = getattr(self.switches, name)
+            if not lo <= pos <= hi:
+                raise ConfigError(f"switches.{name}", f"must lie within mechanics.travel "
+                                  f"[{lo:g}, {hi:g}] m, got {pos:g}")
+
+    @property
+    def counts_per_metre(self) -> float:
+        """Encoder counts per metre of table travel (counts/m)."""
+        return self.encoder.counts_per_rev / (2.0 * math.pi * self.transmission.ratio)
+
+    @property
+    def volts_per_speed(self) -> float:
+        """Speed reference that the drive turns into 1 m/s of table speed (V·s/m)."""
+        return self.tacho.gain / self.transmission.ratio
