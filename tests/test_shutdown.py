@@ -8,6 +8,7 @@ from __future__ import annotations
 import ctypes
 import json
 import os
+import random
 import signal
 import subprocess
 import sys
@@ -17,6 +18,7 @@ from pathlib import Path
 import pytest
 import rerun.chunk as rc
 
+from tests.rrd import assert_verified
 from twin.controller.controller import ControllerStatus
 from twin.jsonio import json_text
 from twin.run import RunSpec, run
@@ -145,3 +147,49 @@ def test_a_record_never_says_a_state_in_progress(status):
     if status >= ControllerStatus.LIMIT_TRIP:
         assert out["status"] == "FAULT" and out["fault"] == status.name
     assert final_status(status, "interrupted (SIGTERM)", 10.0)["status"] == "ABORTED"
+
+
+@pytest.mark.slow
+def test_stop_signals_at_random_instants_of_a_lockstep_run(tmp_path):
+    """SIGTERM, SIGINT or SIGHUP at a random instant of a lock-step ``twin run`` (Python
+    starting, the plant compiling, the loop, the record being written, after the end): each
+    trial leaves nothing under a final name, or a recording that passes ``rerun rrd verify``
+    with its summary in a final status. CI runs 6 trials; the full run 30."""
+    trials = 6 if os.environ.get("CI") else 30
+    rng = random.Random(2319)
+    program = tmp_path / "dwell.ngc"
+    program.write_text("G91 G1 X2 Y1 F600\nG4 P60\nG1 X-2 Y-1\nM30\n")
+    outcomes: dict[str, int] = {}
+    for trial in range(trials):
+        signum = rng.choice((signal.SIGTERM, signal.SIGINT, signal.SIGHUP))
+        delay = rng.uniform(0.0, 6.0)
+        out = tmp_path / f"trial{trial}"
+        proc = subprocess.Popen([sys.executable, "-m", "twin.cli", "run", str(program),
+                                 "--out", str(out), "--json"], stdout=subprocess.PIPE,
+                                stderr=subprocess.PIPE, text=True,
+                                env={**os.environ, "RERUN_ANALYTICS": "0"})
+        time.sleep(delay)
+        if proc.poll() is None:
+            proc.send_signal(signum)
+        try:
+            stdout, stderr = proc.communicate(timeout=60.0)
+        finally:
+            if proc.poll() is None:
+                proc.kill()
+        where = f"trial {trial}: {signal.Signals(signum).name} after {delay:.2f} s"
+        assert "Traceback" not in stderr, f"{where}: {stderr[-2000:]}"
+        recordings = sorted(out.glob("*.rrd")) if out.exists() else []
+        summaries = sorted(out.glob("*.json")) if out.exists() else []
+        assert [p.stem for p in recordings] == [p.stem for p in summaries], where
+        for rrd, js in zip(recordings, summaries, strict=True):
+            status = json.loads(js.read_text())["status"]
+            assert status in ("FINISHED", "ABORTED", "FAULT", "TIMEOUT"), where
+            assert_verified(rrd, where)
+            outcomes[status] = outcomes.get(status, 0) + 1
+        if not recordings:
+            outcomes["nothing"] = outcomes.get("nothing", 0) + 1
+        if recordings and stdout.strip():
+            assert json.loads(stdout)["status"] == json.loads(summaries[0].read_text())[
+                "status"], where
+    print(f"{trials} trials: {outcomes}")
+    assert sum(outcomes.values()) == trials

@@ -1,9 +1,10 @@
 """Stop signals at random instants of ``twin run`` over Modbus/TCP to ``twin hil-server``
 (issue 19): whatever the instant (while Python starts, while the driver connects, in the
 paced loop, while the record is written), each trial leaves either nothing under a final
-name or a recording that reads back with its summary, whose status is never a state in
-progress; and the module's outputs are zero and its drives disabled as soon as the process
-has exited, with a watchdog far too slow to have done it (5 s), so the driver did.
+name or a recording that passes ``rerun rrd verify``, with its summary, whose status is
+never a state in progress; and the module's outputs are zero and its drives disabled as
+soon as the process has exited, with a watchdog far too slow to have done it (5 s), so the
+driver did.
 
 CI runs 6 trials; the full run (``slow``) 30.
 """
@@ -19,9 +20,9 @@ import sys
 import time
 
 import pytest
-import rerun.chunk as rc
 
 from tests.hardware.test_hil_server import UNIT, client, hil_server
+from tests.rrd import assert_verified
 
 PROGRAM = "G91 G1 X4 Y3 F600\nG4 P60\nM30\n"   # a move, then a long dwell under control
 SIGNALS = (signal.SIGTERM, signal.SIGINT, signal.SIGHUP)
@@ -66,7 +67,7 @@ def test_stop_signals_at_random_instants_over_modbus(tmp_path):
             for rrd, js in zip(recordings, summaries, strict=True):
                 summary = json.loads(js.read_text())
                 assert summary["status"] in FINAL, where
-                assert list(rc.RrdReader(rrd).stream().to_chunks()), where
+                assert_verified(rrd, where)
                 outcomes[summary["status"]] = outcomes.get(summary["status"], 0) + 1
             if not recordings:
                 outcomes["nothing"] = outcomes.get("nothing", 0) + 1
