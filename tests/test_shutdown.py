@@ -177,7 +177,9 @@ def test_stop_signals_at_random_instants_of_a_lockstep_run(tmp_path):
             if proc.poll() is None:
                 proc.kill()
         where = f"trial {trial}: {signal.Signals(signum).name} after {delay:.2f} s"
-        assert "Traceback" not in stderr, f"{where}: {stderr[-2000:]}"
+        # Python itself may still be starting (before twin.cli runs): its traceback has no
+        # frame of ours; from twin.cli on, a start-up Ctrl-C is quiet
+        assert "Traceback" not in stderr or "twin/" not in stderr, f"{where}: {stderr[-3000:]}"
         recordings = sorted(out.glob("*.rrd")) if out.exists() else []
         summaries = sorted(out.glob("*.json")) if out.exists() else []
         assert [p.stem for p in recordings] == [p.stem for p in summaries], where

@@ -7,23 +7,42 @@ the place (G-code line and column, config field).
 
 from __future__ import annotations
 
-import os
-import shutil
-import subprocess
-import sys
-from pathlib import Path
-from typing import Any
+import signal
 
-import typer
-from rich.console import Console
-from rich.markup import escape
-from rich.progress import BarColumn, Progress, TextColumn, TimeElapsedColumn
-from rich.table import Table
 
-from twin.cli_common import CONTROLLER_MODEL_HELP, RUN_ROWS, err, fail, summary_table
-from twin.config import available_machines, diff_machines, field_unit, load_machine
-from twin.errors import TwinError
-from twin.jsonio import json_text
+def _interrupted_while_starting(signum: int, frame: object) -> None:
+    raise SystemExit(128 + signum)
+
+
+# A Ctrl-C while the command is still importing (numpy, MuJoCo, ...) ends it quietly with the
+# shell's 130 instead of a KeyboardInterrupt traceback; Python's own handler is back once
+# the commands are registered, and a run installs its own (twin.run_end).
+if signal.getsignal(signal.SIGINT) is signal.default_int_handler:
+    signal.signal(signal.SIGINT, _interrupted_while_starting)
+
+import os  # noqa: E402
+import shutil  # noqa: E402
+import subprocess  # noqa: E402
+import sys  # noqa: E402
+from pathlib import Path  # noqa: E402
+from typing import Any  # noqa: E402
+
+import typer  # noqa: E402
+from rich.console import Console  # noqa: E402
+from rich.markup import escape  # noqa: E402
+from rich.progress import BarColumn, Progress, TextColumn, TimeElapsedColumn  # noqa: E402
+from rich.table import Table  # noqa: E402
+
+from twin.cli_common import (  # noqa: E402
+    CONTROLLER_MODEL_HELP,
+    RUN_ROWS,
+    err,
+    fail,
+    summary_table,
+)
+from twin.config import available_machines, diff_machines, field_unit, load_machine  # noqa: E402
+from twin.errors import TwinError  # noqa: E402
+from twin.jsonio import json_text  # noqa: E402
 
 __all__ = ["app"]
 
@@ -352,6 +371,8 @@ def _register_more() -> None:
 
 
 _register_more()
+if signal.getsignal(signal.SIGINT) is _interrupted_while_starting:
+    signal.signal(signal.SIGINT, signal.default_int_handler)
 
 if __name__ == "__main__":
     app()

@@ -46,7 +46,7 @@ def _quadrant_spikes(tmp_path, backlash: float, extra: dict | None = None):
     pos = rec["table_position"]
     angle = np.degrees(np.arctan2(pos[:, 1] - arc.center[1], pos[:, 0] - arc.center[0]))
     radial = np.abs(np.hypot(*(pos - arc.center).T) - arc.radius)
-    on_arc = rec["block"] == 2
+    on_arc = rec["line"] == 4                          # the G3 block
 
     def near(q, width):
         return np.abs((angle - q + 180.0) % 360.0 - 180.0) < width

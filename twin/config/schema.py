@@ -179,8 +179,13 @@ class ControllerSettings(Validated):
     profile: str = choice("parabolic", PROFILES, "the acceleration law")
     planner: str = choice("lookahead", PLANNERS, "look ahead over the blocks, or stop at "
                           "every node")
-    lookahead: int = num(64, "blocks", ge=1, le=100_000,
-                         doc="blocks the planner looks ahead")
+    lookahead: int = num(4096, "blocks", ge=1, le=100_000,
+                         doc="most blocks the planner looks ahead (it looks as far as "
+                         "the braking distance needs, up to this)")
+    corner_blend: float = num(0.5, "1", ge=0.0, le=1.0,
+                              doc="share of the contour tolerance that rounding the corners "
+                              "between lines may take (0: sharp corners); the rest is the "
+                              "servo's")
     soft_limits: bool = flag(True, "refuse motion outside the work zone")
     """Refuse motion outside the work zone (the travel between the end switches)."""
     in_position_tolerance: float = num(

@@ -46,7 +46,7 @@ from typing import Any
 import numpy as np
 
 from twin.config import AXES, AxisConfig, ControllerSettings, MachineConfig
-from twin.controller.corner import CornerModel, SeedCornerModel
+from twin.controller.corner import CornerModel
 from twin.controller.cyclic import FALLBACK, steady_tick, warm_up
 from twin.controller.encoder import EncoderUnwrapper
 from twin.controller.gcode.items import Move
@@ -54,7 +54,7 @@ from twin.controller.geometry import Line
 from twin.controller.interpolator import Interpolator, InterpolatorStatus
 from twin.controller.io import Inputs, MachineIO, Outputs
 from twin.controller.linear import LinearAxisModel
-from twin.controller.loop_defaults import estimated_axis_model, loop_gains, servo_lag
+from twin.controller.loop_defaults import default_corner_model, estimated_axis_model, loop_gains
 from twin.controller.planner import MotionBlock, PlannedBlock, Planner
 from twin.controller.record import Record
 from twin.controller.regulator import (
@@ -150,9 +150,12 @@ class Controller:
         Interpolator interface (seed 004).
     corner_model : CornerModel, optional
         For the planner; default the seed-001 model of these axes with the servo time
-        constant of the regulator (``loop_defaults.servo_lag``).
+        constant of the regulator (``loop_defaults.default_corner_model``).
     lookahead : int, optional
         Window (blocks); default ``settings.lookahead``.
+    planner_options : mapping, optional
+        More keyword options of ``Planner.from_settings`` (e.g. ``blend=0.0`` and
+        ``period=None`` for a study of sharp corners passed at a chosen speed).
     start : sequence of 2 float, optional
         Table position at the first tick (m); default the program's start point.
     settle_time : float
@@ -183,6 +186,7 @@ class Controller:
                  profile: str | None = None, planner: str | None = None,
                  dcu_order: int | None = None, mode: str = "extended",
                  corner_model: CornerModel | None = None, lookahead: int | None = None,
+                 planner_options: Mapping[str, Any] | None = None,
                  start: Sequence[float] | None = None, settle_time: float = 0.25,
                  record_capacity: int = 65536, compiled: bool = True):
         if sorted(axes) != sorted(AXES):
@@ -206,12 +210,12 @@ class Controller:
             gains = loop_gains(settings, self.axes, models, order)
         self.gains = gains
         if corner_model is None:
-            corner_model = SeedCornerModel.from_axes(
-                believed, servo_time_constant=servo_lag(gains, models, self.period))
+            corner_model = default_corner_model(settings, axes, model_axes=believed,
+                                                axis_models=models, gains=gains)
         options: dict[str, Any] = {"law": profile or settings.profile,
                                    "mode": planner or settings.planner,
                                    "lookahead": lookahead or settings.lookahead,
-                                   "corner_model": corner_model}
+                                   "corner_model": corner_model, **(planner_options or {})}
         self.planner = Planner.from_settings(settings, axes, **options)
         """Planner: the look-ahead planner (its ``work_zone`` holds the soft limits)."""
         self._free_planner = Planner.from_settings(settings, axes, **options, work_zone=None)

@@ -3,20 +3,23 @@
 * ``estimated_axis_model``: a first-order model of an axis' closed speed loop from its
   configuration, for the gain rules and the DCU until the twin's own model is passed in;
 * ``loop_gains``: the regulator gains of the machine settings, the unset ones derived;
-* ``servo_lag``: the time constant of the closed position loop, for the corner model.
+* ``servo_lag``: the time constant of the closed position loop, for the corner model;
+* ``default_corner_model``: the corner model of a machine, the one the controller and
+  ``Planner.from_settings`` both use.
 """
 
 from __future__ import annotations
 
 import dataclasses
 import math
-from collections.abc import Sequence
+from collections.abc import Mapping, Sequence
 
 from twin.config import AxisConfig, ControllerSettings
+from twin.controller.corner import SeedCornerModel
 from twin.controller.linear import LinearAxisModel
 from twin.controller.regulator import RegulatorGains, default_gains
 
-__all__ = ["estimated_axis_model", "loop_gains", "servo_lag"]
+__all__ = ["default_corner_model", "estimated_axis_model", "loop_gains", "servo_lag"]
 
 
 def estimated_axis_model(axis: AxisConfig) -> LinearAxisModel:
@@ -69,3 +72,22 @@ def loop_gains(settings: ControllerSettings, axes: Sequence[AxisConfig],
     if reg.dcu_alpha is not None:  # explicit coefficients (a tuning job's) win
         given["dcu_alpha"] = reg.dcu_alpha
     return dataclasses.replace(base, output_limit=dac.full_scale, dac_bits=dac.bits, **given)
+
+
+def default_corner_model(settings: ControllerSettings, axes: Mapping[str, AxisConfig], *,
+                         model_axes: Mapping[str, AxisConfig] | None = None,
+                         axis_models: Sequence[LinearAxisModel] | None = None,
+                         gains: RegulatorGains | None = None) -> SeedCornerModel:
+    """The machine's corner model: seed 001's relation for the believed axes (``model_axes``,
+    default ``axes``) with the servo time constant of the position loop (`servo_lag`) of
+    ``gains`` (default the settings' gains, `loop_gains`) on ``axis_models`` (default
+    `estimated_axis_model` of the believed axes). The controller passes its own gains and
+    models; ``Planner.from_settings`` uses the defaults: the same model either way."""
+    believed = axes if model_axes is None else model_axes
+    models = (list(axis_models) if axis_models is not None
+              else [estimated_axis_model(believed[a]) for a in ("x", "y")])
+    if gains is None:
+        gains = loop_gains(settings, [axes[a] for a in ("x", "y")], models,
+                           settings.regulator.dcu_order)
+    return SeedCornerModel.from_axes(believed, servo_time_constant=servo_lag(
+        gains, models, settings.period))

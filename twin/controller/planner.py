@@ -7,14 +7,33 @@ that all three kinds of limit allow::
     V_segment = min(V_seg_tech,  V_seg_accuracy,  V_seg_length)
 
 * technological: the programmed feed of both blocks at a node (the rapid speed for G0);
-* accuracy: at a node, the corner model ``tolerance / δ*(angle)`` (`twin.controller.corner`);
-  on a segment, the per-axis velocity limits projected on its direction, the contour
-  ``max_velocity``, and on curved segments the centripetal acceleration and the jerk;
+* accuracy: at a kink, the corner model ``tolerance / δ*(angle)`` (`twin.controller.corner`)
+  and the velocity step the axes can take in one period (below); on a segment, the per-axis
+  velocity limits projected on its direction, the contour ``max_velocity``, and on curved
+  segments the centripetal acceleration and the jerk;
 * length: every block must be able to brake before the end of the look-ahead window, which
   is assumed to end at rest (backward pass), and every node must be reachable from the one
   before it (forward pass), both with the chosen acceleration law: `max_end_speed`, made
   monotone in the start speed by `twin.controller.reach` (without that, raising one node
   could shrink what its neighbour may do, and the incremental passes would be unsound).
+
+Corners: blended, or a velocity step the axes can take
+------------------------------------------------------
+In look-ahead mode the kinks between feed lines are first rounded by tangent arcs within
+``blend`` × the contour tolerance (`twin.controller.blend`): a chorded curve becomes a
+chain of arcs and runs at the centripetal limit of the curve it approximates, whatever its
+chord length, and a sharp corner at the speed its blend arc allows. A kink that is not
+blended (an arc meeting a line at an angle, a reversal) is passed at a speed whose velocity
+step the axes can take in one controller period T, the reference's own time step::
+
+    v · |t̂_out,k − t̂_in,k| ≤ A_k · T     for each axis k, and
+    v · |t̂_out − t̂_in|    ≤ A   · T     for the contour limit A,
+
+which is the acceleration the sampled reference shows there (a step Δv within one period
+is Δv/T in its second difference), and at most the corner model's speed. Likewise, for a
+law that limits jerk, a node where the curvature jumps (a line entering an arc, a blend)
+is passed no faster than ``v² · |κ_out − κ_in| ≤ J · T``: the step of the normal
+acceleration within one period, the jerk the sampled reference shows there.
 
 Streaming and incremental
 -------------------------
@@ -27,7 +46,11 @@ entry speed ``entry = min(fw, g(next entry, length))`` (g the monotone reach). A
 block only *raises* entries (the window's end moves away), so the backward pass walks from the
 newest block and stops at the first entry that does not change: typically after one or two
 blocks. When a block leaves the window the next block's entry is committed; if that lowers
-a forward envelope the change is propagated forward until it stops mattering.
+a forward envelope the change is propagated forward until it stops mattering. A block leaves
+the window when the window holds ``lookahead`` blocks, or as soon as twice the contour
+braking distance from the top feed lies behind it (its speeds can no longer change): the
+window is as long as the braking distance needs, however short the blocks, and
+``lookahead`` bounds its memory.
 
 Blocks therefore come out identical for any window that covers the braking distance (the
 backward pass from the window's end saturates before it reaches the block).
@@ -57,10 +80,12 @@ from dataclasses import dataclass
 from typing import Any, NamedTuple
 
 from twin.config import AxisConfig, ControllerSettings
+from twin.controller.blend import BlendedBlock, Blender
 from twin.controller.corner import CornerModel, SeedCornerModel
 from twin.controller.gcode.items import Dwell, Move, ProgramEnd
 from twin.controller.geometry import Arc, Line, Segment
-from twin.controller.profiles import Limits, Profile, plan_move
+from twin.controller.loop_defaults import default_corner_model
+from twin.controller.profiles import Limits, Profile, min_distance, plan_move
 from twin.controller.profiles.laws import check_law
 from twin.controller.reach import monotone_end_speed as reach_speed
 from twin.controller.reach import reach_floor
@@ -117,7 +142,10 @@ class PlannedBlock(NamedTuple):
     line : int
         Source line (0 when not from a program).
     index : int
-        0-based number of the motion block in the program.
+        0-based number of the block in the plan (blends included).
+    blend : bool
+        True for an arc the planner inserted to round a corner (``line`` is then the
+        outgoing block's).
     """
 
     segment: Segment
@@ -129,6 +157,7 @@ class PlannedBlock(NamedTuple):
     limits: Limits
     line: int
     index: int
+    blend: bool = False
 
     @property
     def rapid(self) -> bool:
@@ -169,8 +198,8 @@ def segments_from_program(items: Iterable[Any]) -> Iterator[Any]:
 class _Block:
     """A block in the window: its geometry summary and its speeds (mutable, internal)."""
 
-    __slots__ = ("entry", "feed", "floor", "fw", "index", "length", "limits", "line", "rapid",
-                 "segment", "t0x", "t0y", "t1x", "t1y", "v_nom")
+    __slots__ = ("blend", "entry", "feed", "floor", "fw", "index", "k0", "k1", "length",
+                 "limits", "line", "rapid", "segment", "t0x", "t0y", "t1x", "t1y", "v_nom")
 
 
 class Planner:
@@ -189,11 +218,19 @@ class Planner:
     law : str
         Acceleration law, one of ``twin.controller.profiles.LAWS``.
     lookahead : int
-        Window size (blocks), ≥ 1. 1 means stop at every node.
+        Largest window (blocks), ≥ 1; a block leaves earlier once the braking distance
+        lies behind it. 1 means stop at every node.
     mode : {"lookahead", "stop"}
         ``"stop"`` plans every node at rest (the classic controller, for comparison).
     corner_model : CornerModel, optional
-        Node speed limit from the corner angle; default ``SeedCornerModel()``.
+        Node speed limit from the corner angle at a kink; default ``SeedCornerModel()``
+        (``from_settings`` gives the machine's, as the controller does).
+    period : float, optional
+        Controller period T (s): a kink is passed no faster than a velocity step the axes
+        take in one period (module doc). None: that rule is off (a bare planner).
+    blend : float
+        Share of ``tolerance`` that the rounding of kinks may take (0 … 1; 0: no blending,
+        the kinks stay); the rest is the servo's. Look-ahead mode only.
     work_zone : WorkZone, optional
         Soft limits; None: unchecked.
     min_feed : float
@@ -210,7 +247,8 @@ class Planner:
                  rapid_velocity: float, tolerance: float, law: str = "parabolic",
                  lookahead: int = 64, mode: str = "lookahead",
                  corner_model: CornerModel | None = None, work_zone: WorkZone | None = None,
-                 min_feed: float = 1e-6, max_program_time: float = 86400.0):
+                 min_feed: float = 1e-6, max_program_time: float = 86400.0,
+                 period: float | None = None, blend: float = 0.5):
         check_law(law)
         if mode not in MODES:
             raise ConfigError("mode", f"must be one of {MODES}, got {mode!r}")
@@ -219,9 +257,12 @@ class Planner:
         if len(axis_limits) != 2:
             raise ConfigError("axis_limits", f"need 2 (x, y), got {len(axis_limits)}")
         for name, value in (("rapid_velocity", rapid_velocity), ("tolerance", tolerance),
-                            ("min_feed", min_feed), ("max_program_time", max_program_time)):
+                            ("min_feed", min_feed), ("max_program_time", max_program_time),
+                            ("period", 1.0 if period is None else period)):
             if not (math.isfinite(value) and value > 0.0):
                 raise ConfigError(name, f"must be finite and > 0, got {value!r}")
+        if not (0.0 <= blend <= 1.0):
+            raise ConfigError("blend", f"must lie in [0, 1], got {blend!r}")
         self.limits = limits
         self.axis_limits = tuple(axis_limits)
         self.rapid_velocity = float(rapid_velocity)
@@ -231,7 +272,20 @@ class Planner:
         self.mode = mode
         self.corner_model: CornerModel = corner_model or SeedCornerModel()
         self.work_zone = work_zone
-        self._caps = SegmentLimits(limits, axis_limits)
+        self.period = None if period is None else float(period)
+        self.blend = float(blend)
+        self._caps = SegmentLimits(limits, axis_limits, jerk=law != "trapezoid")
+        # a kink's velocity step per axis and on the contour: v·|Δt̂_k| ≤ A_k·T
+        self._step = None if period is None else (
+            axis_limits[0].max_acceleration * period, axis_limits[1].max_acceleration * period,
+            limits.max_acceleration * period)
+        # a node where the curvature jumps (a line meets an arc, a blend of another radius)
+        # steps the normal acceleration by v²·|Δκ| within one period: at most J·T for a law
+        # that limits jerk
+        self._jerk_step = None if period is None or law == "trapezoid" else period * min(
+            limits.max_jerk, axis_limits[0].max_jerk, axis_limits[1].max_jerk)
+        # rapids run between exact stops: the feed moves' top speed sets the view
+        self._view = 2.0 * min_distance(law, limits.max_velocity, 0.0, limits)
         self._limits_cache: dict[tuple[float, float, float], Limits] = {}
         self._count = 0
         self.min_feed = float(min_feed)
@@ -244,16 +298,22 @@ class Planner:
         """A planner from the machine's controller settings and axes.
 
         Keyword options override: ``law`` (default ``settings.profile``), ``mode``
-        (``settings.planner``), ``lookahead``, ``corner_model``, ``work_zone`` (default the
-        axes' travel inside the limit switches when ``settings.soft_limits``, else None;
-        pass None to disable), ``tolerance``.
+        (``settings.planner``), ``lookahead``, ``corner_model`` (default the machine's,
+        `twin.controller.loop_defaults.default_corner_model`, as the controller's),
+        ``work_zone`` (default the axes' travel inside the limit switches when
+        ``settings.soft_limits``, else None; pass None to disable), ``tolerance``,
+        ``period``, ``blend``.
         """
+        if options.get("corner_model") is None:
+            options["corner_model"] = default_corner_model(settings, axes)
         options.setdefault("law", settings.profile)
         options.setdefault("mode", settings.planner)
         options.setdefault("lookahead", settings.lookahead)
         options.setdefault("tolerance", settings.contour_tolerance)
         options.setdefault("min_feed", settings.min_feed)
         options.setdefault("max_program_time", settings.max_program_time)
+        options.setdefault("period", settings.period)
+        options.setdefault("blend", settings.corner_blend)
         if "work_zone" not in options:
             options["work_zone"] = WorkZone.from_axes(axes) if settings.soft_limits else None
         return cls(Limits.from_config(settings.limits),
@@ -280,40 +340,37 @@ class Planner:
             After the blocks planned before the fault (which end at rest) have been yielded.
         """
         window: deque[_Block] = deque()
-        source = iter(items)
+        stream: Iterator[Any] = self._checked(items)
+        if self.mode == "lookahead" and self.blend > 0.0:
+            stream = Blender(self.blend * self.tolerance).blend(stream)
         error: TwinError | None = None
         self._count = 0
         self._time_bound = 0.0
+        self._length = 0.0
         while True:
             try:
-                item = next(source)
-                kind = type(item)
-                if kind is Move:                 # segments_from_program, inlined
-                    seg = segment_of(item)
-                    if seg is None:
-                        continue
-                    block = self._block(seg, item.feed, item.line)
-                elif kind is MotionBlock:
-                    block = self._block(item.segment, item.feed, item.line)
-                else:
-                    block = None
-                    if kind is Dwell:
-                        self._spend(item.duration, item.line, "its dwell")
+                item = next(stream)
             except StopIteration:
                 break
             except TwinError as exc:
                 error = exc
                 break
-            if block is not None:
-                self._append(window, block)
-                if len(window) >= self.lookahead:
+            kind = type(item)
+            if kind is BlendedBlock:
+                block = self._block(item.segment, item.feed, item.line, item.blend)
+            elif kind is tuple:
+                block = self._block(*item)
+            else:
+                while window:
                     yield self._pop(window)
+                yield item
+                if isinstance(item, ProgramEnd):
+                    break
                 continue
-            while window:
+            self._append(window, block)
+            while len(window) >= self.lookahead or (
+                    len(window) > 1 and self._length - window[0].length >= self._view):
                 yield self._pop(window)
-            yield item
-            if isinstance(item, ProgramEnd):
-                break
         while window:
             yield self._pop(window)
         if error is not None:
@@ -337,6 +394,32 @@ class Planner:
                 self._spend(item.duration, item.line, "its dwell")
 
     # ------------------------------------------------------------------ internals
+    def _checked(self, items: Iterable[Any]) -> Iterator[Any]:
+        """Motion items as checked ``(segment, feed, line)`` triples (work zone, minimum
+        feed, program time, all on the programmed segment); dwells, events and the program
+        end pass through; nothing after the program end is read."""
+        zone = self.work_zone
+        for item in items:
+            kind = type(item)
+            if kind is Move:                 # segments_from_program, inlined
+                seg = segment_of(item)
+                if seg is None:
+                    continue
+                feed, line = item.feed, item.line
+            elif kind is MotionBlock:
+                seg, feed, line = item.segment, item.feed, item.line
+            else:
+                if kind is Dwell:
+                    self._spend(item.duration, item.line, "its dwell")
+                yield item
+                if isinstance(item, ProgramEnd):
+                    return
+                continue
+            if zone is not None:
+                zone.check(seg, line)
+            self._account(seg.length, feed, line)
+            yield (seg, feed, line)
+
     def _account(self, length: float, feed: float | None, line: int) -> float:
         """The feed bound, and the block's time at full feed against the program's; returns
         that full speed (m/s): the rapid speed, or the feed capped by the contour limit."""
@@ -356,12 +439,11 @@ class Planner:
                                 f"machine's {self.max_program_time:g} s "
                                 "(controller.max_program_time)")
 
-    def _block(self, seg: Segment, feed: float | None, line: int) -> _Block:
-        if self.work_zone is not None:
-            self.work_zone.check(seg, line)
-        v_cap = self._account(seg.length, feed, line)
+    def _block(self, seg: Segment, feed: float | None, line: int, blend: bool = False
+               ) -> _Block:
+        v_cap = self.rapid_velocity if feed is None else min(feed, self.limits.max_velocity)
         b = _Block()
-        b.segment, b.feed, b.line = seg, feed, line
+        b.segment, b.feed, b.line, b.blend = seg, feed, line, blend
         b.rapid = feed is None
         b.length = seg.length
         b.index = self._count
@@ -370,20 +452,22 @@ class Planner:
             ux, uy = seg._ux, seg._uy      # float fast path (same package)
             b.t0x = b.t1x = ux
             b.t0y = b.t1y = uy
+            b.k0 = b.k1 = 0.0
             v_nom, acc, jerk = self._caps.line_caps(abs(ux), abs(uy), v_cap)
         else:
-            b.t0x, b.t0y = (float(c) for c in seg.start_tangent)
-            b.t1x, b.t1y = (float(c) for c in seg.end_tangent)
+            _, _, b.t0x, b.t0y, b.k0, _ = seg.frame(0.0)
+            _, _, b.t1x, b.t1y, b.k1, _ = seg.frame(seg.length)
             v_nom, acc, jerk = self._caps.curve_caps(seg, v_cap)
         b.v_nom = v_nom
         key = (v_nom, acc, jerk)
         lim = self._limits_cache.get(key)
         if lim is None:
-            if len(self._limits_cache) > 4096:
+            if len(self._limits_cache) > 256:
                 self._limits_cache.clear()
             lim = self._limits_cache[key] = Limits(v_nom, acc, jerk)
         b.limits = lim
         b.floor = reach_floor(self.law, b.length, lim)
+        self._length += b.length
         return b
 
     def _append(self, window: deque[_Block], b: _Block) -> None:
@@ -395,10 +479,20 @@ class Planner:
             emax = min(prev.v_nom, b.v_nom)
             cross = prev.t1x * b.t0y - prev.t1y * b.t0x
             dot = prev.t1x * b.t0x + prev.t1y * b.t0y
-            corner = self.corner_model.max_node_speed(math.atan2(abs(cross), dot),
-                                                      self.tolerance)
-            if corner < emax:
-                emax = corner
+            angle = math.atan2(abs(cross), dot)
+            if angle > 0.0:
+                corner = self.corner_model.max_node_speed(angle, self.tolerance)
+                if corner < emax:
+                    emax = corner
+                if self._step is not None:
+                    step = _step_speed(self._step, b.t0x - prev.t1x, b.t0y - prev.t1y)
+                    if step < emax:
+                        emax = step
+            dk = abs(b.k0 - prev.k1)
+            if dk > 0.0 and self._jerk_step is not None:    # v²·|Δκ| ≤ J·T
+                jump = math.sqrt(self._jerk_step / dk)
+                if jump < emax:
+                    emax = jump
             reach = reach_speed(law, prev.fw, prev.length, prev.limits, prev.floor)
             if reach < emax:
                 emax = reach
@@ -417,6 +511,7 @@ class Planner:
 
     def _pop(self, window: deque[_Block]) -> PlannedBlock:
         b = window.popleft()
+        self._length -= b.length
         v_end = 0.0
         if window:
             head = window[0]
@@ -425,7 +520,7 @@ class Planner:
                 head.fw = v_end
                 self._propagate(window)
         return PlannedBlock(b.segment, b.feed, b.entry, b.v_nom, v_end, self.law, b.limits,
-                            b.line, b.index)
+                            b.line, b.index, b.blend)
 
     def _propagate(self, window: deque[_Block]) -> None:
         """Forward pass after a lowered envelope at ``window[0]``; stops when nothing changes."""
@@ -440,3 +535,15 @@ class Planner:
                 if r.entry > cand:
                     r.entry = cand
             prev = r
+
+
+def _step_speed(step: tuple[float, float, float], dx: float, dy: float) -> float:
+    """Fastest speed at a kink whose tangent changes by (dx, dy): the velocity step of each
+    axis, and of the contour, at most its acceleration limit times the period (m/s)."""
+    sx, sy, sc = step
+    v = sc / math.sqrt(dx * dx + dy * dy)
+    if abs(dx) * v > sx:
+        v = sx / abs(dx)
+    if abs(dy) * v > sy:
+        v = sy / abs(dy)
+    return v

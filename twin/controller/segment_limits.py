@@ -14,6 +14,8 @@ on curved segments — the acceleration and jerk that the curvature itself deman
   and tangential ``a_t = √(A² − (v²κ)²)`` (so ``|a| ≤ A``); the jerk
   ``|j| ≤ |s⃛| + v³(κ² + κ') + 3·v·a_t·κ`` is shared as ``v³(κ² + κ') ≤ J/4``,
   ``3·v·a_t·κ ≤ J/2``, and the tangential jerk gets the rest, at least ``J/4``.
+  A law that does not limit jerk (the trapezoid, ``jerk=False``) gets no jerk caps: its
+  own acceleration steps are impulses of jerk anyway.
 """
 
 from __future__ import annotations
@@ -41,11 +43,14 @@ class SegmentLimits:
         passes the speed cap it wants (feed or rapid speed) to `caps`.
     axis_limits : sequence of 2 Limits
         Limits of the x and y axes.
+    jerk : bool
+        Cap the speed on curves by the jerk the curvature demands (laws that limit jerk).
     """
 
-    def __init__(self, limits: Limits, axis_limits: Sequence[Limits]):
+    def __init__(self, limits: Limits, axis_limits: Sequence[Limits], *, jerk: bool = True):
         self.limits = limits
         self.axis_limits = tuple(axis_limits)
+        self.jerk = jerk
 
     def caps(self, segment: Segment, v_cap: float) -> tuple[float, float, float]:
         """(speed cap (m/s), tangential acceleration (m/s²), tangential jerk (m/s³))."""
@@ -82,10 +87,13 @@ class SegmentLimits:
         if my * v > ly.max_velocity:
             v = ly.max_velocity / my
         if kappa > 0.0:
-            v = min(v, math.sqrt(_SQRT_HALF * a_tot / kappa),
-                    (0.25 * j_tot / (kappa * kappa + dkappa)) ** (1.0 / 3.0))
+            v = min(v, math.sqrt(_SQRT_HALF * a_tot / kappa))
+            if self.jerk:
+                v = min(v, (0.25 * j_tot / (kappa * kappa + dkappa)) ** (1.0 / 3.0))
         a_n = v * v * kappa
         a_t = math.sqrt(a_tot * a_tot - a_n * a_n)
+        if not self.jerk:
+            return v, a_t, j_tot
         if kappa > 0.0:
             a_t = min(a_t, j_tot / (6.0 * v * kappa))
         j_t = j_tot - v**3 * (kappa * kappa + dkappa) - 3.0 * v * a_t * kappa

@@ -13,6 +13,10 @@ the outline; a laser-on/off M3/M5 around each contour; rapids between contours):
   the seed's time sent to the controller);
 * ``comb`` — a heat-sink plate with fins: one long outline of right angles.
 
+``nest(chord=0.01)`` writes every arc and circle as chords within that chordal tolerance
+instead, as a CAM post-processor without G2/G3 output does: thousands of short lines meeting
+at small angles (the planner's hardest input; issue 12).
+
 The grid sets the totals. The default, 6 × 4 parts on 1020 × 720 mm, gives 32.6 m of cut
 (seed: 32.5 m) and 6.6 m of rapid travel (seed: 5.3 m; the seed's parts were not published,
 and holes cost rapid travel: ours have 98 contours); a smaller grid gives a short job for
@@ -26,7 +30,7 @@ import math
 from collections.abc import Callable, Iterator
 from dataclasses import dataclass, field
 
-__all__ = ["Nest", "nest"]
+__all__ = ["Nest", "chord_length", "nest"]
 
 _FEED = 3000.0            # mm/min: 50 mm/s, seed 001's max cutting speed
 _CHORD_TOL = 0.02         # mm: chordal tolerance of the exported spline polylines
@@ -57,6 +61,7 @@ class Nest:
     blocks: int = 0
     _lines: list[str] = field(default_factory=list, repr=False)
     _here: tuple[float, float] = (10.0, 10.0)
+    _chord: float | None = None
 
     # -- writers -----------------------------------------------------------------------
     def _rapid(self, x: float, y: float) -> None:
@@ -71,11 +76,23 @@ class Nest:
         self._here = (x, y)
         self.blocks += 1
 
+    def _chords(self, cx: float, cy: float, r: float, a0: float, sweep: float) -> None:
+        """The arc from angle ``a0`` over ``sweep`` (rad, signed) as chords within the
+        chordal tolerance, ending exactly on its end point."""
+        n = max(1, math.ceil(abs(sweep) * r / chord_length(r, self._chord)))
+        for k in range(1, n + 1):
+            a = a0 + sweep * k / n
+            self._line(cx + r * math.cos(a), cy + r * math.sin(a))
+
     def _circle(self, cx: float, cy: float, r: float) -> None:
         """A full circle, counter-clockwise, pierced at the point nearest to the head."""
         a = math.atan2(self._here[1] - cy, self._here[0] - cx)
         x, y = cx + r * math.cos(a), cy + r * math.sin(a)
         self._contour([(x, y)])
+        if self._chord is not None:
+            self._chords(cx, cy, r, a, 2.0 * math.pi)
+            self._lines.append("M5")
+            return
         self.cut_length += 2.0 * math.pi * r
         self._lines.append(f"G3 X{x:.3f} Y{y:.3f} I{cx - x:.3f} J{cy - y:.3f}")
         self.blocks += 1
@@ -87,6 +104,9 @@ class Nest:
         a0 = math.atan2(self._here[1] - cy, self._here[0] - cx)
         a1 = math.atan2(y - cy, x - cx)
         sweep = (a1 - a0) % (2.0 * math.pi) if ccw else (a0 - a1) % (2.0 * math.pi)
+        if self._chord is not None:
+            self._chords(cx, cy, r, a0, sweep if ccw else -sweep)
+            return
         self.cut_length += r * sweep
         i, j = cx - self._here[0], cy - self._here[1]
         self._lines.append(f"{'G3' if ccw else 'G2'} X{x:.3f} Y{y:.3f} I{i:.3f} J{j:.3f}")
@@ -201,8 +221,14 @@ def _cam_outline(cx: float, cy: float, a: float, b: float) -> Iterator[tuple[flo
         t += math.sqrt(8.0 * rho * _CHORD_TOL) / max(a, b)
 
 
+def chord_length(radius: float, tolerance: float) -> float:
+    """Longest chord of a circle of ``radius`` whose sagitta is within ``tolerance`` (mm)."""
+    tolerance = min(tolerance, radius)
+    return 2.0 * math.sqrt(tolerance * (2.0 * radius - tolerance))
+
+
 def nest(cols: int = 6, rows: int = 4, *, width: float = 1020.0, height: float = 720.0,
-         origin: tuple[float, float] = (12.0, 12.0)) -> Nest:
+         origin: tuple[float, float] = (12.0, 12.0), chord: float | None = None) -> Nest:
     """A grid of ``cols × rows`` parts on the sheet, cut row by row (serpentine).
 
     Parameters
@@ -213,6 +239,9 @@ def nest(cols: int = 6, rows: int = 4, *, width: float = 1020.0, height: float =
         Area of the nest (mm); the cells share it.
     origin : (float, float)
         Lower left corner of the nest (mm).
+    chord : float, optional
+        Chordal tolerance (mm): write arcs and circles as G1 chords within it, as a CAM
+        post-processor without arc output does; None (default) writes G2/G3.
 
     Returns
     -------
@@ -221,7 +250,9 @@ def nest(cols: int = 6, rows: int = 4, *, width: float = 1020.0, height: float =
     """
     if cols < 1 or rows < 1:
         raise ValueError(f"cols and rows must be >= 1, got {cols} × {rows}")
-    job = Nest()
+    if chord is not None and not chord > 0.0:
+        raise ValueError(f"chord must be > 0 mm, got {chord!r}")
+    job = Nest(_chord=chord)
     job._lines = ["%", f"(xy-twin nest: {cols} x {rows} parts, laser_belt)",
                   "G21 G90 G17 G94", f"F{_FEED:g}"]
     w, h = width / cols, height / rows

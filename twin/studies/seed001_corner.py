@@ -103,7 +103,8 @@ def corner_point(speed: float, sine: float, damping: float, *, friction: bool = 
         nodes.update(a=a, b=b, c=c)
         return [MotionBlock(Line(a, b), speed), MotionBlock(Line(b, c), speed)]
 
-    result = run_items(spec, build)
+    # a sharp corner passed at the chosen speed: no blend, no velocity-step rule
+    result = run_items(spec, build, planner_options={"blend": 0.0, "period": None})
     rec = result.record
     t_node = rec["t"][np.argmax(rec["block"] >= 1)]
     half = 0.5 * length / speed

@@ -1,0 +1,210 @@
+"""Corner blending: round the kinks of a path with tangent arcs inside a tolerance.
+
+A controller that passes a kink between two lines at speed ``v`` asks the axes for a
+velocity step ``v·|t̂_out − t̂_in|`` in one period: at a 90° corner, or at every node of a
+curve that CAM sent as short chords, that step is far above what the axes can follow, and
+the look-ahead can only slow down. Rounding each kink with a circular arc tangent to both
+lines (LinuxCNC's G64 P blending, `tp.c`) makes the path tangent-continuous: the speed
+through the corner is then the arc's, capped by its centripetal acceleration like any G2/G3
+arc, and a circle sent as chords runs at the speed of the same circle sent as an arc,
+whatever the chord length.
+
+Geometry of one blend, deflection θ (the angle between the incoming and the outgoing
+direction, 0 = straight on) at vertex V:
+
+* the arc of radius R touches both lines at distance ``ℓ = R·tan(θ/2)`` from V, and passes
+  ``R·(1/cos(θ/2) − 1)`` from V: that is the deviation from the programmed corner, kept
+  within the blend tolerance δ_b, i.e. ``R ≤ δ_b·cos(θ/2) / (1 − cos(θ/2))``;
+* a blend may use at most half of each line it touches (``ℓ ≤ L/2`` of the line as
+  programmed), so the two blends of one line never overlap; on a chorded curve the blends
+  meet at the chords' midpoints and the rounded path is a chain of arcs of radius
+  ``r·cos(θ/2)`` (r the radius the chords approximate) — within the chords' own sagitta of
+  the curve they came from.
+
+What is not blended, and stays a kink for the planner's node rule: nodes next to a rapid,
+a dwell, an event (a tool switching) or the program end (exact stops); nodes where an arc
+or spline meets anything (CAM arcs meet their lines tangentially; a kink there is passed
+at the node limit); a deflection below ``MIN_ANGLE`` (straight on: nothing to round) or a
+blend whose radius would fall below ``MIN_RADIUS`` (a reversal).
+
+The contour tolerance is shared: the geometric rounding takes ``share`` of it (default one
+half) and the rest is left to the servo, whose dynamic error on the rounded path the
+acceleration limits bound (issue 12).
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Iterable, Iterator
+from typing import Any
+
+from twin.controller.geometry import Arc, Line
+from twin.errors import ConfigError
+
+__all__ = ["MIN_ANGLE", "MIN_RADIUS", "BlendedBlock", "Blender", "blend_radius"]
+
+MIN_ANGLE = 1e-7
+"""Deflections below this (rad) are straight on: a step of ``v·1e-7`` is nothing."""
+MIN_RADIUS = 1e-7
+"""A blend tighter than this (m) is not made: the node stays a kink (an exact stop)."""
+_SNAP = 1e-9
+"""What is left of a line between its two blends below this (m) is nothing."""
+
+
+def blend_radius(angle: float, room: float, tolerance: float) -> float:
+    """Radius of the blend at a kink of deflection ``angle`` (rad, 0 < angle < π) (m).
+
+    The largest radius whose arc stays within ``tolerance`` (m) of the vertex and touches
+    the lines no farther than ``room`` (m) from it.
+    """
+    half = 0.5 * angle
+    tan_half = math.tan(half)
+    # R·(1/cos − 1) ≤ δ, written without the cancellation of 1 − cos for small angles
+    sin_q = math.sin(0.5 * half)
+    r_tol = tolerance * math.cos(half) / (2.0 * sin_q * sin_q)
+    return min(r_tol, room / tan_half)
+
+
+class BlendedBlock:
+    """A motion block after blending: its (possibly trimmed) segment, feed and line.
+
+    Attributes
+    ----------
+    segment : Segment
+        The line as trimmed by its blends, or the blend arc, or an untouched segment.
+    feed : float or None
+        Feed (m/s); a blend takes the lower feed of its two lines.
+    line : int
+        Source line: the programmed block's, and for a blend the outgoing block's.
+    blend : bool
+        True for an arc the blender inserted.
+    """
+
+    __slots__ = ("blend", "feed", "line", "segment")
+
+    def __init__(self, segment: Any, feed: float | None, line: int, blend: bool = False):
+        self.segment, self.feed, self.line, self.blend = segment, feed, line, blend
+
+
+class _Pending:
+    """A line waiting for its successor: as programmed (``segment``, ``origin``, ``end``),
+    and its start as already trimmed by the blend before it (``start``)."""
+
+    __slots__ = ("end", "feed", "half", "line", "origin", "segment", "start", "ux", "uy")
+
+
+class Blender:
+    """Round the line-to-line kinks of a stream of motion blocks (see the module doc).
+
+    Parameters
+    ----------
+    tolerance : float
+        Largest deviation of a blend from its vertex, δ_b (m), > 0.
+
+    Use ``blend(blocks)`` on an iterable of ``(segment, feed, line)`` triples and
+    barriers: anything that is not a triple (a dwell, an event, the program end) flushes the
+    pending line unblended and passes through in order.
+    """
+
+    def __init__(self, tolerance: float):
+        if not (math.isfinite(tolerance) and tolerance > 0.0):
+            raise ConfigError("tolerance", f"must be finite and > 0 (m), got {tolerance!r}")
+        self.tolerance = float(tolerance)
+        self.blends = 0
+        """Number of arcs inserted so far."""
+
+    def blend(self, blocks: Iterable[Any]) -> Iterator[Any]:
+        """Yield ``BlendedBlock``s (and the barriers) of ``blocks`` in order.
+
+        An exception of the source (a G-code error further on, a move outside the work zone)
+        comes after the pending line, flushed unblended: what was read before it still runs.
+        """
+        pend: _Pending | None = None
+        source = iter(blocks)
+        while True:
+            try:
+                item = next(source)
+            except StopIteration:
+                break
+            except Exception:
+                if pend is not None:
+                    yield self._flush(pend)
+                raise
+            if type(item) is not tuple:
+                if pend is not None:
+                    yield self._flush(pend)
+                    pend = None
+                yield item
+                continue
+            seg, feed, line = item
+            if type(seg) is not Line or feed is None:
+                if pend is not None:
+                    yield self._flush(pend)
+                    pend = None
+                yield BlendedBlock(seg, feed, line)
+                continue
+            nxt = _Pending()
+            nxt.segment = seg
+            nxt.origin, nxt.end = seg._ends
+            nxt.start = nxt.origin
+            nxt.ux, nxt.uy = seg._ux, seg._uy
+            nxt.half = 0.5 * seg.length
+            nxt.feed, nxt.line = feed, line
+            if pend is None:
+                pend = nxt
+                continue
+            arc = self._corner(pend, nxt)
+            if arc is None:
+                yield self._flush(pend)
+            else:
+                trimmed, corner = arc
+                if trimmed is not None:
+                    yield trimmed
+                yield corner
+            pend = nxt
+        if pend is not None:
+            yield self._flush(pend)
+
+    # ------------------------------------------------------------------ internals
+    @staticmethod
+    def _flush(p: _Pending) -> BlendedBlock:
+        """The pending line from its trimmed start to its programmed end."""
+        seg = p.segment if p.start is p.origin else Line(p.start, p.end)
+        return BlendedBlock(seg, p.feed, p.line)
+
+    def _corner(self, a: _Pending, b: _Pending) -> tuple[BlendedBlock | None, BlendedBlock] | None:
+        """Blend the kink between ``a`` (pending) and ``b`` (next): the trimmed ``a`` (None
+        if nothing is left of it) and the arc; ``b.start`` is trimmed. None: no blend."""
+        cross = a.ux * b.uy - a.uy * b.ux
+        dot = a.ux * b.ux + a.uy * b.uy
+        angle = math.atan2(abs(cross), dot)
+        if angle < MIN_ANGLE:
+            return None
+        room = min(a.half, b.half)
+        radius = blend_radius(angle, room, self.tolerance)
+        if not radius >= MIN_RADIUS:
+            return None
+        reach = radius * math.tan(0.5 * angle)
+        vx, vy = a.end
+        # the tangent points; half a line exactly is its midpoint, computed once for both
+        # blends of that line so that they meet without a gap
+        p_in = _midpoint(a) if reach >= a.half else (vx - reach * a.ux, vy - reach * a.uy)
+        p_out = _midpoint(b) if reach >= b.half else (vx + reach * b.ux, vy + reach * b.uy)
+        trimmed = None
+        if math.dist(a.start, p_in) > _SNAP:
+            trimmed = BlendedBlock(Line(a.start, p_in), a.feed, a.line)
+        else:                               # the blends of this line meet
+            p_in = a.start
+        ccw = cross > 0.0
+        nx, ny = (-a.uy, a.ux) if ccw else (a.uy, -a.ux)
+        center = (p_in[0] + radius * nx, p_in[1] + radius * ny)
+        arc = Arc(p_in, p_out, center, ccw=ccw, tol=4.0 * _SNAP)
+        self.blends += 1
+        b.start = p_out
+        feed = a.feed if a.feed < b.feed else b.feed
+        return trimmed, BlendedBlock(arc, feed, b.line, blend=True)
+
+
+def _midpoint(p: _Pending) -> tuple[float, float]:
+    (x0, y0), (x1, y1) = p.origin, p.end
+    return (0.5 * (x0 + x1), 0.5 * (y0 + y1))
