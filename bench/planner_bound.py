@@ -100,7 +100,12 @@ def pieces(items: list) -> tuple[list[list[PlannedBlock]], float]:
 
 # ----------------------------------------------------------------------------- the bound
 def _grid(blocks: list[PlannedBlock]) -> tuple[np.ndarray, list[tuple[int, float]]]:
-    """Grid points along the blocks (m, from 0) and per point (block index, local s)."""
+    """Grid points along the blocks (m, from 0) and per point (block index, local s).
+
+    A block's start point is its own (TOPP-RA's collocation constrains the acceleration of
+    the interval that follows a grid point by that point's geometry: the interval after a
+    block boundary lies on the next block); the last block keeps its end point.
+    """
     s_all, where = [], []
     offset = 0.0
     for k, b in enumerate(blocks):
@@ -110,8 +115,8 @@ def _grid(blocks: list[PlannedBlock]) -> tuple[np.ndarray, list[tuple[int, float
             step = min(step, ARC_STEP * seg.radius)
         n = max(1, math.ceil(seg.length / step))
         local = np.linspace(0.0, seg.length, n + 1)
-        if k > 0:
-            local = local[1:]
+        if k < len(blocks) - 1:
+            local = local[:-1]
         for u in local:
             s_all.append(offset + u)
             where.append((k, float(u)))
@@ -140,13 +145,13 @@ def bound_time(blocks: list[PlannedBlock], cfg) -> float:
             if comp * v > lim.max_velocity:
                 v = lim.max_velocity / comp
         cap[i] = v
-    # at a block boundary both blocks' caps hold (the speed is continuous there)
+    # at a block boundary both blocks' speed caps hold (the speed is continuous there)
     for i in range(1, n):
-        if where[i][1] == 0.0 and where[i][0] > 0:
+        if where[i][0] != where[i - 1][0]:
             cap[i] = min(cap[i], cap[i - 1])
     angles = np.arange(POLYGON) * 2.0 * math.pi / POLYGON
     rows = [[1, 0], [-1, 0], [0, 1], [0, -1]] + [[math.cos(a), math.sin(a)] for a in angles]
-    limit_c = contour.max_acceleration / math.cos(math.pi / POLYGON)   # circumscribed
+    limit_c = contour.max_acceleration          # the circumscribed 16-gon: apothem A
     g = np.array([axes[0].max_acceleration] * 2 + [axes[1].max_acceleration] * 2
                  + [limit_c] * POLYGON)
 

@@ -87,6 +87,25 @@ def test_lines_arcs_and_dwells_give_the_same_bits(law, both, tmp_path):
 
 
 @pytest.mark.parametrize("law", LAWS)
+def test_chords_planned_as_runs_give_the_same_bits(law, both, tmp_path):
+    """A circle of 4 mm sent as 0.5 mm chords: blends between them and, for the smooth laws,
+    runs of blocks sharing one speed change (``BlendPart`` pieces in the kernel)."""
+    n = 50
+    lines = ["G21 G91 G17 F1200"]
+    for k in range(n):
+        a0, a1 = 2 * math.pi * k / n, 2 * math.pi * (k + 1) / n
+        lines.append(f"G1 X{4.0 * (math.cos(a1) - math.cos(a0)):.6f} "
+                     f"Y{4.0 * (math.sin(a1) - math.sin(a0)):.6f}")
+    program = tmp_path / "chords.ngc"
+    program.write_text("\n".join([*lines, "M30", ""]))
+    spec = RunSpec(program=str(program), profile=law)
+    reference, compiled, share = both(spec, tmp_path)
+    assert reference.summary["status"] == "FINISHED"
+    _same(reference.record, compiled.record)
+    assert share > 0.5
+
+
+@pytest.mark.parametrize("law", LAWS)
 def test_a_spline_gives_the_same_bits(law, both, tmp_path):
     reference, compiled, share = both(RunSpec(builtin="spline_line", profile=law), tmp_path)
     assert reference.summary["status"] == "FINISHED"

@@ -21,8 +21,10 @@ The block being run is handed to the kernel as flat arrays, built once per block
 
 * ``geo`` (``G_SIZE``,): geometry kind and constants, the profile's duration, distance and
   end speed;
-* ``pieces`` (n, 7): the profile's pieces ``start, duration, s0, v0, kind, p1, p2`` — kind
-  ``PIECE_POLY`` (constant jerk: p1 = a0, p2 = j) or one of the shape laws (p1 = Δv);
+* ``pieces`` (n, 9): the profile's pieces ``start, duration, s0, v0, kind, p1 … p4`` — kind
+  ``PIECE_POLY`` (constant jerk: p1 = a0, p2 = j), one of the shape laws (a whole change,
+  ``Blend``: p1 = Δv), or ``PART`` + a shape law (a part of a change the planner spread over
+  several blocks, ``BlendPart``: p1 = Δv, p2 = base speed, p3 = span, p4 = offset);
 * for a spline, ``SplineCurve.kernel_tables()``: sub-interval starts, the inverse table and
   the coefficient rows.
 """
@@ -37,10 +39,10 @@ import numpy as np
 
 from twin.controller._spline_curve import _GL_W, _GL_X, _MAX_NEWTON, _NEWTON_DONE
 from twin.controller.geometry import Arc, Line
-from twin.controller.profiles.profile import Blend, Polynomial
+from twin.controller.profiles.profile import Blend, BlendPart, Polynomial
 from twin.controller.regulator import _regulate
 
-__all__ = ["FALLBACK", "G_SIZE", "block_tables", "steady_tick", "warm_up"]
+__all__ = ["FALLBACK", "G_SIZE", "P_SIZE", "block_tables", "steady_tick", "warm_up"]
 
 FALLBACK = -1
 """``steady_tick``'s answer when the tick needs the Python path (nothing was changed)."""
@@ -53,6 +55,9 @@ K_LINE, K_ARC, K_CURVE, K_DWELL = 0, 1, 2, 3
 G_SIZE = 18
 # piece kinds: constant jerk, or the shape of a law's speed change
 PIECE_POLY, PIECE_LINEAR, PIECE_PARABOLIC, PIECE_COSINE, PIECE_CUBIC = range(5)
+PART = 8
+"""Added to a shape's kind: a part of a change (``BlendPart``)."""
+P_SIZE = 9
 _SHAPE_KIND = {"trapezoid": PIECE_LINEAR, "parabolic": PIECE_PARABOLIC,
                "cosine": PIECE_COSINE, "cubic": PIECE_CUBIC}
 # the cosine shape's constants, as the Python path computes them
@@ -83,13 +88,19 @@ def block_tables(act: Any) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarr
     rows = []
     for seg in prof.segments:
         if type(seg) is Polynomial:
-            rows.append((seg.start, seg.duration, seg.s0, seg.v0, PIECE_POLY, seg.a0, seg.j))
+            rows.append((seg.start, seg.duration, seg.s0, seg.v0, PIECE_POLY, seg.a0, seg.j,
+                         0.0, 0.0))
         elif type(seg) is Blend and seg.shape.name in _SHAPE_KIND:
             rows.append((seg.start, seg.duration, seg.s0, seg.v0, _SHAPE_KIND[seg.shape.name],
-                         seg.dv, 0.0))
+                         seg.dv, 0.0, 0.0, 0.0))
+        elif type(seg) is BlendPart and seg.shape.name in _SHAPE_KIND:
+            rows.append((seg.start, seg.duration, seg.s0, seg.v0,
+                         PART + _SHAPE_KIND[seg.shape.name], seg.dv, seg.base, seg.span,
+                         seg.offset))
         else:
             return None
-    pieces = np.array(rows, dtype=np.float64).reshape(-1, 7) if rows else np.zeros((1, 7))
+    pieces = (np.array(rows, dtype=np.float64).reshape(-1, P_SIZE) if rows
+              else np.zeros((1, P_SIZE)))
     segment = act.segment
     if act.kind == K_LINE and type(segment) is Line:
         geo[G_UX], geo[G_UY] = act.ux, act.uy
@@ -140,28 +151,35 @@ def profile_at(pieces, duration, distance, v_end, t):
         a0, j = p[5], p[6]
         return (s0 + tau * (v0 + tau * (0.5 * a0 + tau * (j / 6.0))),
                 v0 + tau * (a0 + 0.5 * j * tau), a0 + j * tau, j)
+    if kind >= PART:                       # BlendPart._eval
+        dv, base, T, offset = p[5], p[6], p[7], p[8]
+        u0 = offset / T
+        u = (tau + offset) / T
+        integral0, _, _, _ = _shape(kind - PART, u0)
+        integral, vel, acc, jerk = _shape(kind - PART, u)
+        return (s0 + T * (base * (u - u0) + dv * (integral - integral0)),
+                base + dv * vel, dv / T * acc, dv / (T * T) * jerk)
     T, dv = p[1], p[5]                     # Blend._eval
     u = tau / T
-    if kind == PIECE_LINEAR:
-        integral, vel, acc, jerk = 0.5 * u * u, u, 1.0 + 0.0 * u, 0.0 * u
-    elif kind == PIECE_PARABOLIC:
-        integral = u * u * u * (1.0 - 0.5 * u)
-        vel = u * u * (3.0 - 2.0 * u)
-        acc = 6.0 * u * (1.0 - u)
-        jerk = 6.0 - 12.0 * u
-    elif kind == PIECE_COSINE:
-        integral = 0.5 * u - math.sin(_PI * u) / _TWO_PI
-        vel = 0.5 - 0.5 * math.cos(_PI * u)
-        acc = _HALF_PI * math.sin(_PI * u)
-        jerk = _HALF_PI2 * math.cos(_PI * u)
-    else:
-        integral = u * u * u * u * (2.5 + u * (u - 3.0))
-        vel = u * u * u * (10.0 + u * (6.0 * u - 15.0))
-        w = u * (1.0 - u)
-        acc = 30.0 * w * w
-        jerk = 60.0 * u * (1.0 - u) * (1.0 - 2.0 * u)
+    integral, vel, acc, jerk = _shape(kind, u)
     return (s0 + T * (v0 * u + dv * integral), v0 + dv * vel, dv / T * acc,
             dv / (T * T) * jerk)
+
+
+@numba.njit(cache=True, inline="always")
+def _shape(kind, u):
+    """The law's Φ(u), φ(u), φ'(u), φ''(u) (``Shape``'s methods, written alike)."""
+    if kind == PIECE_LINEAR:
+        return 0.5 * u * u, u, 1.0 + 0.0 * u, 0.0 * u
+    if kind == PIECE_PARABOLIC:
+        return (u * u * u * (1.0 - 0.5 * u), u * u * (3.0 - 2.0 * u), 6.0 * u * (1.0 - u),
+                6.0 - 12.0 * u)
+    if kind == PIECE_COSINE:
+        return (0.5 * u - math.sin(_PI * u) / _TWO_PI, 0.5 - 0.5 * math.cos(_PI * u),
+                _HALF_PI * math.sin(_PI * u), _HALF_PI2 * math.cos(_PI * u))
+    w = u * (1.0 - u)
+    return (u * u * u * u * (2.5 + u * (u - 3.0)), u * u * u * (10.0 + u * (6.0 * u - 15.0)),
+            30.0 * w * w, 60.0 * u * (1.0 - u) * (1.0 - 2.0 * u))
 
 
 @numba.njit(cache=True, inline="always")
@@ -358,7 +376,7 @@ def warm_up() -> None:
     table = np.zeros((1, 1))
     steady_tick(np.zeros(2, dtype=np.int64), two, flags, flags, False,
                 np.zeros(4, dtype=bool), np.zeros((3, 2), dtype=np.int64), np.ones((2, 2)),
-                two, np.zeros(G_SIZE), np.zeros((1, 7)), np.zeros(1), table, table, 0.0, 1,
+                two, np.zeros(G_SIZE), np.zeros((1, P_SIZE)), np.zeros(1), table, table, 0.0, 1,
                 1e-3, two, two, two, two, np.zeros((2, 10)), np.zeros((2, 5)), two, two,
                 np.zeros((2, 5)), 10.0, 0.0, 0, 0, two, two, np.zeros((1, 31)), 0, 0, 0)
     _warm = True

@@ -77,7 +77,7 @@ import math
 from collections import deque
 from collections.abc import Iterable, Iterator, Mapping, Sequence
 from dataclasses import dataclass
-from typing import Any, NamedTuple
+from typing import Any
 
 from twin.config import AxisConfig, ControllerSettings
 from twin.controller.blend import BlendedBlock, Blender
@@ -104,6 +104,10 @@ __all__ = [
 
 MODES = ("lookahead", "stop")
 """``Planner(mode=...)``: look-ahead speeds, or the classic stop at every node."""
+_APART, _JOINS, _TOO_LONG = 0, 1, 2
+RUN_CAP_SHARE = 0.95
+"""A block joins a run only if that lowers the run's speed cap by at most 5 %, and a
+faster block only if it is short (at most 5 % of the run): its cap then costs nothing."""
 
 @dataclass(frozen=True, slots=True)
 class MotionBlock:
@@ -124,8 +128,8 @@ class MotionBlock:
     line: int = 0
 
 
-class PlannedBlock(NamedTuple):
-    """One block with its planned speeds (an immutable tuple: cheap to make per block).
+class PlannedBlock:
+    """One block with its planned speeds.
 
     Attributes
     ----------
@@ -146,26 +150,65 @@ class PlannedBlock(NamedTuple):
     blend : bool
         True for an arc the planner inserted to round a corner (``line`` is then the
         outgoing block's).
+    piece : (Profile, float, float) or None
+        For a block that shares one speed change with its neighbours (a smooth law over a
+        run of short blocks): the run's profile and where this block starts and ends along
+        it (m); its own profile is that part, and its speeds are the run's there (computed
+        when asked). None: the block's profile is its own move.
     """
 
-    segment: Segment
-    feed: float | None
-    v_start: float
-    v_nominal: float
-    v_end: float
-    law: str
-    limits: Limits
-    line: int
-    index: int
-    blend: bool = False
+    __slots__ = ("_times", "_v_end", "_v_start", "blend", "feed", "index", "law", "limits",
+                 "line", "piece", "segment", "v_nominal")
+
+    def __init__(self, segment: Segment, feed: float | None, v_start: float | None,
+                 v_nominal: float, v_end: float | None, law: str, limits: Limits, line: int,
+                 index: int, blend: bool = False,
+                 piece: tuple[Profile, float, float] | None = None):
+        self.segment, self.feed, self.v_nominal = segment, feed, v_nominal
+        self._v_start, self._v_end = v_start, v_end
+        self.law, self.limits, self.line, self.index = law, limits, line, index
+        self.blend, self.piece = blend, piece
+        self._times: tuple[float, float] | None = None
+
+    def __repr__(self) -> str:
+        return (f"PlannedBlock(segment={self.segment!r}, feed={self.feed!r}, "
+                f"v_start={self.v_start!r}, v_nominal={self.v_nominal!r}, "
+                f"v_end={self.v_end!r}, law={self.law!r}, line={self.line}, "
+                f"index={self.index}, blend={self.blend})")
 
     @property
     def rapid(self) -> bool:
         """True for a G0 block."""
         return self.feed is None
 
+    def _piece_times(self) -> tuple[float, float]:
+        if self._times is None:
+            run, d0, d1 = self.piece
+            self._times = (run.time_at(d0), run.time_at(d1))
+        return self._times
+
+    @property
+    def v_start(self) -> float:
+        """Speed at the start node (m/s)."""
+        if self._v_start is None:
+            self._v_start = self.piece[0].at(self._piece_times()[0])[1]
+        return self._v_start
+
+    @property
+    def v_end(self) -> float:
+        """Speed at the end node (m/s)."""
+        if self._v_end is None:
+            run = self.piece[0]
+            t1 = self._piece_times()[1]
+            self._v_end = run.v_end if t1 >= run.duration else run.at(t1)[1]
+        return self._v_end
+
     def profile(self) -> Profile:
-        """The block's speed profile along its segment (``plan_move`` of its law)."""
+        """The block's speed profile along its segment: ``plan_move`` of its law, or its
+        part of the run's profile (``piece``)."""
+        if self.piece is not None:
+            t0, t1 = self._piece_times()
+            return self.piece[0].slice(t0, t1)
         return plan_move(self.law, self.segment.length, v_start=self.v_start,
                          v_end=self.v_end, v_max=self.v_nominal, limits=self.limits)
 
@@ -196,10 +239,15 @@ def segments_from_program(items: Iterable[Any]) -> Iterator[Any]:
 
 
 class _Block:
-    """A block in the window: its geometry summary and its speeds (mutable, internal)."""
+    """A block in the window: its geometry summary and its speeds (mutable, internal).
 
-    __slots__ = ("blend", "entry", "feed", "floor", "fw", "index", "k0", "k1", "length",
-                 "limits", "line", "rapid", "segment", "t0x", "t0y", "t1x", "t1y", "v_nom")
+    A *run* is a ``_Block`` whose ``members`` are consecutive blocks planned as one: its
+    length their sum, its caps their lowest (``acc``, ``jerk``: the tangential limits).
+    """
+
+    __slots__ = ("acc", "blend", "entry", "feed", "floor", "fw", "index", "jerk", "k0", "k1",
+                 "length", "limits", "line", "members", "rapid", "segment", "t0x", "t0y",
+                 "t1x", "t1y", "v_nom")
 
 
 class Planner:
@@ -343,10 +391,13 @@ class Planner:
         stream: Iterator[Any] = self._checked(items)
         if self.mode == "lookahead" and self.blend > 0.0:
             stream = Blender(self.blend * self.tolerance).blend(stream)
+        runs = self.mode == "lookahead" and self.law != "trapezoid" and self.lookahead > 1
         error: TwinError | None = None
         self._count = 0
         self._time_bound = 0.0
         self._length = 0.0
+        run: _Block | None = None       # the run being grown
+        held: _Block | None = None      # a run closed for its length, its successor to come
         while True:
             try:
                 item = next(stream)
@@ -361,18 +412,34 @@ class Planner:
             elif kind is tuple:
                 block = self._block(*item)
             else:
+                if run is not None:
+                    yield from self._end_run(window, held, run)
+                    run = held = None
                 while window:
-                    yield self._pop(window)
+                    yield from self._pop(window)
                 yield item
                 if isinstance(item, ProgramEnd):
                     break
                 continue
-            self._append(window, block)
-            while len(window) >= self.lookahead or (
-                    len(window) > 1 and self._length - window[0].length >= self._view):
-                yield self._pop(window)
+            if not runs:
+                yield from self._append(window, block)
+                continue
+            joins = self._joins(run, block) if run is not None else _APART
+            if joins == _JOINS:
+                _absorb(run, block)
+                continue
+            if joins == _TOO_LONG:              # the same curve goes on: hold this part
+                if held is not None:
+                    yield from self._append(window, _close(held))
+                held = run
+            elif run is not None:
+                yield from self._end_run(window, held, run)
+                held = None
+            run = _open(block)
+        if run is not None:
+            yield from self._end_run(window, held, run)
         while window:
-            yield self._pop(window)
+            yield from self._pop(window)
         if error is not None:
             raise error
 
@@ -466,33 +533,79 @@ class Planner:
                 self._limits_cache.clear()
             lim = self._limits_cache[key] = Limits(v_nom, acc, jerk)
         b.limits = lim
-        b.floor = reach_floor(self.law, b.length, lim)
-        self._length += b.length
+        b.acc, b.jerk = acc, jerk
+        b.members = None
         return b
 
-    def _append(self, window: deque[_Block], b: _Block) -> None:
+    def _node_cap(self, prev: _Block, b: _Block) -> float:
+        """The speed limit of the node from ``prev`` to ``b`` (m/s): both segments' caps,
+        and at a kink the corner model and the velocity step, where the curvature jumps the
+        step of the normal acceleration (module doc)."""
+        emax = prev.v_nom if prev.v_nom < b.v_nom else b.v_nom
+        cross = prev.t1x * b.t0y - prev.t1y * b.t0x
+        dot = prev.t1x * b.t0x + prev.t1y * b.t0y
+        angle = math.atan2(abs(cross), dot)
+        if angle > 0.0:
+            corner = self.corner_model.max_node_speed(angle, self.tolerance)
+            if corner < emax:
+                emax = corner
+            if self._step is not None:
+                step = _step_speed(self._step, b.t0x - prev.t1x, b.t0y - prev.t1y)
+                if step < emax:
+                    emax = step
+        dk = abs(b.k0 - prev.k1)
+        if dk > 0.0 and self._jerk_step is not None:    # v²·|Δκ| ≤ J·T
+            jump = math.sqrt(self._jerk_step / dk)
+            if jump < emax:
+                emax = jump
+        return emax
+
+    def _joins(self, run: _Block, b: _Block) -> int:
+        """Whether ``b`` may join ``run`` (one speed change across them): both feed moves,
+        a node that limits nothing, caps within ``RUN_CAP_SHARE`` (``_JOINS``); but not
+        once the run is as long as the view (``_TOO_LONG``); else ``_APART``."""
+        if b.rapid or run.rapid:
+            return _APART
+        cap = run.v_nom
+        if b.v_nom < RUN_CAP_SHARE * cap:
+            return _APART
+        if b.v_nom * RUN_CAP_SHARE > cap and b.length > (1.0 - RUN_CAP_SHARE) * (
+                run.length + b.length):
+            return _APART
+        last = run.members[-1] if run.members else run
+        if self._node_cap(last, b) < (cap if cap < b.v_nom else b.v_nom):
+            return _APART
+        return _TOO_LONG if run.length >= self._view else _JOINS
+
+    def _end_run(self, window: deque[_Block], held: _Block | None, run: _Block
+                 ) -> Iterator[PlannedBlock]:
+        """Append the last run of a curve, and the part of it held before: one run if the
+        last is short (so that a change near the curve's end is not cut in two)."""
+        if held is not None:
+            if run.length < 0.5 * self._view:
+                for m in run.members:
+                    _absorb(held, m)
+                yield from self._append(window, _close(held))
+                return
+            yield from self._append(window, _close(held))
+        yield from self._append(window, _close(run))
+
+    def _append(self, window: deque[_Block], b: _Block) -> Iterator[PlannedBlock]:
+        """Add ``b`` to the window (both passes) and yield the blocks that leave it."""
         law = self.law
+        b.floor = reach_floor(law, b.length, b.limits)
+        self._length += b.length
         prev = window[-1] if window else None
         if prev is None or self.mode == "stop" or prev.rapid or b.rapid:
             emax = 0.0
         else:
-            emax = min(prev.v_nom, b.v_nom)
-            cross = prev.t1x * b.t0y - prev.t1y * b.t0x
-            dot = prev.t1x * b.t0x + prev.t1y * b.t0y
-            angle = math.atan2(abs(cross), dot)
-            if angle > 0.0:
-                corner = self.corner_model.max_node_speed(angle, self.tolerance)
-                if corner < emax:
-                    emax = corner
-                if self._step is not None:
-                    step = _step_speed(self._step, b.t0x - prev.t1x, b.t0y - prev.t1y)
-                    if step < emax:
-                        emax = step
-            dk = abs(b.k0 - prev.k1)
-            if dk > 0.0 and self._jerk_step is not None:    # v²·|Δκ| ≤ J·T
-                jump = math.sqrt(self._jerk_step / dk)
-                if jump < emax:
-                    emax = jump
+            last = prev.members[-1] if prev.members else prev
+            first = b.members[0] if b.members else b
+            emax = self._node_cap(last, first)
+            if prev.v_nom < emax:
+                emax = prev.v_nom
+            if b.v_nom < emax:
+                emax = b.v_nom
             reach = reach_speed(law, prev.fw, prev.length, prev.limits, prev.floor)
             if reach < emax:
                 emax = reach
@@ -508,8 +621,12 @@ class Planner:
             if new <= r.entry:
                 break
             r.entry = v = new
+        while len(window) >= self.lookahead or (
+                len(window) > 1 and self._length - window[0].length >= self._view):
+            yield from self._pop(window)
 
-    def _pop(self, window: deque[_Block]) -> PlannedBlock:
+    def _pop(self, window: deque[_Block]) -> Iterator[PlannedBlock]:
+        """Commit the window's first block (or run) and yield what it plans."""
         b = window.popleft()
         self._length -= b.length
         v_end = 0.0
@@ -519,8 +636,23 @@ class Planner:
             if head.fw > v_end:             # commit: the next block starts at v_end
                 head.fw = v_end
                 self._propagate(window)
-        return PlannedBlock(b.segment, b.feed, b.entry, b.v_nom, v_end, self.law, b.limits,
-                            b.line, b.index, b.blend)
+        if b.members is None:
+            yield PlannedBlock(b.segment, b.feed, b.entry, b.v_nom, v_end, self.law, b.limits,
+                               b.line, b.index, b.blend)
+            return
+        # a run: one move over the members, each block its part of it (times and speeds
+        # inside the run are found when the block is used)
+        run = plan_move(self.law, b.length, v_start=b.entry, v_end=v_end, v_max=b.v_nom,
+                        limits=b.limits)
+        scale = run.distance / b.length
+        d0 = 0.0
+        last = len(b.members) - 1
+        for k, m in enumerate(b.members):
+            d1 = run.distance if k == last else d0 + m.length * scale
+            yield PlannedBlock(m.segment, m.feed, b.entry if k == 0 else None, b.v_nom,
+                               v_end if k == last else None, self.law, b.limits, m.line,
+                               m.index, m.blend, (run, d0, d1))
+            d0 = d1
 
     def _propagate(self, window: deque[_Block]) -> None:
         """Forward pass after a lowered envelope at ``window[0]``; stops when nothing changes."""
@@ -547,3 +679,34 @@ def _step_speed(step: tuple[float, float, float], dx: float, dy: float) -> float
     if abs(dy) * v > sy:
         v = sy / abs(dy)
     return v
+
+
+def _open(b: _Block) -> _Block:
+    """A run of one block, to be grown by `_absorb`."""
+    run = _Block()
+    for name in ("acc", "feed", "index", "jerk", "k0", "k1", "length", "line", "rapid",
+                 "segment", "t0x", "t0y", "t1x", "t1y", "v_nom", "blend", "limits"):
+        setattr(run, name, getattr(b, name))
+    run.members = [b]
+    return run
+
+
+def _absorb(run: _Block, b: _Block) -> None:
+    run.members.append(b)
+    run.length += b.length
+    run.t1x, run.t1y, run.k1 = b.t1x, b.t1y, b.k1
+    if b.v_nom < run.v_nom:
+        run.v_nom = b.v_nom
+    if b.acc < run.acc:
+        run.acc = b.acc
+    if b.jerk < run.jerk:
+        run.jerk = b.jerk
+
+
+def _close(run: _Block) -> _Block:
+    """The run as the window's block: its only member itself, or the run with its limits."""
+    if len(run.members) == 1:
+        return run.members[0]
+    run.limits = Limits(run.v_nom, run.acc, run.jerk)
+    run.segment = None
+    return run

@@ -10,7 +10,7 @@ import numpy as np
 
 from twin.controller.profiles.laws import Shape
 
-__all__ = ["Blend", "Polynomial", "Profile", "Segment", "constant_jerk"]
+__all__ = ["Blend", "BlendPart", "Polynomial", "Profile", "Segment", "constant_jerk"]
 
 
 def constant_jerk(tau, s0, v0, a0, j):
@@ -128,6 +128,66 @@ class Blend(Segment):
 
 
 @dataclass(frozen=True, slots=True)
+class BlendPart(Segment):
+    """A part of one speed change of a shape law: the change's time window
+    ``[offset, offset + duration]`` of its full span (what one block gets of a change that
+    the planner spread over several blocks).
+
+    The whole change is ``v = base + dv·φ(u)`` for ``u = t/span ∈ [0, 1]``; this part starts
+    at ``u0 = offset/span`` with path position ``s0`` and speed ``v0`` (= base + dv·φ(u0)).
+
+    Attributes
+    ----------
+    dv : float
+        Signed speed change of the whole change (m/s).
+    shape : Shape
+        The normalised change φ.
+    base : float
+        Speed at the start of the whole change (m/s).
+    span : float
+        Duration of the whole change (s).
+    offset : float
+        Time of this part's start within the whole change (s).
+    """
+
+    dv: float
+    shape: Shape
+    base: float
+    span: float
+    offset: float
+
+    def _eval(self, tau, xp):
+        T, dv, shape, base = self.span, self.dv, self.shape, self.base
+        u0 = self.offset / T
+        u = (tau + self.offset) / T
+        return (self.s0 + T * (base * (u - u0)
+                               + dv * (shape.integral(u, xp) - shape.integral(u0, xp))),
+                base + dv * shape.velocity(u, xp),
+                dv / T * shape.acceleration(u, xp),
+                dv / (T * T) * shape.jerk(u, xp))
+
+    def at(self, tau: float) -> tuple[float, float, float, float]:
+        return self._eval(tau, math)
+
+    def sample(self, tau: np.ndarray) -> tuple[np.ndarray, ...]:
+        return self._eval(tau, np)
+
+
+def _part(seg: Segment, a: float, b: float, start: float, s_base: float) -> Segment:
+    """The piece ``seg`` on its local times [a, b], starting at ``start`` of a new profile
+    whose path position is measured from ``s_base``."""
+    s, v, acc, _ = seg.at(a)
+    if type(seg) is Polynomial:
+        return Polynomial(start, b - a, s - s_base, v, acc, seg.j)
+    if type(seg) is Blend:
+        return BlendPart(start, b - a, s - s_base, v, seg.dv, seg.shape, seg.v0, seg.duration, a)
+    if type(seg) is BlendPart:
+        return BlendPart(start, b - a, s - s_base, v, seg.dv, seg.shape, seg.base, seg.span,
+                         seg.offset + a)
+    raise TypeError(f"cannot cut a {type(seg).__name__}")
+
+
+@dataclass(frozen=True, slots=True)
 class Profile:
     """A planned 1-D move along the path: from ``v_start`` to ``v_end`` over ``distance``.
 
@@ -212,3 +272,57 @@ class Profile:
             for whole, part in zip(out, parts, strict=True):
                 whole[moving] = part
         return out[0], out[1], out[2], out[3]
+
+    def time_at(self, distance: float) -> float:
+        """The time (s) at which the move has covered ``distance`` (m, clipped to
+        ``[0, self.distance]``): where s(t) = d, found by Newton steps on the piece that
+        holds it, kept inside the piece's bracket (s is non-decreasing: the speed is
+        ≥ 0), to a few ulps of the time."""
+        segments = self.segments
+        if not segments or distance <= 0.0:
+            return 0.0
+        if distance >= self.distance:
+            return self.duration
+        k = 0
+        while k + 1 < len(segments) and segments[k + 1].s0 <= distance:
+            k += 1
+        seg = segments[k]
+        lo, hi = 0.0, seg.duration
+        s1 = seg.end()[0]
+        t = (distance - seg.s0) / (s1 - seg.s0) * hi if s1 > seg.s0 else 0.0
+        for _ in range(100):
+            s, v, _, _ = seg.at(t)
+            f = s - distance
+            if f > 0.0:
+                hi = t
+            else:
+                lo = t
+            nt = t - f / v if v > 0.0 else -1.0
+            if not lo <= nt <= hi:
+                nt = 0.5 * (lo + hi)
+            if abs(nt - t) <= 4.0 * math.ulp(seg.duration) or hi - lo <= 4.0 * math.ulp(hi):
+                t = nt
+                break
+            t = nt
+        return seg.start + t
+
+    def slice(self, t0: float, t1: float) -> Profile:
+        """The move between its times ``t0`` and ``t1`` (s) as a move of its own: from
+        t = 0, s = 0, speeds and accelerations as they are there (not zero: a change may
+        run on across the cut)."""
+        t0 = min(max(t0, 0.0), self.duration)
+        t1 = min(max(t1, t0), self.duration)
+        s_base, v_start, _, _ = self.at(t0) if t0 < self.duration else (
+            self.distance, self.v_end, 0.0, 0.0)
+        pieces: list[Segment] = []
+        for seg in self.segments:
+            a = max(t0, seg.start) - seg.start
+            b = min(t1, seg.start + seg.duration) - seg.start
+            if b > a:
+                pieces.append(_part(seg, a, b, max(t0, seg.start) - t0, s_base))
+        if pieces:
+            s_end, v_end, _ = pieces[-1].end()
+        else:
+            s_end, v_end = 0.0, v_start
+        peak = max((max(p.at(0.0)[1], p.end()[1]) for p in pieces), default=v_start)
+        return Profile(self.law, s_end, v_start, v_end, peak, tuple(pieces))
