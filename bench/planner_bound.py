@@ -14,6 +14,10 @@ acceleration law:
   contour acceleration |a| ≤ A is its circumscribed 16-gon (a relaxation, so the bound stays
   a bound). No jerk limit: it bounds every law;
 * ``ratio`` = lookahead / bound, ``stop_ratio`` = stop / bound;
+* ``bound_share_changing_speed``: the share φ of the bound's time spent accelerating or
+  braking: a law whose speed changes take k_a times as long at the same peak acceleration
+  (parabolic 1.5, cosine π/2, cubic 1.875) is held to about ``1 + φ·(k_a − 1)`` of the bound
+  on such a program, whatever its planner;
 * ``axis_acceleration``: the largest |second difference| of the position reference over one
   controller period, as the interpolator produces it, relative to each axis' limit (velocity
   steps at nodes count as Δv/T there);
@@ -124,8 +128,9 @@ def _grid(blocks: list[PlannedBlock]) -> tuple[np.ndarray, list[tuple[int, float
     return np.array(s_all), where
 
 
-def bound_time(blocks: list[PlannedBlock], cfg) -> float:
-    """TOPP-RA's time for one piece that starts and ends at rest (s)."""
+def bound_time(blocks: list[PlannedBlock], cfg) -> tuple[float, float]:
+    """TOPP-RA's time for one piece that starts and ends at rest (s), and the part of it
+    spent changing speed (path acceleration above 1 % of the contour limit) (s)."""
     import toppra
     import toppra.algorithm as algo
     from toppra.constraint import DiscretizationType, LinearConstraint
@@ -186,7 +191,10 @@ def bound_time(blocks: list[PlannedBlock], cfg) -> float:
     if sd is None:
         raise RuntimeError(f"TOPP-RA found no parameterisation: {inst.problem_data}")
     ds = np.diff(grid)
-    return float(np.sum(2.0 * ds / (sd[:-1] + sd[1:])))
+    dt = 2.0 * ds / (sd[:-1] + sd[1:])
+    sdd = (sd[1:] ** 2 - sd[:-1] ** 2) / (2.0 * ds)
+    changing = np.abs(sdd) > 0.01 * contour.max_acceleration
+    return float(np.sum(dt)), float(np.sum(dt[changing]))
 
 
 # ----------------------------------------------------------------------------- limits
@@ -213,7 +221,9 @@ def program_figures(cfg, name: str, text: str, laws, check_limits: bool) -> dict
         stop_items, _ = plan(cfg, text, law, "stop")
         if bound is None:            # the path is the same for every law: its blends
             parts, dwell = pieces(items)
-            bound = sum(bound_time(p, cfg) for p in parts) + dwell
+            times = [bound_time(p, cfg) for p in parts]
+            bound = sum(t for t, _ in times) + dwell
+            changing = sum(c for _, c in times) / bound
         blocks = sum(isinstance(i, PlannedBlock) for i in items)
         la, st = cycle_time(items), cycle_time(stop_items)
         row = {"lookahead_s": round(la, 3), "stop_s": round(st, 3),
@@ -222,7 +232,8 @@ def program_figures(cfg, name: str, text: str, laws, check_limits: bool) -> dict
         if check_limits:
             row["axis_acceleration"] = [round(r, 3) for r in axis_acceleration(items, cfg)]
         out[law] = row
-    return {"bound_s": round(bound, 3), "laws": out}
+    return {"bound_s": round(bound, 3), "bound_share_changing_speed": round(changing, 4),
+            "laws": out}
 
 
 def mid_circle_speed(cfg, text: str, law: str) -> float:

@@ -78,3 +78,39 @@ def test_a_summary_that_does_not_fit_is_printed_and_nothing_is_left(tmp_path):
         printed["summary_error"]
     assert "the summary could not be written" in " ".join(done.stderr.split())
     assert [p for p in out.iterdir() if p.stat().st_size == 0 or ".partial" in p.name] == []
+
+
+@pytest.fixture
+def read_only(tmp_path) -> Iterator[Path]:
+    """A read-only folder holding an earlier run's files: a tmpfs remounted read-only (root,
+    where chmod would not stop a write), else a folder without write permission."""
+    mnt = tmp_path / "ro"
+    mnt.mkdir()
+    mounted = os.geteuid() == 0 and subprocess.run(
+        ["mount", "-t", "tmpfs", "-o", "size=1m", "tmpfs", str(mnt)],
+        capture_output=True).returncode == 0
+    if os.geteuid() == 0 and not mounted:
+        pytest.fail("running as root but cannot mount a tmpfs to make a read-only folder")
+    (mnt / "runs").mkdir()
+    (mnt / "runs" / "earlier.json").write_text('{"status": "FINISHED"}')
+    try:
+        if mounted:
+            subprocess.run(["mount", "-o", "remount,ro", str(mnt)], check=True)
+        else:
+            (mnt / "runs").chmod(0o555)
+        yield mnt / "runs"
+    finally:
+        if mounted:
+            subprocess.run(["umount", str(mnt)], check=False)
+        else:
+            (mnt / "runs").chmod(0o755)
+
+
+def test_a_read_only_folder_is_refused_before_anything_runs(read_only):
+    done = _run(read_only, None)
+    assert done.returncode == 2, done.stderr[-2000:]
+    assert "Traceback" not in done.stderr
+    assert "cannot write in" in done.stderr and ("Read-only" in done.stderr
+                                                 or "Permission denied" in done.stderr)
+    assert sorted(p.name for p in read_only.iterdir()) == ["earlier.json"]
+    assert json.loads((read_only / "earlier.json").read_text()) == {"status": "FINISHED"}

@@ -3,6 +3,8 @@ and the limits of the planned reference (issue 12)."""
 
 from __future__ import annotations
 
+import dataclasses
+import itertools
 import math
 import os
 
@@ -54,7 +56,7 @@ def test_a_blend_is_tangent_to_both_lines_and_within_the_tolerance(seed):
     assert len(arcs) == 1 and isinstance(arcs[0].segment, Arc)
     arc = arcs[0].segment
     assert arcs[0].feed == 0.01 and arcs[0].line == 2
-    for first, second in zip(segs, segs[1:]):            # continuous and tangent
+    for first, second in itertools.pairwise(segs):         # continuous and tangent
         assert np.array_equal(first.end, second.start)
         np.testing.assert_allclose(first.end_tangent, second.start_tangent, atol=1e-9)
     assert np.array_equal(segs[0].start, a) and np.array_equal(segs[-1].end, b)
@@ -180,3 +182,15 @@ def test_a_smooth_law_accelerates_across_the_nodes_of_short_blocks(law):
     contour = LASER.controller.limits
     assert np.abs(acc).max() <= contour.max_acceleration * (1 + 1e-9)
     assert np.abs(np.diff(acc, axis=0)).max() / period <= contour.max_jerk * 1.001
+
+
+def test_a_calibrated_corner_constant_changes_nothing_on_chorded_programs():
+    """Chords are blended, so no kink is left for the corner model: a constant fitted to
+    one sharp corner (seed 001's c = 0.213, six times less cautious than the default)
+    plans a chorded job exactly as the default does, never faster and less safe."""
+    default = planner().corner_model
+    calibrated = dataclasses.replace(default, calibration=0.213)
+    text = cam.chorded_nest(1, 1)
+    one = [(b.v_start, b.v_end) for b in planned(text)]
+    two = [(b.v_start, b.v_end) for b in planned(text, corner_model=calibrated)]
+    assert one == two

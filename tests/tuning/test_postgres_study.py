@@ -88,7 +88,7 @@ def test_three_workers_run_one_study_to_its_budget_and_agree_on_the_best(server,
 
 def test_a_worker_killed_mid_trial_loses_only_that_trial(server, tmp_path):
     url = server.create_database("killed")
-    runs = 10
+    runs = 24      # enough that the victim is still inside a trial once 3 are complete
     procs = [_worker(url, "k", tmp_path / f"w{k}", "--max-runs", str(runs)) for k in range(3)]
     victim = procs[0]
     deadline = time.monotonic() + 180.0

@@ -162,15 +162,33 @@ class Line(Segment):
     """Straight segment from ``start`` to ``end`` (m); they must differ."""
 
     def __init__(self, start, end):
-        self.start = _point(start, "start")
-        self.end = _point(end, "end")
-        dx, dy = (self.end - self.start).tolist()
+        # floats only: the planner builds one per block; the arrays come when asked
+        p0, p1 = _pair(start, "start"), _pair(end, "end")
+        dx, dy = p1[0] - p0[0], p1[1] - p0[1]
         self.length = math.hypot(dx, dy)
         if self.length == 0.0:
-            raise PlanningError(f"line of zero length: start = end = {self.start.tolist()}")
+            raise PlanningError(f"line of zero length: start = end = {list(p0)}")
         self._ux, self._uy = dx / self.length, dy / self.length
-        self._u = _frozen([self._ux, self._uy])
-        self._ends = (tuple(self.start.tolist()), tuple(self.end.tolist()))
+        self._ends = (p0, p1)
+        self._arrays: tuple[np.ndarray, np.ndarray, np.ndarray] | None = None
+
+    @property
+    def start(self) -> np.ndarray:
+        return self._array(0)
+
+    @property
+    def end(self) -> np.ndarray:
+        return self._array(1)
+
+    @property
+    def _u(self) -> np.ndarray:
+        return self._array(2)
+
+    def _array(self, k: int) -> np.ndarray:
+        if self._arrays is None:
+            self._arrays = (_frozen(self._ends[0]), _frozen(self._ends[1]),
+                            _frozen([self._ux, self._uy]))
+        return self._arrays[k]
 
     def frame(self, s):
         if s >= self.length:
@@ -243,14 +261,12 @@ class Arc(Segment):
             raise PlanningError(f"turns must be an integer ≥ 0, got {turns!r}")
         if not (math.isfinite(tol) and tol >= 0.0):
             raise PlanningError(f"tol must be finite and ≥ 0 (m), got {tol!r}")
-        self.start = _point(start, "start")
-        self.end = _point(end, "end")
-        self.center = _point(center, "center")
-        (sx, sy), (ex, ey) = (self.start - self.center).tolist(), (self.end - self.center).tolist()
+        p0, p1, c = _pair(start, "start"), _pair(end, "end"), _pair(center, "center")
+        sx, sy, ex, ey = p0[0] - c[0], p0[1] - c[1], p1[0] - c[0], p1[1] - c[1]
         self.radius = math.hypot(sx, sy)
         end_radius = math.hypot(ex, ey)
         if self.radius == 0.0:
-            raise PlanningError(f"arc of zero radius: start = center = {self.start.tolist()}")
+            raise PlanningError(f"arc of zero radius: start = center = {list(p0)}")
         if abs(end_radius - self.radius) > tol:
             raise PlanningError(
                 f"arc end point is not on the circle: |end − center| = {end_radius!r} m, "
@@ -266,7 +282,26 @@ class Arc(Segment):
         self.sweep = self._sign * span
         self.length = self.radius * span
         self._k = self._sign / self.radius
-        self._xy = (*self.center.tolist(), *self.start.tolist(), *self.end.tolist())
+        self._xy = (*c, *p0, *p1)
+        self._arrays: tuple[np.ndarray, np.ndarray, np.ndarray] | None = None
+
+    @property
+    def start(self) -> np.ndarray:
+        return self._array(0)
+
+    @property
+    def end(self) -> np.ndarray:
+        return self._array(1)
+
+    @property
+    def center(self) -> np.ndarray:
+        return self._array(2)
+
+    def _array(self, k: int) -> np.ndarray:
+        if self._arrays is None:
+            cx, cy, x0, y0, x1, y1 = self._xy
+            self._arrays = (_frozen((x0, y0)), _frozen((x1, y1)), _frozen((cx, cy)))
+        return self._arrays[k]
 
     def frame(self, s):
         s = min(max(s, 0.0), self.length)
@@ -408,6 +443,18 @@ def _frozen(values) -> np.ndarray:
     arr = np.array(values, dtype=float)
     arr.setflags(write=False)
     return arr
+
+
+def _pair(value, name: str) -> tuple[float, float]:
+    """A finite point as two floats (no array): what the planner's hot path builds."""
+    try:
+        x, y = value
+        x, y = float(x), float(y)
+    except (TypeError, ValueError):
+        x = y = math.nan
+    if not (math.isfinite(x) and math.isfinite(y)):
+        raise PlanningError(f"{name} must be a finite point of shape (2,), got {value!r}")
+    return x, y
 
 
 def _point(value, name: str) -> np.ndarray:

@@ -35,6 +35,19 @@ law that limits jerk, a node where the curvature jumps (a line entering an arc, 
 is passed no faster than ``v² · |κ_out − κ_in| ≤ J · T``: the step of the normal
 acceleration within one period, the jerk the sampled reference shows there.
 
+Runs: the smooth laws across blocks
+-----------------------------------
+Every law's speed change starts and ends at zero acceleration (the trapezoid excepted), so
+a change confined to one block must fit inside it: over a curve sent as 0.01 mm chords a
+smooth law could barely accelerate at all. For those laws consecutive blocks are planned as
+one *run* when nothing at their nodes limits the speed (a tangent node, no curvature step
+that binds) and their speed caps agree within ``RUN_CAP_SHARE``: the passes see the run as
+one block with its lowest cap and its lowest tangential acceleration and jerk, one
+``plan_move`` covers it, and each block gets its part of that move (``PlannedBlock.piece``;
+the acceleration runs on across the nodes and the limits hold across them, being the
+run's). A run is cut once it is as long as the view (twice the braking distance), and a
+short last part of a curve is merged back into the part before it.
+
 Streaming and incremental
 -------------------------
 ``Planner.plan(items)`` is a generator: it reads motion items one at a time, holds at most
@@ -53,7 +66,8 @@ window is as long as the braking distance needs, however short the blocks, and
 ``lookahead`` bounds its memory.
 
 Blocks therefore come out identical for any window that covers the braking distance (the
-backward pass from the window's end saturates before it reaches the block).
+backward pass from the window's end saturates before it reaches the block). With runs,
+``lookahead`` counts runs.
 
 Decisions
 ---------
@@ -531,7 +545,7 @@ class Planner:
         if lim is None:
             if len(self._limits_cache) > 256:
                 self._limits_cache.clear()
-            lim = self._limits_cache[key] = Limits(v_nom, acc, jerk)
+            lim = self._limits_cache[key] = _limits(v_nom, acc, jerk)
         b.limits = lim
         b.acc, b.jerk = acc, jerk
         b.members = None
@@ -707,6 +721,14 @@ def _close(run: _Block) -> _Block:
     """The run as the window's block: its only member itself, or the run with its limits."""
     if len(run.members) == 1:
         return run.members[0]
-    run.limits = Limits(run.v_nom, run.acc, run.jerk)
+    run.limits = _limits(run.v_nom, run.acc, run.jerk)
     run.segment = None
     return run
+
+
+def _limits(v: float, a: float, j: float) -> Limits:
+    """A block's tangential limits; checked where they could be wrong (a non-finite or
+    non-positive cap from a degenerate segment), else built without the checks."""
+    if 0.0 < v < math.inf and 0.0 < a < math.inf and 0.0 < j < math.inf:
+        return Limits.trusted(v, a, j)
+    return Limits(v, a, j)

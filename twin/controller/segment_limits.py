@@ -112,8 +112,8 @@ def _max_abs_sin(a: float, b: float) -> float:
 
 def _arc_tangent_extent(arc: Arc) -> tuple[float, float]:
     """Largest |tangent component| over the arc, (x, y): exact from its angle range."""
-    th0 = math.atan2(arc.start[1] - arc.center[1], arc.start[0] - arc.center[0])
-    a, b = sorted((th0, th0 + arc.sweep))
+    th0 = arc._theta0                  # atan2 of start − centre (same package)
+    a, b = (th0, th0 + arc.sweep) if arc.sweep >= 0.0 else (th0 + arc.sweep, th0)
     return _max_abs_sin(a, b), _max_abs_sin(a + 0.5 * math.pi, b + 0.5 * math.pi)
 
 

@@ -45,6 +45,16 @@ class Limits:
             object.__setattr__(self, name, float(value))
 
     @classmethod
+    def trusted(cls, max_velocity: float, max_acceleration: float, max_jerk: float) -> Limits:
+        """Limits from three floats already known finite and > 0 (the planner's own caps),
+        without the checks: built once per block on the planner's hot path."""
+        obj = object.__new__(cls)
+        object.__setattr__(obj, "max_velocity", max_velocity)
+        object.__setattr__(obj, "max_acceleration", max_acceleration)
+        object.__setattr__(obj, "max_jerk", max_jerk)
+        return obj
+
+    @classmethod
     def from_config(cls, limits: Any) -> Limits:
         """Limits from any object with the three fields, e.g. ``twin.config.LimitsConfig``.
 
