@@ -19,8 +19,10 @@ from pathlib import Path
 
 __version__ = "0.1.0"
 
-_COMPILED = ("drive", "plant_loop.py")
-"""Parts of the package that hold numba-compiled code (folders or files)."""
+_COMPILED = ("drive", "plant_loop.py", "plant.py", "controller/cyclic.py",
+             "controller/regulator.py", "controller/_spline_curve.py")
+"""Parts of the package that hold numba-compiled code, or constants a kernel compiles in
+(folders or files)."""
 
 
 def _source_stamp() -> str:
