@@ -48,7 +48,6 @@ import numpy as np
 from twin.config import load_machine
 from twin.controller.gcode import parse
 from twin.controller.geometry import Arc
-from twin.controller.interpolator import Interpolator, InterpolatorStatus
 from twin.controller.planner import PlannedBlock, Planner
 from twin.controller.profiles import LAWS
 from twin.studies import cam
@@ -200,15 +199,7 @@ def bound_time(blocks: list[PlannedBlock], cfg) -> tuple[float, float]:
 # ----------------------------------------------------------------------------- limits
 def axis_acceleration(items: list, cfg) -> list[float]:
     """Largest |Δ²p|/T² of the sampled position reference per axis over its limit."""
-    period = cfg.controller.period
-    blocks = [it for it in items if isinstance(it, PlannedBlock) or hasattr(it, "duration")]
-    interp = Interpolator(blocks, period=period)
-    pos = [interp.reference.position.copy()]
-    while interp.update() < InterpolatorStatus.FINISHED:
-        pos.append(interp.reference.position.copy())
-    pos.append(interp.reference.position.copy())
-    p = np.array(pos)
-    acc = np.abs(np.diff(p, 2, axis=0)).max(axis=0) / period**2
+    acc = cam.sampled_acceleration(items, cfg.controller.period)
     return [float(acc[k] / cfg.axes[a].limits.max_acceleration) for k, a in enumerate("xy")]
 
 
@@ -238,17 +229,7 @@ def program_figures(cfg, name: str, text: str, laws, check_limits: bool) -> dict
 
 def mid_circle_speed(cfg, text: str, law: str) -> float:
     """The planned path speed at the middle of a circle program's circle (m/s)."""
-    items, _ = plan(cfg, text, law)
-    blocks = [b for b in items if isinstance(b, PlannedBlock) and not b.rapid]
-    total = sum(b.segment.length for b in blocks)
-    s = 0.0
-    for b in blocks:
-        if s + b.segment.length >= 0.5 * total:
-            prof = b.profile()
-            t = np.linspace(0.0, prof.duration, 201)
-            return float(np.max(prof.sample(t)[1]))
-        s += b.segment.length
-    raise RuntimeError("no circle")
+    return cam.middle_speed(plan(cfg, text, law)[0])
 
 
 def chord_independence(cfg, laws) -> dict:

@@ -106,15 +106,7 @@ def test_the_planner_and_the_controller_use_one_corner_model():
 
 # ------------------------------------------------------------------------ chords as curves
 def mid_circle_speed(text, law):
-    blocks = [b for b in planned(text, law=law) if not b.rapid]
-    total = sum(b.segment.length for b in blocks)
-    s = 0.0
-    for b in blocks:
-        if s + b.segment.length >= 0.5 * total:
-            prof = b.profile()
-            return float(np.max(prof.sample(np.linspace(0.0, prof.duration, 101))[1]))
-        s += b.segment.length
-    raise AssertionError("no circle")
+    return cam.middle_speed(planned(text, law=law))
 
 
 @pytest.mark.parametrize("law", LAWS)
@@ -130,16 +122,6 @@ def test_a_circle_runs_at_the_same_speed_whatever_its_chords(radius, law):
 
 
 # ------------------------------------------------------------------------ limits held
-def sampled_acceleration(blocks, period):
-    """Largest |Δ²p|/T² per axis of the interpolated reference (velocity steps count)."""
-    interp = Interpolator(blocks, period=period)
-    pos = [interp.reference.position.copy()]
-    while interp.update() < InterpolatorStatus.FINISHED:
-        pos.append(interp.reference.position.copy())
-    pos.append(interp.reference.position.copy())
-    return np.abs(np.diff(np.array(pos), 2, axis=0)).max(axis=0) / period**2
-
-
 PROGRAMS = {"lettering": lambda: cam.lettering("XY-26" if FULL else "XY", height=30.0),
             "pocket": lambda: cam.pocket(60.0, 40.0),
             "nest": lambda: cam.chorded_nest(2, 1) if FULL else cam.chorded_nest(1, 1)}
@@ -149,8 +131,7 @@ PROGRAMS = {"lettering": lambda: cam.lettering("XY-26" if FULL else "XY", height
 @pytest.mark.parametrize("program", PROGRAMS)
 def test_the_planned_reference_keeps_every_axis_within_its_acceleration(program, law):
     items = list(planner(law=law).plan(parse(PROGRAMS[program](), start=(0.01, 0.01))))
-    blocks = [i for i in items if isinstance(i, PlannedBlock) or hasattr(i, "duration")]
-    acc = sampled_acceleration(blocks, LASER.controller.period)
+    acc = cam.sampled_acceleration(items, LASER.controller.period)
     limits = np.array([LASER.axes[a].limits.max_acceleration for a in "xy"])
     assert np.all(acc <= 1.05 * limits), acc / limits
 

@@ -36,7 +36,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Iterable, Iterator
-from typing import Any
+from typing import Any, NamedTuple
 
 from twin.controller.geometry import Arc, Line
 from twin.errors import ConfigError
@@ -65,8 +65,8 @@ def blend_radius(angle: float, room: float, tolerance: float) -> float:
     return min(r_tol, room / tan_half)
 
 
-class BlendedBlock:
-    """A motion block after blending: its (possibly trimmed) segment, feed and line.
+class BlendedBlock(NamedTuple):
+    """A motion block of the planner's stream, before and after blending.
 
     Attributes
     ----------
@@ -80,10 +80,10 @@ class BlendedBlock:
         True for an arc the blender inserted.
     """
 
-    __slots__ = ("blend", "feed", "line", "segment")
-
-    def __init__(self, segment: Any, feed: float | None, line: int, blend: bool = False):
-        self.segment, self.feed, self.line, self.blend = segment, feed, line, blend
+    segment: Any
+    feed: float | None
+    line: int
+    blend: bool = False
 
 
 class _Pending:
@@ -101,9 +101,9 @@ class Blender:
     tolerance : float
         Largest deviation of a blend from its vertex, δ_b (m), > 0.
 
-    Use ``blend(blocks)`` on an iterable of ``(segment, feed, line)`` triples and
-    barriers: anything that is not a triple (a dwell, an event, the program end) flushes the
-    pending line unblended and passes through in order.
+    Use ``blend(blocks)`` on an iterable of ``BlendedBlock``s (or ``(segment, feed, line)``
+    tuples) and barriers: anything that is not a tuple (a dwell, an event, the program end)
+    flushes the pending line unblended and passes through in order.
     """
 
     def __init__(self, tolerance: float):
@@ -130,18 +130,18 @@ class Blender:
                 if pend is not None:
                     yield self._flush(pend)
                 raise
-            if type(item) is not tuple:
+            if not isinstance(item, tuple):
                 if pend is not None:
                     yield self._flush(pend)
                     pend = None
                 yield item
                 continue
-            seg, feed, line = item
+            seg, feed, line = item[0], item[1], item[2]
             if type(seg) is not Line or feed is None:
                 if pend is not None:
                     yield self._flush(pend)
                     pend = None
-                yield BlendedBlock(seg, feed, line)
+                yield item if type(item) is BlendedBlock else BlendedBlock(seg, feed, line)
                 continue
             nxt = _Pending()
             nxt.segment = seg

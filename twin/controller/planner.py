@@ -90,16 +90,16 @@ from __future__ import annotations
 import math
 from collections import deque
 from collections.abc import Iterable, Iterator, Mapping, Sequence
-from dataclasses import dataclass
 from typing import Any
 
 from twin.config import AxisConfig, ControllerSettings
 from twin.controller.blend import BlendedBlock, Blender
+from twin.controller.blocks import MotionBlock, PlannedBlock, segment_of, segments_from_program
 from twin.controller.corner import CornerModel, SeedCornerModel
 from twin.controller.gcode.items import Dwell, Move, ProgramEnd
-from twin.controller.geometry import Arc, Line, Segment
+from twin.controller.geometry import Line, Segment
 from twin.controller.loop_defaults import default_corner_model
-from twin.controller.profiles import Limits, Profile, min_distance, plan_move
+from twin.controller.profiles import Limits, min_distance, plan_move
 from twin.controller.profiles.laws import check_law
 from twin.controller.reach import monotone_end_speed as reach_speed
 from twin.controller.reach import reach_floor
@@ -122,135 +122,6 @@ _APART, _JOINS, _TOO_LONG = 0, 1, 2
 RUN_CAP_SHARE = 0.95
 """A block joins a run only if that lowers the run's speed cap by at most 5 %, and a
 faster block only if it is short (at most 5 % of the run): its cap then costs nothing."""
-
-@dataclass(frozen=True, slots=True)
-class MotionBlock:
-    """A segment to travel at a programmed feed: the planner's motion input.
-
-    Attributes
-    ----------
-    segment : Segment
-        The path piece (m).
-    feed : float or None
-        Programmed contour feed (m/s); None for a rapid (the machine's rapid speed).
-    line : int
-        Source line for messages (0 when not from a program).
-    """
-
-    segment: Segment
-    feed: float | None
-    line: int = 0
-
-
-class PlannedBlock:
-    """One block with its planned speeds.
-
-    Attributes
-    ----------
-    segment : Segment
-        The path piece (m).
-    feed : float or None
-        Programmed feed (m/s), None for a rapid.
-    v_start, v_nominal, v_end : float
-        Speed at the start node, the segment's speed cap, speed at the end node (m/s).
-    law : str
-        Acceleration law.
-    limits : Limits
-        Tangential limits on this segment (m/s, m/s², m/s³); ``max_velocity == v_nominal``.
-    line : int
-        Source line (0 when not from a program).
-    index : int
-        0-based number of the block in the plan (blends included).
-    blend : bool
-        True for an arc the planner inserted to round a corner (``line`` is then the
-        outgoing block's).
-    piece : (Profile, float, float) or None
-        For a block that shares one speed change with its neighbours (a smooth law over a
-        run of short blocks): the run's profile and where this block starts and ends along
-        it (m); its own profile is that part, and its speeds are the run's there (computed
-        when asked). None: the block's profile is its own move.
-    """
-
-    __slots__ = ("_times", "_v_end", "_v_start", "blend", "feed", "index", "law", "limits",
-                 "line", "piece", "segment", "v_nominal")
-
-    def __init__(self, segment: Segment, feed: float | None, v_start: float | None,
-                 v_nominal: float, v_end: float | None, law: str, limits: Limits, line: int,
-                 index: int, blend: bool = False,
-                 piece: tuple[Profile, float, float] | None = None):
-        self.segment, self.feed, self.v_nominal = segment, feed, v_nominal
-        self._v_start, self._v_end = v_start, v_end
-        self.law, self.limits, self.line, self.index = law, limits, line, index
-        self.blend, self.piece = blend, piece
-        self._times: tuple[float, float] | None = None
-
-    def __repr__(self) -> str:
-        return (f"PlannedBlock(segment={self.segment!r}, feed={self.feed!r}, "
-                f"v_start={self.v_start!r}, v_nominal={self.v_nominal!r}, "
-                f"v_end={self.v_end!r}, law={self.law!r}, line={self.line}, "
-                f"index={self.index}, blend={self.blend})")
-
-    @property
-    def rapid(self) -> bool:
-        """True for a G0 block."""
-        return self.feed is None
-
-    def _piece_times(self) -> tuple[float, float]:
-        if self._times is None:
-            run, d0, d1 = self.piece
-            self._times = (run.time_at(d0), run.time_at(d1))
-        return self._times
-
-    @property
-    def v_start(self) -> float:
-        """Speed at the start node (m/s)."""
-        if self._v_start is None:
-            self._v_start = self.piece[0].at(self._piece_times()[0])[1]
-        return self._v_start
-
-    @property
-    def v_end(self) -> float:
-        """Speed at the end node (m/s)."""
-        if self._v_end is None:
-            run = self.piece[0]
-            t1 = self._piece_times()[1]
-            self._v_end = run.v_end if t1 >= run.duration else run.at(t1)[1]
-        return self._v_end
-
-    def profile(self) -> Profile:
-        """The block's speed profile along its segment: ``plan_move`` of its law, or its
-        part of the run's profile (``piece``)."""
-        if self.piece is not None:
-            t0, t1 = self._piece_times()
-            return self.piece[0].slice(t0, t1)
-        return plan_move(self.law, self.segment.length, v_start=self.v_start,
-                         v_end=self.v_end, v_max=self.v_nominal, limits=self.limits)
-
-
-def segment_of(move: Move) -> Segment | None:
-    """The ``Line`` or ``Arc`` of a G-code ``Move``; None for a zero-length line."""
-    if move.kind == "arc":
-        return Arc(move.start, move.end, move.center, ccw=move.ccw, turns=move.turns)
-    if move.start == move.end:
-        return None
-    return Line(move.start, move.end)
-
-
-def segments_from_program(items: Iterable[Any]) -> Iterator[Any]:
-    """Turn G-code ``Move`` items into ``MotionBlock``s of ``Line``/``Arc`` segments.
-
-    ``MotionBlock``s, Dwell, Event and ProgramEnd items pass through unchanged; zero-length
-    lines are dropped. Lazy: consumes ``items`` (a ``Program`` or any iterable, e.g.
-    ``gcode.read_file``) one at a time.
-    """
-    for item in items:
-        if type(item) is Move:
-            seg = segment_of(item)
-            if seg is not None:
-                yield MotionBlock(seg, item.feed, item.line)
-        else:
-            yield item
-
 
 class _Block:
     """A block in the window: its geometry summary and its speeds (mutable, internal).
@@ -420,10 +291,7 @@ class Planner:
             except TwinError as exc:
                 error = exc
                 break
-            kind = type(item)
-            if kind is BlendedBlock:
-                block = self._block(item.segment, item.feed, item.line, item.blend)
-            elif kind is tuple:
+            if type(item) is BlendedBlock:
                 block = self._block(*item)
             else:
                 if run is not None:
@@ -466,19 +334,14 @@ class Planner:
             Naming the G-code line of the first move that leaves the zone.
         """
         self._time_bound = 0.0
-        for item in segments_from_program(items):
-            if type(item) is MotionBlock:
-                if self.work_zone is not None:
-                    self.work_zone.check(item.segment, item.line)
-                self._account(item.segment.length, item.feed, item.line)
-            elif type(item) is Dwell:
-                self._spend(item.duration, item.line, "its dwell")
+        for _ in self._checked(items):
+            pass
 
     # ------------------------------------------------------------------ internals
     def _checked(self, items: Iterable[Any]) -> Iterator[Any]:
-        """Motion items as checked ``(segment, feed, line)`` triples (work zone, minimum
-        feed, program time, all on the programmed segment); dwells, events and the program
-        end pass through; nothing after the program end is read."""
+        """Motion items as checked ``BlendedBlock``s (work zone, minimum feed, program time,
+        all on the programmed segment); dwells, events and the program end pass through;
+        nothing after the program end is read."""
         zone = self.work_zone
         for item in items:
             kind = type(item)
@@ -499,18 +362,21 @@ class Planner:
             if zone is not None:
                 zone.check(seg, line)
             self._account(seg.length, feed, line)
-            yield (seg, feed, line)
+            yield BlendedBlock(seg, feed, line)
 
-    def _account(self, length: float, feed: float | None, line: int) -> float:
-        """The feed bound, and the block's time at full feed against the program's; returns
-        that full speed (m/s): the rapid speed, or the feed capped by the contour limit."""
+    def _account(self, length: float, feed: float | None, line: int) -> None:
+        """The feed bound, and the block's time at full feed (the rapid speed, or the feed
+        capped by the contour limit) against the program's."""
         if feed is not None and not feed >= self.min_feed:
             raise PlanningError(f"line {line}: feed {feed * 60e3:.6g} mm/min is below the "
                                 f"machine's minimum {self.min_feed * 60e3:.6g} mm/min "
                                 "(controller.min_feed)")
-        v = self.rapid_velocity if feed is None else min(feed, self.limits.max_velocity)
-        self._spend(length / v, line, "its moves")
-        return v
+        self._spend(length / self._full_speed(feed), line, "its moves")
+
+    def _full_speed(self, feed: float | None) -> float:
+        """A block's speed before any other cap (m/s): rapid, or the feed within the
+        contour limit."""
+        return self.rapid_velocity if feed is None else min(feed, self.limits.max_velocity)
 
     def _spend(self, seconds: float, line: int, what: str) -> None:
         self._time_bound += seconds
@@ -522,7 +388,7 @@ class Planner:
 
     def _block(self, seg: Segment, feed: float | None, line: int, blend: bool = False
                ) -> _Block:
-        v_cap = self.rapid_velocity if feed is None else min(feed, self.limits.max_velocity)
+        v_cap = self._full_speed(feed)
         b = _Block()
         b.segment, b.feed, b.line, b.blend = seg, feed, line, blend
         b.rapid = feed is None

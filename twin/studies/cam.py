@@ -15,6 +15,10 @@ every contour and rapids between contours:
   check);
 * ``chords`` — one long free-form curve as a given number of chords (the throughput check).
 
+And what the bench and the tests measure on their plans: ``middle_speed`` (the planned
+speed halfway along the feed moves) and ``sampled_acceleration`` (the reference's
+acceleration as the axes receive it, period by period).
+
 Coordinates are written with ``decimals`` places (3 by default, as CAM posts round them); a
 chord shorter than that resolution is not representable, so ``circle`` takes more.
 """
@@ -23,10 +27,16 @@ from __future__ import annotations
 
 import math
 from collections.abc import Iterable, Sequence
+from typing import Any
 
+import numpy as np
+
+from twin.controller.blocks import PlannedBlock
+from twin.controller.interpolator import Interpolator, InterpolatorStatus
 from twin.studies.nest import chord_length, nest
 
-__all__ = ["chorded_nest", "chords", "circle", "lettering", "pocket"]
+__all__ = ["chorded_nest", "chords", "circle", "lettering", "middle_speed", "pocket",
+           "sampled_acceleration"]
 
 _HEADER = "G21 G90 G17 G94"
 
@@ -225,3 +235,30 @@ def chords(blocks: int, *, chord: float = 0.005, center: tuple[float, float] = (
         pts.append(point(t))
     w.contour(pts)
     return w.text((10.0, 10.0))
+
+
+def middle_speed(items: Iterable[Any]) -> float:
+    """The highest planned path speed (m/s) on the block halfway along the feed moves of a
+    plan (the cruise of a circle program, say)."""
+    blocks = [b for b in items if isinstance(b, PlannedBlock) and not b.rapid]
+    half = 0.5 * sum(b.segment.length for b in blocks)
+    s = 0.0
+    for b in blocks:
+        if s + b.segment.length >= half:
+            prof = b.profile()
+            return float(np.max(prof.sample(np.linspace(0.0, prof.duration, 201))[1]))
+        s += b.segment.length
+    raise ValueError("the plan has no feed move")
+
+
+def sampled_acceleration(items: Iterable[Any], period: float) -> np.ndarray:
+    """Largest |Δ²p|/T² per axis (m/s², shape (2,)) of a plan's position reference sampled
+    every ``period`` by the interpolator: a velocity step at a node counts as Δv/T, as the
+    axes receive it."""
+    interp = Interpolator([i for i in items if isinstance(i, PlannedBlock)
+                           or hasattr(i, "duration")], period=period)
+    pos = [interp.reference.position.copy()]
+    while interp.update() < InterpolatorStatus.FINISHED:
+        pos.append(interp.reference.position.copy())
+    pos.append(interp.reference.position.copy())
+    return np.abs(np.diff(np.array(pos), 2, axis=0)).max(axis=0) / period**2
