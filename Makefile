@@ -8,7 +8,7 @@ export RERUN_DISABLE_ANALYTICS=1
 export MPLBACKEND=Agg
 export NUMBA_CACHE_DIR ?= $(CURDIR)/.cache/numba
 
-.PHONY: demo test lint bench clean
+.PHONY: demo test test-linuxcnc lint bench clean
 
 $(STAMP): pyproject.toml constraints.txt
 	test -x $(BIN)/python || $(PYTHON) -m venv $(VENV)
@@ -25,6 +25,12 @@ lint: $(STAMP)
 
 test: lint
 	$(BIN)/python -m pytest -n 2 --dist loadfile
+
+# LinuxCNC's own interpreter (rs274, Debian's linuxcnc-uspace) as the reference reader.
+test-linuxcnc: $(STAMP)
+	command -v rs274 >/dev/null || { apt-get update -q && \
+	  apt-get install -y -q --no-install-recommends linuxcnc-uspace; }
+	$(BIN)/python -m pytest -s tests/controller/test_linuxcnc.py
 
 bench: $(STAMP)
 	$(BIN)/pip install -q -c constraints.txt -e '.[dev,bench]'

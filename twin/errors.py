@@ -51,16 +51,22 @@ class GCodeError(TwinError, ValueError):
         Short machine-readable code, e.g. ``"modal-conflict"``.
     source : str
         The text of the offending line.
+    file : str or None
+        The file the line is in when it is not the program itself (a called subroutine's
+        ``name.ngc``); None for the program.
     """
 
     def __init__(self, line: int, column: int, message: str, *, code: str = "syntax",
-                 source: str = ""):
+                 source: str = "", file: str | None = None):
         self.line = line
         self.column = column
         self.code = code
         self.source = source
         self.message = message
+        self.file = file
         text = f"line {line}, col {column}: {message}"
+        if file is not None:
+            text = f"{file}, {text}"
         if source:
             text += f"\n    {source.rstrip()}\n    {' ' * max(column - 1, 0)}^"
         super().__init__(text)

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import cmath
 import doctest
+import itertools
 import math
 
 import numpy as np
@@ -92,13 +93,16 @@ def test_incremental_and_absolute_programs_give_the_same_moves():
 
 
 def test_inch_units_convert_lengths_and_feed_and_switching_keeps_the_physical_feed():
-    moves = parse("G20 G1 X1 Y-2 F10\nG21 X50\nG20 Y1 F20").moves
+    # RS-274/NGC sets the feed before the units: F in a block with G20 is in the units in
+    # force before it (LinuxCNC: "G20 F118.5" in G21 runs at 118.5 mm/min)
+    moves = parse("G20 G1 X1 Y-2 F10\nG21 X50\nG20 Y1 F20\nX2 F30").moves
     assert moves[0].end == pytest.approx((INCH, -2 * INCH), abs=1e-15)
-    assert moves[0].feed == pytest.approx(10 * INCH / 60.0, rel=1e-15)
+    assert moves[0].feed == pytest.approx(10 * MM / 60.0, rel=1e-15)
     assert moves[1].end == pytest.approx((50 * MM, -2 * INCH), abs=1e-15)
     assert moves[1].feed == moves[0].feed  # stored in SI: G21 changes no physical speed
     assert moves[2].end == pytest.approx((50 * MM, INCH), abs=1e-15)
-    assert moves[2].feed == pytest.approx(20 * INCH / 60.0, rel=1e-15)
+    assert moves[2].feed == pytest.approx(20 * MM / 60.0, rel=1e-15)
+    assert moves[3].feed == pytest.approx(30 * INCH / 60.0, rel=1e-15)
 
 
 def test_start_position_is_honoured_in_both_distance_modes():
@@ -238,32 +242,62 @@ def test_ij_centre_is_corrected_onto_the_bisector():
     assert math.dist(arc.center, (0.0, 0.0)) < 0.003 * MM
 
 
-@pytest.mark.parametrize(("radius_mm", "allowed_mm"), [(1, 0.002), (50, 0.05), (2000, 0.5)])
-def test_arc_tolerance_boundary(radius_mm, allowed_mm):
-    # end point radially off by just under / just over the stated tolerance, half circle
+@pytest.mark.parametrize(("units", "radius", "allowed"), [
+    ("G21", 1, 0.02 * math.sqrt(2)), ("G21", 50, 0.05), ("G21", 5000, 2 * math.sqrt(2)),
+    ("G20", 1, 0.002 * math.sqrt(2)), ("G20", 5, 0.005), ("G20", 500, 0.2 * math.sqrt(2))])
+def test_arc_tolerance_boundary_is_linuxcncs(units, radius, allowed):
+    # end point radially off by just under / just over LinuxCNC's tolerance, half circle
+    # (checked against rs274 itself in tests/controller/test_linuxcnc.py)
     for factor, ok in ((0.95, True), (1.05, False)):
-        off = allowed_mm * factor
-        text = f"G0 X{radius_mm}\nG3 X{-radius_mm - off:.9f} Y0 I{-radius_mm} F100"
+        off = allowed * factor
+        text = f"{units} G0 X{radius}\nG3 X{-radius - off:.9f} Y0 I{-radius} F100"
         if ok:
             assert parse(text).moves[1].kind == "arc"
         else:
             with pytest.raises(GCodeError) as info:
                 parse(text)
             assert info.value.code == "arc-end-off-circle"
-    tol = ArcTolerance()
-    assert tol.allowed(radius_mm * MM) == pytest.approx(allowed_mm * MM)
+    unit = MM if units == "G21" else INCH
+    tol = ArcTolerance.linuxcnc("mm" if units == "G21" else "inch")
+    assert tol.allowed(radius * unit) == pytest.approx(allowed * unit)
 
 
-def test_short_chord_magnifies_the_centre_shift_only_on_the_long_way_round():
+def _distance_to_spiral(point, center, a0, sweep, r0, r1):
+    """Distance of ``point`` from LinuxCNC's spiral (radius linear in the angle)."""
+    angle = math.atan2(point[1] - center[1], point[0] - center[0])
+    f = ((angle - a0) % (2 * math.pi)) / abs(sweep) if sweep > 0 else \
+        ((a0 - angle) % (2 * math.pi)) / abs(sweep)
+    f = min(max(f, 0.0), 1.0)
+    return abs(math.dist(point, center) - (r0 + f * (r1 - r0)))
+
+
+def test_short_chord_runs_linuxcncs_spiral_in_exact_pieces_within_the_stated_bound():
     # start (10, 0), end 0.01 mm away along the circle but 0.005 mm outside it
     a = -0.001
     end = f"X{10.005 * math.cos(a):.9f} Y{10.005 * math.sin(a):.9f}"
-    short = parse(f"G0 X10\nG2 {end} I-10 F100").moves[1]   # tiny clockwise arc: fine
-    assert abs(short.sweep) < 0.01
-    with pytest.raises(GCodeError) as info:                # nearly a full circle: refused
-        parse(f"G0 X10\nG3 {end} I-10 F100")
-    assert info.value.code == "arc-end-off-circle"
-    assert "strays" in info.value.message
+    short = parse(f"G0 X10\nG2 {end} I-10 F100").moves[1:]  # tiny clockwise arc: one piece
+    assert len(short) == 1 and abs(short[0].sweep) < 0.01
+    # nearly a full circle: the corrected circle would move its centre by 5 mm, so the
+    # spiral is run instead, as exact arcs of at most 90°
+    pieces = parse(f"G0 X10\nG3 {end} I-10 F100").moves[1:]
+    assert len(pieces) == 4
+    assert all(p.kind == "arc" and abs(p.sweep) <= math.pi / 2 + 1e-9 for p in pieces)
+    for p, q in itertools.pairwise(pieces):
+        assert p.end == q.start
+    r0, r1 = 10 * MM, 10.005 * MM
+    sweep = sum(p.sweep for p in pieces)
+    assert sweep == pytest.approx(2 * math.pi - 0.001, abs=1e-6)
+    bound = 1.71 * (r1 - r0) / len(pieces)
+    worst = 0.0
+    for p in pieces:
+        a_start = math.atan2(p.start[1] - p.center[1], p.start[0] - p.center[0])
+        for t in np.linspace(0.0, 1.0, 201):
+            angle = a_start + t * p.sweep
+            point = (p.center[0] + p.radius * math.cos(angle),
+                     p.center[1] + p.radius * math.sin(angle))
+            worst = max(worst, _distance_to_spiral(point, (0.0, 0.0), 0.0, sweep, r0, r1))
+    assert worst <= bound
+    assert worst > 0.0
 
 
 def test_r_arc_slightly_too_short_becomes_a_half_circle():
@@ -349,7 +383,7 @@ def test_modal_state_after_a_program():
     state = interp.state
     assert (state.units, state.distance, state.motion, state.plane) == (
         "inch", "incremental", "arc_cw", "xz")
-    assert state.feed == pytest.approx(10 * INCH / 60)
+    assert state.feed == pytest.approx(10 * MM / 60)   # F before G20: in millimetres
     assert (state.spindle, state.coolant) == ("ccw", "mist")
     assert state.spindle_speed == pytest.approx(300 * 2 * math.pi / 60)
     assert interp.position == pytest.approx((2 * INCH, 0.0))

@@ -8,29 +8,41 @@ items of a file of any length in constant memory. Both stop at the first error w
 
 What is read
 ------------
-G0, G1, G2/G3 (centre by I/J relative to the start, or by R: R > 0 the arc of at most 180°,
-R < 0 the longer one; ``P`` = number of turns), G4 (dwell, P in seconds), G17 (G18/G19 are
-accepted as modes, but a motion in them is an error), G20/G21, G90/G91, G94 (power-on; G93
-and G95 are refused), G80 (cancel motion mode), G40/G49/G54 (the states this machine is
-always in, accepted for CAM headers), F, N, M2/M30, and M3/M4/M5, M6, M7/M8/M9, S and T as
-``Event`` items. Z, K and other axes are errors: this machine has only X and Y.
+The language of LinuxCNC 2.9's RS-274/NGC interpreter, for a machine with X and Y:
+
+* G0, G1, G2/G3 (centre by I/J, relative to the start in G91.1, absolute in G90.1; or by
+  R: R > 0 the arc of at most 180°, R < 0 the longer one; ``P`` = number of turns), G4
+  (dwell, P in seconds), G10 L2/L20 (work offsets), G17 (G18/G19 are accepted as modes, but
+  a motion in them is an error), G20/G21, G28/G28.1/G30/G30.1, G40, G43/G49 (along Z: no
+  effect here), G53, G54–G59.3, G61/G61.1/G64 P Q (path control, a ``PathControl`` item),
+  G80, G90/G91, G90.1/G91.1, G92/G92.1/G92.2/G92.3, G94 (G93 and G95 are refused), G98/G99;
+  F, N, S, T; M0/M1/M60 (``pause`` events: the twin runs on), M2/M30, M3/M4/M5, M6,
+  M7/M8/M9, M48/M49.
+* Parameters (``#1``, ``#<name>``, ``#<_global>``), expressions and functions, and O-word
+  control flow with subroutines (``expr``, ``flow``).
+* Z: ``ReaderOptions.z`` decides: refused (default), ignored, or the tool (pen, laser).
+* What LinuxCNC has and an XY table cannot run is refused naming the feature: canned
+  cycles, probing, cutter compensation, lathe modes, spindle synchronisation, modal-state
+  save, other axes.
 
 Decisions
 ---------
-* Power-on state: G17 G21 G90 G94 M5 M9, no motion mode (so ``X10`` on the first line is
-  an error, not a silent rapid), no feed (a G1 before any F is an error).
-* Order of execution inside a block as RS-274/NGC: F, S, T, M6, M3/M4/M5, M7/M8/M9, G4,
-  then motion, then M2/M30. G20/G21 and G90/G91 apply to the words of their own block.
+* Power-on state: G17 G21 G54 G64 G90 G91.1 G94 M5 M9, no motion mode (so ``X10`` on the
+  first line is an error, not a silent rapid), no feed (a G1 before any F is an error).
+* Order of execution inside a block as LinuxCNC's (``ORDER``): F before G20/G21 (``G20
+  F10`` in G21 is 10 mm/min), S, T, M6, M3/M4/M5, M7/M8/M9, G4, modes, G10/G28/G30/G92,
+  motion, M0/M1, M2/M30. G20/G21 and G90/G91 apply to the axis words of their own block.
 * G4 blocks take no X/Y: ``G4 X2`` is a two-second dwell on some controls and a move on
   others, so it is refused rather than guessed.
 * An end point within 1 nm of the start (``interpreter.COINCIDENT``) is the start: such a
   G0/G1 produces no ``Move``, such a G2/G3 is a full circle. Every arc ``Move`` is an exact
-  circle through its start and end (I/J centres are corrected, see ``arcs``).
+  circle through its start and end (see ``arcs`` for the tolerance, LinuxCNC's, and what is
+  run when an end point is off its circle).
 * Coordinates stay within ±1 km (``interpreter.WORKSPACE``); the machine's own travel
   limits are the planner's business.
 * ``%`` on the first block line opens a tape; the next ``%`` ends the program. M2/M30 end
   it too. Text after the end is not read (RS-274/NGC), so it is neither run nor checked.
-* Syntax: see ``twin.controller.gcode.lexer``; arc tolerance: ``twin.controller.gcode.arcs``.
+* Syntax: see ``twin.controller.gcode.lexer`` and ``twin.controller.gcode.expr``.
 
 Error codes (``GCodeError.code``)
 ---------------------------------
@@ -39,7 +51,9 @@ Error codes (``GCodeError.code``)
 ``modal-conflict``, ``repeated-word``, ``unused-word``, ``ambiguous-word``, ``missing-word``,
 ``bad-value``, ``out-of-range``, ``no-motion-mode``, ``missing-feed``, ``zero-feed``,
 ``arc-missing-center``, ``arc-center-and-radius``, ``arc-zero-radius``,
-``arc-end-off-circle``, ``arc-radius-too-small``, ``arc-full-circle-r``.
+``arc-end-off-circle``, ``arc-radius-too-small``, ``arc-full-circle-r``,
+``unset-parameter``, ``unclosed-block``, ``unmatched-block``, ``bad-block``,
+``unknown-sub``, ``loop-limit``, ``call-depth``.
 """
 
 from __future__ import annotations
@@ -51,7 +65,8 @@ import threading
 from collections.abc import Iterable, Iterator
 
 from twin.controller.gcode.arcs import ArcTolerance, arc_sweep
-from twin.controller.gcode.interpreter import Interpreter
+from twin.controller.gcode.flow import Limits, Runner
+from twin.controller.gcode.interpreter import ORDER, Interpreter, ReaderOptions
 from twin.controller.gcode.items import (
     EVENT_KINDS,
     MOVE_KINDS,
@@ -59,6 +74,7 @@ from twin.controller.gcode.items import (
     Event,
     Item,
     Move,
+    PathControl,
     Program,
     ProgramEnd,
 )
@@ -68,15 +84,19 @@ from twin.errors import byte_place
 __all__ = [
     "EVENT_KINDS",
     "MOVE_KINDS",
+    "ORDER",
     "ArcTolerance",
     "Dwell",
     "Event",
     "Interpreter",
     "Item",
+    "Limits",
     "ModalState",
     "Move",
+    "PathControl",
     "Program",
     "ProgramEnd",
+    "ReaderOptions",
     "arc_sweep",
     "decode_program",
     "iter_items",
@@ -86,7 +106,9 @@ __all__ = [
 
 
 def iter_items(lines: Iterable[str], *, start: tuple[float, float] = (0.0, 0.0),
-               arc_tolerance: ArcTolerance | None = None) -> Iterator[Item]:
+               arc_tolerance: ArcTolerance | None = None,
+               options: ReaderOptions | None = None,
+               folder: str | None = None) -> Iterator[Item]:
     """Items of a program given as lines, one block at a time.
 
     Parameters
@@ -96,11 +118,15 @@ def iter_items(lines: Iterable[str], *, start: tuple[float, float] = (0.0, 0.0),
     start : tuple of float
         Position before the first block (m).
     arc_tolerance : ArcTolerance, optional
-        Arc end-point tolerance; the defaults of ``ArcTolerance`` if None.
+        Arc end-point tolerance; LinuxCNC's (``ArcTolerance.linuxcnc``) if None.
+    options : ReaderOptions, optional
+        Z handling, loop bounds, subroutine search path.
+    folder : str, optional
+        The program's folder: searched first for a called ``name.ngc``.
 
     Yields
     ------
-    Move, Dwell, Event or ProgramEnd
+    Move, Dwell, Event, PathControl or ProgramEnd
         In execution order; the last is the ``ProgramEnd`` if the program has one.
 
     Raises
@@ -108,22 +134,22 @@ def iter_items(lines: Iterable[str], *, start: tuple[float, float] = (0.0, 0.0),
     GCodeError
         At the first bad block.
     """
-    interpreter = Interpreter(start=start, arc_tolerance=arc_tolerance)
-    tape_opened = False
-    for number, raw in enumerate(lines, start=1):
-        text = raw.rstrip("\r\n")
-        if text.lstrip(" \t").startswith("%"):
-            if interpreter.blocks == 0 and not tape_opened:
-                tape_opened = True
-                continue
-            return
-        yield from interpreter.execute(text, line=number)
-        if interpreter.ended:
+    interpreter = Interpreter(start=start, arc_tolerance=arc_tolerance, options=options)
+    runner = Runner(interpreter.execute_words, interpreter.parameters,
+                    interpreter.options.limits, folder)
+
+    def started() -> bool:
+        return interpreter.blocks > 0
+
+    for item in runner.run(lines, started):
+        yield item
+        if type(item) is ProgramEnd:
             return
 
 
 def parse(text: str, *, start: tuple[float, float] = (0.0, 0.0),
-          arc_tolerance: ArcTolerance | None = None) -> Program:
+          arc_tolerance: ArcTolerance | None = None, options: ReaderOptions | None = None,
+          folder: str | None = None) -> Program:
     """Read a whole program.
 
     Parameters
@@ -133,7 +159,11 @@ def parse(text: str, *, start: tuple[float, float] = (0.0, 0.0),
     start : tuple of float
         Position before the first block (m).
     arc_tolerance : ArcTolerance, optional
-        Arc end-point tolerance; the defaults of ``ArcTolerance`` if None.
+        Arc end-point tolerance; LinuxCNC's if None.
+    options : ReaderOptions, optional
+        Z handling, loop bounds, subroutine search path.
+    folder : str, optional
+        Searched first for a called ``name.ngc``.
 
     Returns
     -------
@@ -154,7 +184,8 @@ def parse(text: str, *, start: tuple[float, float] = (0.0, 0.0),
     0.01
     """
     lines = io.StringIO(text, newline=None)
-    return Program(tuple(iter_items(lines, start=start, arc_tolerance=arc_tolerance)), text)
+    return Program(tuple(iter_items(lines, start=start, arc_tolerance=arc_tolerance,
+                                    options=options, folder=folder)), text)
 
 
 def decode_program(data: bytes, encoding: str = "utf-8") -> tuple[str, list[str]]:
@@ -197,6 +228,7 @@ codecs.register_error(_NOTE_BAD_BYTES, _note_bad_bytes)
 
 def read_file(path: str | os.PathLike[str], *, start: tuple[float, float] = (0.0, 0.0),
               arc_tolerance: ArcTolerance | None = None,
+              options: ReaderOptions | None = None,
               encoding: str = "utf-8") -> Iterator[Item]:
     """Stream the items of a program file in constant memory; the same items as ``parse``.
 
@@ -211,7 +243,9 @@ def read_file(path: str | os.PathLike[str], *, start: tuple[float, float] = (0.0
     start : tuple of float
         Position before the first block (m).
     arc_tolerance : ArcTolerance, optional
-        Arc end-point tolerance; the defaults of ``ArcTolerance`` if None.
+        Arc end-point tolerance; LinuxCNC's if None.
+    options : ReaderOptions, optional
+        Z handling, loop bounds, subroutine search path (the file's folder comes first).
     encoding : str
         Text encoding of the file.
 
@@ -221,4 +255,5 @@ def read_file(path: str | os.PathLike[str], *, start: tuple[float, float] = (0.0
         In execution order.
     """
     with open(path, encoding=encoding, errors="replace", newline=None) as lines:
-        yield from iter_items(lines, start=start, arc_tolerance=arc_tolerance)
+        yield from iter_items(lines, start=start, arc_tolerance=arc_tolerance,
+                              options=options, folder=os.path.dirname(os.fspath(path)) or ".")

@@ -3,21 +3,25 @@
 All inputs and outputs are SI (m, rad). Every arc that leaves the reader is an exact circle
 through its start and end point, so nothing downstream has to cope with a spiral.
 
-The tolerance (``ArcTolerance``), stated once
--------------------------------------------
-CAM systems round coordinates, so the end point of an I/J arc is seldom exactly on the circle
-around the programmed centre. As in grbl and LinuxCNC an arc is refused when the path would
-stray from that circle by more than
+The tolerance (``ArcTolerance``), stated once: LinuxCNC's
+-------------------------------------------------------
+CAM systems round coordinates (3 decimals in mm, 4 in inch), so the end point of an I/J arc
+is seldom exactly on the circle around the programmed centre. As LinuxCNC 2.9 does
+(``arc_data_ijk``), an arc is refused when its end radius differs from its start radius by
 
-    allowed(r) = min(maximum, max(absolute, relative · r))
-               = min(0.5 mm, max(0.002 mm, 0.1 % of r))     (defaults)
+    |r1 - r0| > allowed(r) = min(maximum, max(absolute, relative · r))
+                           = min(2.83 mm, max(0.0283 mm, 0.1 % of r))   (G21)
+                           = min(0.283 in, max(0.00283 in, 0.1 % of r)) (G20)
 
-with r the larger of the start and end radius. An accepted arc's centre is then moved onto
-the perpendicular bisector of start and end (the nearest such point, "centre-point
-correction" of industrial controls), and the deviation checked is that of the corrected arc
-from the programmed circle over its whole sweep, not only at the end point: a nearly closed
-arc with a short chord amplifies a small end error into a large centre shift, and that is
-refused rather than run.
+with r the larger radius: no arc LinuxCNC runs is refused, and no arc it refuses is run.
+
+What is run instead of the programmed circle: the circle through start and end whose centre
+is the point of their bisector nearest to the programmed one ("centre-point correction"),
+when that circle strays from the programmed one by no more than allowed(r) over the whole
+sweep. Otherwise (a nearly closed arc with a short chord, where the correction would move
+the centre far) LinuxCNC's own spiral is run, cut into exact circular pieces of at most 90°
+(``spiral_pieces``), within 1.71·|r1 - r0|/n of that spiral. Either way the path stays
+within allowed(r) + 1.71·allowed(r)/2 of the programmed circle.
 
 An R arc whose end point is farther than 2·|R| from the start by no more than ``allowed(|R|)``
 becomes a half circle; farther is an error.
@@ -25,11 +29,12 @@ becomes a half circle; farther is an error.
 
 from __future__ import annotations
 
+import itertools
 import math
 from dataclasses import dataclass
 
 from twin.errors import ConfigError
-from twin.units import MM
+from twin.units import INCH, MM
 
 __all__ = [
     "ArcError",
@@ -37,6 +42,7 @@ __all__ = [
     "arc_sweep",
     "center_from_offset",
     "center_from_radius",
+    "spiral_pieces",
 ]
 
 _TAU = 2.0 * math.pi
@@ -68,16 +74,27 @@ class ArcTolerance:
     Attributes
     ----------
     absolute : float
-        Always-accepted deviation (m). Default 0.002 mm.
+        Always-accepted deviation (m). Default LinuxCNC's 0.02·√2 mm.
     relative : float
         Accepted deviation as a fraction of the radius (1). Default 0.001 (0.1 %).
     maximum : float
-        Never-accepted deviation above this (m), whatever the radius. Default 0.5 mm.
+        Never-accepted deviation above this (m), whatever the radius. Default 100 times
+        ``absolute``.
+
+    ``ArcTolerance.linuxcnc("inch")`` is LinuxCNC's rule in inch programs (0.002·√2 in).
     """
 
-    absolute: float = 0.002 * MM
+    absolute: float = 0.02 * math.sqrt(2.0) * MM
     relative: float = 1e-3
-    maximum: float = 0.5 * MM
+    maximum: float = 2.0 * math.sqrt(2.0) * MM
+
+    @classmethod
+    def linuxcnc(cls, units: str) -> ArcTolerance:
+        """LinuxCNC's tolerance in ``"mm"`` or ``"inch"`` programs."""
+        if units == "mm":
+            return cls()
+        absolute = 0.002 * math.sqrt(2.0) * INCH
+        return cls(absolute=absolute, maximum=100.0 * absolute)
 
     def __post_init__(self) -> None:
         for name in ("absolute", "relative", "maximum"):
@@ -124,8 +141,8 @@ def _within(direction: float, a0: float, sweep: float) -> bool:
 
 
 def center_from_offset(start: Point, end: Point, center: Point, *, ccw: bool, turns: int,
-                       tolerance: ArcTolerance) -> Point:
-    """Centre of an I/J arc, corrected onto the bisector of start and end (m).
+                       tolerance: ArcTolerance) -> list[tuple[Point, Point, Point]]:
+    """The exact arcs that run an I/J arc: one corrected circle, or a spiral's pieces (m).
 
     Parameters
     ----------
@@ -138,24 +155,28 @@ def center_from_offset(start: Point, end: Point, center: Point, *, ccw: bool, tu
     turns : int
         Extra full turns (>= 0).
     tolerance : ArcTolerance
-        How far the arc may stray from the programmed circle.
+        How far the end point may be off the programmed circle.
 
     Returns
     -------
-    tuple of float
-        The centre of the circle actually run (m); ``center`` itself for a full circle.
+    list of (start, end, centre)
+        One piece, the circle through start and end whose centre is the nearest to the
+        programmed one, when that circle stays within ``tolerance`` of the programmed
+        circle; otherwise ``spiral_pieces``. A full circle is one piece around ``center``.
 
     Raises
     ------
     ArcError
         ``arc-zero-radius`` when the centre is the start point, ``arc-end-off-circle`` when
-        the arc strays from the programmed circle by more than ``tolerance`` allows.
+        the end point is off the programmed circle by more than ``tolerance`` allows.
     """
     (sx, sy), (ex, ey), (cx, cy) = start, end, center
     r_start = math.hypot(sx - cx, sy - cy)
     if r_start == 0.0:
         raise ArcError("arc-zero-radius", "arc centre is the start point (I and J are zero)")
     r_end = math.hypot(ex - cx, ey - cy)
+    if r_end == 0.0:
+        raise ArcError("arc-zero-radius", "arc centre is the end point")
     rule = tolerance.describe(max(r_start, r_end))
     allowed = tolerance.allowed(max(r_start, r_end))
     end_error = abs(r_end - r_start)
@@ -165,30 +186,71 @@ def center_from_offset(start: Point, end: Point, center: Point, *, ccw: bool, tu
                        f"centre (radius {r_start / MM:.6g} mm at the start, "
                        f"{r_end / MM:.6g} mm at the end; {rule})")
     if start == end:
-        return center
+        return [(start, end, center)]
+    fixed, worst = _corrected(start, end, center, ccw=ccw, turns=turns)
+    if worst <= allowed:
+        return [(start, end, fixed)]
+    return spiral_pieces(start, end, center, ccw=ccw, turns=turns)
+
+
+def _corrected(start: Point, end: Point, center: Point, *, ccw: bool,
+               turns: int) -> tuple[Point, float]:
+    """The centre on the bisector of start and end nearest to ``center``, and how far the
+    arc around it strays from the circle around ``center`` through start and end (m)."""
+    (sx, sy), (ex, ey), (cx, cy) = start, end, center
+    r_start = math.hypot(sx - cx, sy - cy)
+    r_end = math.hypot(ex - cx, ey - cy)
     chord = math.hypot(ex - sx, ey - sy)
     ux, uy = (ex - sx) / chord, (ey - sy) / chord
     shift = (cx - 0.5 * (sx + ex)) * ux + (cy - 0.5 * (sy + ey)) * uy
     fixed = (cx - shift * ux, cy - shift * uy)
+    worst = abs(r_end - r_start)
     if shift == 0.0:
-        return fixed
+        return fixed, worst
     # The corrected circle's points farthest from and nearest to the programmed centre lie
     # along the chord direction; check them where the arc actually passes.
     radius = math.hypot(sx - fixed[0], sy - fixed[1])
     sweep = arc_sweep(start, end, fixed, ccw=ccw, turns=turns)
     a0 = math.atan2(sy - fixed[1], sx - fixed[0])
     low, high = min(r_start, r_end), max(r_start, r_end)
-    worst = end_error
     for sign in (1.0, -1.0):
         if _within(math.atan2(sign * uy, sign * ux), a0, sweep):
             distance = abs(radius - sign * shift)
             worst = max(worst, low - distance, distance - high)
-    if worst > allowed:
-        raise ArcError("arc-end-off-circle",
-                       f"arc end point does not fit the centre: an arc through both end "
-                       f"points strays {worst / MM:.4g} mm from the programmed circle "
-                       f"({rule})")
-    return fixed
+    return fixed, worst
+
+
+SPIRAL_PIECE = 0.5 * math.pi
+"""Largest sweep of one piece of a spiral (rad)."""
+
+
+def spiral_pieces(start: Point, end: Point, center: Point, *, ccw: bool,
+                  turns: int) -> list[tuple[Point, Point, Point]]:
+    """LinuxCNC's spiral for an arc whose end is off its circle, as exact circular pieces.
+
+    LinuxCNC runs such an arc as a spiral around the programmed centre whose radius goes
+    linearly with the angle from the start radius r0 to the end radius r1. Here the spiral
+    is cut into n equal pieces of at most ``SPIRAL_PIECE`` (90°), each an exact circle
+    through two points of the spiral with its centre on their bisector nearest to the
+    programmed centre. A piece's radii differ by δ = |r1 - r0|/n, its centre moves by about
+    δ/(2·sin(θ/2)) ≤ 0.71·δ, so each piece stays within 1.71·|r1 - r0|/n of the spiral, and
+    the path within |r1 - r0|·(1 + 1.71/n) of the programmed circle (the tests check the
+    bound by sampling)."""
+    (sx, sy), (ex, ey), (cx, cy) = start, end, center
+    r0 = math.hypot(sx - cx, sy - cy)
+    r1 = math.hypot(ex - cx, ey - cy)
+    a0 = math.atan2(sy - cy, sx - cx)
+    sweep = arc_sweep(start, end, center, ccw=ccw, turns=turns)
+    n = max(2, math.ceil(abs(sweep) / SPIRAL_PIECE))
+    points = [start]
+    for k in range(1, n):
+        f = k / n
+        angle = a0 + f * sweep
+        radius = r0 + f * (r1 - r0)
+        points.append((cx + radius * math.cos(angle), cy + radius * math.sin(angle)))
+    points.append(end)
+    return [(p, q, _corrected(p, q, center, ccw=ccw, turns=0)[0])
+            for p, q in itertools.pairwise(points)]
 
 
 def center_from_radius(start: Point, end: Point, radius: float, *, ccw: bool,

@@ -21,6 +21,7 @@ __all__ = [
     "Event",
     "Item",
     "Move",
+    "PathControl",
     "Program",
     "ProgramEnd",
 ]
@@ -38,6 +39,9 @@ EVENT_KINDS = (
     "coolant_mist",    # M7, value None
     "coolant_flood",   # M8, value None
     "coolant_off",     # M9, value None
+    "tool_on",         # z = "tool": Z at or below tool_z, or M3/M4 with S > 0; value None
+    "tool_off",        # z = "tool": Z above tool_z, M5 or S0; value None
+    "pause",           # M0, M1, M60: the program pauses here (the twin runs on); value: code
 )
 """``Event.kind`` values, with what ``Event.value`` holds for each."""
 
@@ -183,13 +187,13 @@ class Event:
         One of ``EVENT_KINDS``.
     value : float or None
         Spindle speed (rad/s) for ``"spindle_speed"``, tool number for ``"tool_select"`` and
-        ``"tool_change"``, otherwise None.
+        ``"tool_change"``, the code (``"M0"``) for ``"pause"``, otherwise None.
     line : int
         1-based source line.
     """
 
     kind: str
-    value: float | None = None
+    value: float | str | None = None
     line: int = 1
 
     def __post_init__(self) -> None:
@@ -219,7 +223,47 @@ class ProgramEnd:
         _check_line(self.line, "ProgramEnd.line")
 
 
-Item = Move | Dwell | Event | ProgramEnd
+PATH_MODES = ("exact_stop", "exact_path", "blend")
+"""``PathControl.mode`` values: G61.1, G61 and G64."""
+
+
+@dataclass(frozen=True, slots=True)
+class PathControl:
+    """G61, G61.1 or G64: how the moves that follow join (LinuxCNC's path control).
+
+    Attributes
+    ----------
+    mode : str
+        ``"exact_stop"`` (G61.1: stop at the end of every move), ``"exact_path"`` (G61: the
+        corners are not rounded) or ``"blend"`` (G64: corners rounded, by the machine's
+        setting or within ``tolerance``).
+    tolerance : float or None
+        G64 P: the largest deviation from the path that rounding a corner may take (m);
+        None: the machine's own (``controller.corner_blend`` of the contour tolerance).
+    merge : float or None
+        G64 Q: successive feed lines whose points lie within this of one straight line are
+        run as that line (m); None: no merging.
+    line : int
+        1-based source line.
+    """
+
+    mode: str
+    tolerance: float | None = None
+    merge: float | None = None
+    line: int = 1
+
+    def __post_init__(self) -> None:
+        if self.mode not in PATH_MODES:
+            raise ConfigError("PathControl.mode", f"must be one of {PATH_MODES}, got "
+                                                  f"{self.mode!r}")
+        for name in ("tolerance", "merge"):
+            value = getattr(self, name)
+            if value is not None and not (math.isfinite(value) and value >= 0.0):
+                raise ConfigError(f"PathControl.{name}", f"must be >= 0 (m), got {value!r}")
+        _check_line(self.line, "PathControl.line")
+
+
+Item = Move | Dwell | Event | ProgramEnd | PathControl
 """Anything the reader yields, in execution order."""
 
 

@@ -21,7 +21,7 @@ import re
 
 from twin.errors import GCodeError
 
-__all__ = ["MAX_VALUE", "Word", "lex"]
+__all__ = ["MAX_VALUE", "Word", "clean", "lex", "words"]
 
 MAX_VALUE = 1e9
 """Largest magnitude of any number in a program (program units)."""
@@ -94,6 +94,45 @@ def _diagnose(code: str, line: int, source: str) -> GCodeError:
     return _error(line, pos + 1, f"unexpected character {char!r}", "syntax", source)
 
 
+def clean(text: str, line: int = 1) -> str:
+    """A line ready to read: comments blanked, upper case, block delete removed; columns
+    stay where they were.
+
+    Raises
+    ------
+    GCodeError
+        ``syntax`` (a character outside ASCII, a stray ')'), ``unterminated-comment``,
+        ``nested-comment``.
+    """
+    code = _blank_comments(text, line) if _SPECIAL.search(text) else text
+    if not code.isascii():
+        at = next(i for i, char in enumerate(code) if not char.isascii())
+        raise _error(line, at + 1, f"unexpected character {code[at]!r}", "syntax", text)
+    code = code.upper()
+    if "/" in code and code.lstrip(" \t").startswith("/"):
+        code = code.replace("/", " ", 1)
+    return code
+
+
+def words(code: str, line: int, source: str) -> list[Word]:
+    """Words of a line ``clean`` has prepared (plain words only: no parameters,
+    expressions or O-words, see ``twin.controller.gcode.expr``)."""
+    if _WORDS.fullmatch(code) is None:
+        raise _diagnose(code, line, source)
+    found_words: list[Word] = []
+    for found in _LETTER_WORD.finditer(code):
+        letter, number = found.group(1, 2)
+        if " " in number or "\t" in number:
+            number = number.replace(" ", "").replace("\t", "")
+        value = float(number)
+        if not -MAX_VALUE < value < MAX_VALUE:
+            raise _error(line, found.start(1) + 1, f"{letter} value {number} is out of range "
+                                                   f"(|value| < {MAX_VALUE:g})", "bad-number",
+                         source)
+        found_words.append((letter, value, found.start(1) + 1))
+    return found_words
+
+
 def lex(text: str, line: int = 1) -> list[Word]:
     """Words of one line, in order.
 
@@ -114,24 +153,4 @@ def lex(text: str, line: int = 1) -> list[Word]:
     GCodeError
         ``syntax``, ``bad-number``, ``unterminated-comment``, ``nested-comment``.
     """
-    code = _blank_comments(text, line) if _SPECIAL.search(text) else text
-    if not code.isascii():
-        at = next(i for i, char in enumerate(code) if not char.isascii())
-        raise _error(line, at + 1, f"unexpected character {code[at]!r}", "syntax", text)
-    code = code.upper()
-    if "/" in code and code.lstrip(" \t").startswith("/"):
-        code = code.replace("/", " ", 1)
-    if _WORDS.fullmatch(code) is None:
-        raise _diagnose(code, line, text)
-    words: list[Word] = []
-    for found in _LETTER_WORD.finditer(code):
-        letter, number = found.group(1, 2)
-        if " " in number or "\t" in number:
-            number = number.replace(" ", "").replace("\t", "")
-        value = float(number)
-        if not -MAX_VALUE < value < MAX_VALUE:
-            raise _error(line, found.start(1) + 1, f"{letter} value {number} is out of range "
-                                                   f"(|value| < {MAX_VALUE:g})", "bad-number",
-                         text)
-        words.append((letter, value, found.start(1) + 1))
-    return words
+    return words(clean(text, line), line, text)

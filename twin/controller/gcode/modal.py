@@ -37,6 +37,16 @@ CODES: dict[tuple[str, float], Code] = {
     ("G", 80): Code("motion", None),               # G80 cancel motion mode (power-on)
     # -- G group 0, non-modal -------------------------------------------------------------
     ("G", 4): Code("non_modal", "dwell"),          # G4  dwell P seconds
+    ("G", 10): Code("non_modal", "set_offsets"),   # G10 L2/L20 P: work offsets
+    ("G", 28): Code("non_modal", "home_g28"),      # G28 rapid home (via given axes)
+    ("G", 30): Code("non_modal", "home_g30"),      # G30 rapid to the second home
+    ("G", 28.1): Code("non_modal", "set_g28"),     # G28.1 store the G28 position
+    ("G", 30.1): Code("non_modal", "set_g30"),     # G30.1 store the G30 position
+    ("G", 53): Code("non_modal", "machine"),       # G53 move in machine coordinates
+    ("G", 92): Code("non_modal", "g92"),           # G92 offset so the point is here
+    ("G", 92.1): Code("non_modal", "g92_reset"),   # G92.1 cancel G92, zero its parameters
+    ("G", 92.2): Code("non_modal", "g92_off"),     # G92.2 cancel G92, keep its parameters
+    ("G", 92.3): Code("non_modal", "g92_restore"),  # G92.3 G92 from its parameters
     # -- G group 2, plane -----------------------------------------------------------------
     ("G", 17): Code("plane", "xy"),                # G17 XY plane (power-on)
     ("G", 18): Code("plane", "xz"),                # G18 XZ: accepted, no motion in it
@@ -54,13 +64,58 @@ CODES: dict[tuple[str, float], Code] = {
     # -- G group 6, units -----------------------------------------------------------------
     ("G", 20): Code("units", "inch"),              # G20 inch
     ("G", 21): Code("units", "mm"),                # G21 millimetre (power-on)
-    # -- G groups 7, 8, 12: states this machine is always in, accepted for CAM headers ----
-    ("G", 40): Code("cutter_comp", "off"),         # G40 cutter compensation off (no other)
-    ("G", 49): Code("tool_length", "off"),         # G49 tool length offset off (no Z axis)
-    ("G", 54): Code("coordinate_system", "G54"),   # G54 = machine coordinates (no offsets)
+    # -- G group 4, arc centre distance mode -----------------------------------------------
+    ("G", 90.1): Code("arc_distance", "absolute"),     # G90.1 I/J absolute
+    ("G", 91.1): Code("arc_distance", "incremental"),  # G91.1 I/J from the start (power-on)
+    # -- G group 7, cutter compensation: only off ------------------------------------------
+    ("G", 40): Code("cutter_comp", "off"),         # G40 cutter compensation off
+    ("G", 41): Code("cutter_comp", "left", "cutter radius compensation (G41) is not "
+                    "supported: program the tool centre path"),
+    ("G", 42): Code("cutter_comp", "right", "cutter radius compensation (G42) is not "
+                    "supported: program the tool centre path"),
+    ("G", 41.1): Code("cutter_comp", "left", "cutter radius compensation (G41.1) is not "
+                      "supported: program the tool centre path"),
+    ("G", 42.1): Code("cutter_comp", "right", "cutter radius compensation (G42.1) is not "
+                      "supported: program the tool centre path"),
+    # -- G group 8, tool length offset: along Z only, so no effect on X and Y ------------
+    ("G", 43): Code("tool_length", "on"),          # G43 [H]: accepted, a Z offset
+    ("G", 43.1): Code("tool_length", "on"),        # G43.1: accepted, a Z offset
+    ("G", 49): Code("tool_length", "off"),         # G49 tool length offset off
+    # -- G group 12, coordinate system ----------------------------------------------------
+    ("G", 54): Code("coordinate_system", 1),       # G54 work offsets 1 (power-on)
+    ("G", 55): Code("coordinate_system", 2),
+    ("G", 56): Code("coordinate_system", 3),
+    ("G", 57): Code("coordinate_system", 4),
+    ("G", 58): Code("coordinate_system", 5),
+    ("G", 59): Code("coordinate_system", 6),
+    ("G", 59.1): Code("coordinate_system", 7),
+    ("G", 59.2): Code("coordinate_system", 8),
+    ("G", 59.3): Code("coordinate_system", 9),
+    # -- G group 13, path control ---------------------------------------------------------
+    ("G", 61): Code("path", "exact_path"),         # G61 exact path: corners not rounded
+    ("G", 61.1): Code("path", "exact_stop"),       # G61.1 exact stop at every move end
+    ("G", 64): Code("path", "blend"),              # G64 [P Q] blend (power-on)
+    # -- G group 10, canned cycle return mode: accepted, no cycles run --------------------
+    ("G", 98): Code("return_mode", "initial"),
+    ("G", 99): Code("return_mode", "r_plane"),
     # -- M group 4, stopping --------------------------------------------------------------
     ("M", 2): Code("stopping", "M2"),              # M2  program end
     ("M", 30): Code("stopping", "M30"),            # M30 program end (and rewind)
+    ("M", 0): Code("pause", "M0"),                 # M0  program pause (the twin runs on)
+    ("M", 1): Code("pause", "M1"),                 # M1  optional pause
+    ("M", 60): Code("pause", "M60"),               # M60 pallet change pause
+    # -- M group 9, overrides: accepted, the twin has no override knobs ------------------
+    ("M", 48): Code("overrides", "on"),
+    ("M", 49): Code("overrides", "off"),
+    # -- M groups the twin refuses with the feature they need ---------------------------
+    ("M", 70): Code("modal_state", "save", "modal-state save (M70) is not supported"),
+    ("M", 71): Code("modal_state", "invalidate", "modal-state save (M71) is not supported"),
+    ("M", 72): Code("modal_state", "restore", "modal-state restore (M72) is not supported"),
+    ("M", 73): Code("modal_state", "autorestore", "modal-state save (M73) is not "
+                    "supported"),
+    ("M", 66): Code("io", "wait", "waiting on an input (M66) is not supported"),
+    ("M", 61): Code("tool_change", "set", "setting the tool without a change (M61) is not "
+                    "supported"),
     # -- M group 6, tool change -----------------------------------------------------------
     ("M", 6): Code("tool_change", "change"),       # M6  change to the selected tool (T)
     # -- M group 7, spindle ---------------------------------------------------------------
@@ -73,6 +128,27 @@ CODES: dict[tuple[str, float], Code] = {
     ("M", 9): Code("coolant", "off"),              # M9  coolant off (power-on)
 }
 
+_REFUSED_G = {
+    **{(g,): "canned cycles (G73, G76, G81–G89) are not supported: they drill or bore "
+             "along Z" for g in (73, 76, 81, 82, 83, 84, 85, 86, 87, 88, 89)},
+    **{(g,): "probing (G38.x) is not supported: the twin has no probe input"
+       for g in (38.2, 38.3, 38.4, 38.5)},
+    (33,): "spindle-synchronised motion (G33) is not supported: no spindle encoder",
+    (33.1,): "rigid tapping (G33.1) is not supported: no spindle encoder",
+    (7,): "lathe diameter mode (G7) is not supported on an XY table",
+    (8,): "lathe radius mode (G8) is not supported on an XY table",
+    (96,): "constant surface speed (G96) is not supported: no spindle control",
+    (5,): "cubic splines (G5) are not supported in programs; the planner makes its own",
+    (5.1,): "quadratic splines (G5.1) are not supported",
+    (5.2,): "NURBS (G5.2) are not supported",
+    (2.5,): "arcs in another plane are not supported",
+    (17.1,): "the UV planes (G17.1–G19.1) are not supported",
+    (18.1,): "the UV planes (G17.1–G19.1) are not supported",
+    (19.1,): "the UV planes (G17.1–G19.1) are not supported",
+}
+for (_g,), _why in _REFUSED_G.items():
+    CODES[("G", _g)] = Code("refused", None, _why)
+
 GROUP_NAMES = {
     "motion": "motion",
     "non_modal": "non-modal",
@@ -83,6 +159,14 @@ GROUP_NAMES = {
     "cutter_comp": "cutter compensation",
     "tool_length": "tool length offset",
     "coordinate_system": "coordinate system",
+    "arc_distance": "arc distance mode",
+    "path": "path control",
+    "return_mode": "canned cycle return mode",
+    "pause": "pause",
+    "overrides": "overrides",
+    "modal_state": "modal state",
+    "io": "input/output",
+    "refused": "unsupported",
     "stopping": "program end",
     "tool_change": "tool change",
     "spindle": "spindle",
@@ -124,6 +208,12 @@ class ModalState:
         ``"off"``, ``"mist"``, ``"flood"``.
     tool : int or None
         Last T word (selected tool), None until one.
+    arc_distance : str
+        ``"incremental"`` (G91.1: I/J from the start, power-on) or ``"absolute"`` (G90.1).
+    coordinate_system : int
+        Work offsets in force: 1 (G54, power-on) to 9 (G59.3).
+    path : str
+        ``"blend"`` (G64, power-on), ``"exact_path"`` (G61), ``"exact_stop"`` (G61.1).
     """
 
     motion: str | None = None
@@ -136,6 +226,9 @@ class ModalState:
     spindle_speed: float = 0.0
     coolant: str = "off"
     tool: int | None = None
+    arc_distance: str = "incremental"
+    coordinate_system: int = 1
+    path: str = "blend"
 
     @property
     def unit(self) -> float:

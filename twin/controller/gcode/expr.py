@@ -1,0 +1,437 @@
+"""The LinuxCNC language on one line: parameters, expressions, assignments and O-words.
+
+A line that holds none of ``#``, ``[`` or ``O`` goes through the fast word lexer
+(``twin.controller.gcode.lexer``); every other line is read here, as LinuxCNC's
+``read_items`` reads it, with the parameters as they were before the line:
+
+* spaces and tabs are not significant outside comments (``X [ 1 + 2 ]`` = ``X[1+2]``);
+* a value is a number, ``[expression]``, ``#n``, ``##n``, ``#[expr]``, ``#<name>``, a unary
+  function (``SIN[30]``, ``ATAN[1]/[2]``, ``EXISTS[#<name>]``) or one of these after a
+  ``+``/``-`` sign;
+* binary operators by precedence, each level left-associative as in LinuxCNC:
+  ``**`` > ``* / MOD`` > ``+ -`` > ``EQ NE GT GE LT LE`` > ``AND OR XOR``;
+* ``#n = value`` and ``#<name> = value`` assign, taking effect after the whole line is read
+  (``#1=2 X#1`` uses the old ``#1``), and only if the block runs;
+* ``O<name> keyword [args]`` or ``O123 keyword [args]`` is a control statement: nothing but
+  a comment may share its line.
+
+Angles of the trigonometric functions are in degrees, as in LinuxCNC. ``EQ`` and ``NE``
+compare within ``EQUAL_TOLERANCE`` (LinuxCNC's ``TOLERANCE_EQUAL``).
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Callable
+from typing import NamedTuple
+
+from twin.controller.gcode.lexer import MAX_VALUE, Word
+from twin.errors import GCodeError
+
+__all__ = ["EQUAL_TOLERANCE", "KEYWORDS", "Assignment", "OWord", "Statement", "read_statement"]
+
+EQUAL_TOLERANCE = 1e-4
+"""``EQ``/``NE`` treat values closer than this as equal (LinuxCNC's ``TOLERANCE_EQUAL``)."""
+
+KEYWORDS = ("sub", "endsub", "call", "do", "while", "endwhile", "if", "elseif", "else",
+            "endif", "break", "continue", "return", "repeat", "endrepeat")
+"""O-word keywords."""
+
+_ARGUMENTS = {"call": (0, 30), "endsub": (0, 1), "return": (0, 1), "while": (0, 1),
+              "if": (1, 1), "elseif": (1, 1), "repeat": (1, 1)}
+"""Keyword → (fewest, most) bracketed arguments; the rest take none. ``while`` closing a
+``do`` and opening a loop both need one: checked by the runner, which knows which it is."""
+
+
+class Assignment(NamedTuple):
+    """``#target = value`` of one line."""
+
+    target: int | str
+    """Parameter number, or lower-case name without spaces."""
+    value: float
+    column: int
+
+
+class OWord(NamedTuple):
+    """A control statement: ``O<label> keyword [arguments]``."""
+
+    label: str
+    """``"<name>"`` (lower case) or the number as written without leading zeros."""
+    keyword: str
+    arguments: tuple[float, ...]
+    column: int
+    """Column of the ``O``."""
+
+
+class Statement(NamedTuple):
+    """What one line says."""
+
+    words: list[Word]
+    assignments: list[Assignment]
+    oword: OWord | None
+
+
+Lookup = Callable[[int | str, int], float]
+"""Reads a parameter: (number or name, column) → value; raises ``GCodeError`` if unset."""
+Exists = Callable[[str], bool]
+
+
+def _degrees(f: Callable[[float], float]) -> Callable[[float], float]:
+    return lambda x: f(math.radians(x))
+
+
+def _round(x: float) -> float:
+    return float(math.floor(x + 0.5) if x >= 0.0 else math.ceil(x - 0.5))
+
+
+_FUNCTIONS: dict[str, tuple[Callable[[float], float], Callable[[float], bool] | None, str]] = {
+    "ABS": (abs, None, ""),
+    "ACOS": (lambda x: math.degrees(math.acos(x)), lambda x: -1.0 <= x <= 1.0,
+             "ACOS argument must be within [-1, 1]"),
+    "ASIN": (lambda x: math.degrees(math.asin(x)), lambda x: -1.0 <= x <= 1.0,
+             "ASIN argument must be within [-1, 1]"),
+    "COS": (_degrees(math.cos), None, ""),
+    "SIN": (_degrees(math.sin), None, ""),
+    "TAN": (_degrees(math.tan), None, ""),
+    "EXP": (math.exp, lambda x: x < 700.0, "EXP argument too large"),
+    "LN": (math.log, lambda x: x > 0.0, "LN of a value <= 0"),
+    "SQRT": (math.sqrt, lambda x: x >= 0.0, "SQRT of a negative value"),
+    "FIX": (lambda x: float(math.floor(x)), None, ""),
+    "FUP": (lambda x: float(math.ceil(x)), None, ""),
+    "ROUND": (_round, None, ""),
+}
+# ATAN (two arguments) and EXISTS (a parameter name) are read apart.
+_FUNCTION_NAMES = sorted((*_FUNCTIONS, "ATAN", "EXISTS"), key=len, reverse=True)
+
+# Binary operators: spelling → precedence (LinuxCNC's ``precedence``), longest first.
+_OPERATORS = (("**", 6), ("*", 5), ("/", 5), ("MOD", 5), ("+", 4), ("-", 4), ("EQ", 3),
+              ("NE", 3), ("GT", 3), ("GE", 3), ("LT", 3), ("LE", 3), ("AND", 2),
+              ("XOR", 2), ("OR", 2))
+_DIGITS = "0123456789"
+
+
+class _Reader:
+    """One compacted line (blanks removed, upper case) and the columns of its characters."""
+
+    __slots__ = ("columns", "exists", "line", "lookup", "pos", "source", "text")
+
+    def __init__(self, text: str, columns: list[int], line: int, source: str,
+                 lookup: Lookup, exists: Exists):
+        self.text = text
+        self.columns = columns
+        self.line = line
+        self.source = source
+        self.lookup = lookup
+        self.exists = exists
+        self.pos = 0
+
+    def column(self, pos: int | None = None) -> int:
+        at = self.pos if pos is None else pos
+        return self.columns[min(at, len(self.columns) - 1)] if self.columns else 1
+
+    def error(self, message: str, code: str = "syntax", pos: int | None = None) -> GCodeError:
+        return GCodeError(self.line, self.column(pos), message, code=code, source=self.source)
+
+    def peek(self) -> str:
+        return self.text[self.pos] if self.pos < len(self.text) else ""
+
+    # -- values -----------------------------------------------------------------------
+    def number(self) -> float:
+        text, start = self.text, self.pos
+        pos = start
+        if pos < len(text) and text[pos] in "+-":
+            pos += 1
+        digits_at = pos
+        while pos < len(text) and text[pos] in _DIGITS:
+            pos += 1
+        if pos < len(text) and text[pos] == ".":
+            pos += 1
+            while pos < len(text) and text[pos] in _DIGITS:
+                pos += 1
+        body = text[digits_at:pos]
+        if body in ("", "."):
+            raise self.error("expected a number, a [expression], a #parameter or a function",
+                             "bad-number", start)
+        self.pos = pos
+        return float(text[start:pos])
+
+    def value(self) -> float:
+        char = self.peek()
+        if char == "[":
+            return self.expression()
+        if char == "#":
+            return self.parameter()
+        if char in "+-" and self.pos + 1 < len(self.text) \
+                and self.text[self.pos + 1] not in "0123456789.":
+            self.pos += 1
+            value = self.value()
+            return -value if char == "-" else value
+        if "A" <= char <= "Z":
+            return self.function()
+        return self.number()
+
+    def parameter_key(self) -> int | str:
+        """After a ``#``: the number or ``<name>`` it refers to."""
+        start = self.pos
+        self.pos += 1  # the '#'
+        if self.pos >= len(self.text):
+            raise self.error("'#' without a parameter number or <name>", pos=start)
+        if self.peek() == "<":
+            close = self.text.find(">", self.pos)
+            if close < 0:
+                raise self.error("named parameter '#<' without its closing '>'", pos=start)
+            name = self.text[self.pos + 1:close].lower()
+            if not name:
+                raise self.error("empty parameter name '#<>'", pos=start)
+            self.pos = close + 1
+            return name
+        value = self.value()
+        index = math.floor(value + 1e-4)
+        if abs(value - index) > 1e-4:
+            raise self.error(f"parameter number {value:.12g} is not a whole number",
+                             "bad-value", start)
+        if not 1 <= index <= 5601:
+            raise self.error(f"parameter number {index} is out of range (1 to 5601)",
+                             "out-of-range", start)
+        return index
+
+    def parameter(self) -> float:
+        start = self.pos
+        return self.lookup(self.parameter_key(), self.column(start))
+
+    def function(self) -> float:
+        start, text = self.pos, self.text
+        name = next((n for n in _FUNCTION_NAMES if text.startswith(n, start)), None)
+        if name is None:
+            raise self.error(f"unknown word or function at '{text[start:start + 6]}'",
+                             "unknown-word")
+        self.pos += len(name)
+        if self.peek() != "[":
+            raise self.error(f"{name} needs its argument in brackets: {name}[...]")
+        if name == "EXISTS":
+            self.pos += 1
+            if self.peek() != "#" or self.pos + 1 >= len(text) or text[self.pos + 1] != "<":
+                raise self.error("EXISTS needs a named parameter: EXISTS[#<name>]")
+            key = self.parameter_key()
+            self.expect("]")
+            return 1.0 if self.exists(str(key)) else 0.0
+        argument = self.expression()
+        if name == "ATAN":
+            if self.peek() != "/":
+                raise self.error("ATAN takes two arguments: ATAN[y]/[x]")
+            self.pos += 1
+            if self.peek() != "[":
+                raise self.error("ATAN takes two arguments: ATAN[y]/[x]")
+            return math.degrees(math.atan2(argument, self.expression()))
+        f, domain, message = _FUNCTIONS[name]
+        if domain is not None and not domain(argument):
+            raise self.error(f"{message} ({name}[{argument:.12g}])", "bad-value", start)
+        return float(f(argument))
+
+    def expect(self, char: str) -> None:
+        if self.peek() != char:
+            raise self.error(f"expected '{char}'")
+        self.pos += 1
+
+    def operator(self) -> tuple[str, int] | None:
+        text, pos = self.text, self.pos
+        for spelling, precedence in _OPERATORS:
+            if text.startswith(spelling, pos):
+                return spelling, precedence
+        return None
+
+    def expression(self) -> float:
+        """``[ value (operator value)* ]``, evaluated as LinuxCNC does: a stack of operands
+        and operators, reduced while the next operator binds no tighter than the last."""
+        start = self.pos
+        self.expect("[")
+        values = [self.value()]
+        operators: list[tuple[str, int, int]] = []
+        while True:
+            if self.peek() == "]":
+                self.pos += 1
+                while operators:
+                    self.reduce(values, operators)
+                return values[0]
+            found = self.operator()
+            if found is None:
+                if self.pos >= len(self.text):
+                    raise self.error("expression '[' is not closed on this line", pos=start)
+                raise self.error("expected an operator or ']'")
+            spelling, precedence = found
+            while operators and operators[-1][1] >= precedence:
+                self.reduce(values, operators)
+            operators.append((spelling, precedence, self.pos))
+            self.pos += len(spelling)
+            values.append(self.value())
+
+    def reduce(self, values: list[float], operators: list[tuple[str, int, int]]) -> None:
+        spelling, _, at = operators.pop()
+        right = values.pop()
+        left = values.pop()
+        values.append(self.binary(spelling, left, right, at))
+
+    def binary(self, op: str, a: float, b: float, at: int) -> float:
+        if op == "+":
+            result = a + b
+        elif op == "-":
+            result = a - b
+        elif op == "*":
+            result = a * b
+        elif op == "/":
+            if b == 0.0:
+                raise self.error("division by zero", "bad-value", at)
+            result = a / b
+        elif op == "MOD":
+            if b == 0.0:
+                raise self.error("MOD by zero", "bad-value", at)
+            result = math.fmod(a, b)
+            if result < 0.0:
+                result += abs(b)
+        elif op == "**":
+            if a < 0.0 and b != math.floor(b):
+                raise self.error("a negative number raised to a non-integer power",
+                                 "bad-value", at)
+            if a == 0.0 and b < 0.0:
+                raise self.error("zero raised to a negative power", "bad-value", at)
+            try:
+                result = math.pow(a, b)
+            except OverflowError:
+                raise self.error("power overflows", "bad-value", at) from None
+        elif op == "EQ":
+            result = float(abs(a - b) < EQUAL_TOLERANCE)
+        elif op == "NE":
+            result = float(abs(a - b) >= EQUAL_TOLERANCE)
+        elif op == "GT":
+            result = float(a > b)
+        elif op == "GE":
+            result = float(a >= b)
+        elif op == "LT":
+            result = float(a < b)
+        elif op == "LE":
+            result = float(a <= b)
+        elif op == "AND":
+            result = float(a != 0.0 and b != 0.0)
+        elif op == "OR":
+            result = float(a != 0.0 or b != 0.0)
+        else:  # XOR
+            result = float((a != 0.0) != (b != 0.0))
+        if not math.isfinite(result) or abs(result) >= 1e300:
+            raise self.error(f"{op} gives a value out of range", "bad-value", at)
+        return result
+
+    # -- the line ---------------------------------------------------------------------
+    def oword(self) -> OWord:
+        start = self.pos
+        self.pos += 1  # the 'O'
+        if self.peek() == "<":
+            close = self.text.find(">", self.pos)
+            if close < 0:
+                raise self.error("O-word name '<' without its closing '>'", pos=start)
+            label = self.text[self.pos:close + 1].lower()
+            self.pos = close + 1
+        else:
+            digits = self.pos
+            while self.peek() and self.peek() in _DIGITS:
+                self.pos += 1
+            if digits == self.pos:
+                raise self.error("O-word needs a number or a <name> as its label", pos=start)
+            label = str(int(self.text[digits:self.pos]))
+        rest = self.text[self.pos:]
+        keyword = next((k for k in sorted(KEYWORDS, key=len, reverse=True)
+                        if rest.startswith(k.upper())), None)
+        if keyword is None:
+            raise self.error("O-word without a keyword (sub, endsub, call, do, while, "
+                             "endwhile, if, elseif, else, endif, break, continue, return, "
+                             "repeat, endrepeat)", "unknown-word", start)
+        self.pos += len(keyword)
+        arguments = []
+        while self.peek() == "[":
+            arguments.append(self.expression())
+        if self.pos < len(self.text):
+            raise self.error(f"unexpected text after 'O{label} {keyword}': nothing but a "
+                             "comment may follow a control statement")
+        fewest, most = _ARGUMENTS.get(keyword, (0, 0))
+        if not fewest <= len(arguments) <= most:
+            wanted = (f"{fewest}" if fewest == most else f"{fewest} to {most}")
+            raise self.error(f"'{keyword}' takes {wanted} bracketed argument"
+                             f"{'' if most == 1 else 's'}, got {len(arguments)}",
+                             "missing-word" if len(arguments) < fewest else "unused-word",
+                             start)
+        return OWord(label, keyword, tuple(arguments), self.column(start))
+
+    def statement(self) -> Statement:
+        words: list[Word] = []
+        assignments: list[Assignment] = []
+        text = self.text
+        if self.peek() == "N":  # a block number may precede an O-word
+            start = self.pos
+            self.pos += 1
+            words.append(("N", self.number(), self.column(start)))
+        if self.peek() == "O":
+            return Statement(words, [], self.oword())
+        while self.pos < len(text):
+            char = text[self.pos]
+            start = self.pos
+            if char == "#":
+                key = self.parameter_key()
+                if self.peek() != "=":
+                    raise self.error("a parameter on its own: assign it (#1=...) or use it "
+                                     "as a word's value (X#1)", pos=start)
+                self.pos += 1
+                assignments.append(Assignment(key, self.value(), self.column(start)))
+            elif "A" <= char <= "Z":
+                if char == "O":
+                    raise self.error("an O-word must begin its line (after an N word)",
+                                     pos=start)
+                self.pos += 1
+                if self.pos >= len(text):
+                    raise self.error(f"{char} word without a value", "bad-number", start)
+                value = self.value()
+                if not -MAX_VALUE < value < MAX_VALUE:
+                    raise self.error(f"{char} value {value:.12g} is out of range (|value| < "
+                                     f"{MAX_VALUE:g})", "bad-number", start)
+                words.append((char, value, self.column(start)))
+            elif char in "+-.0123456789":
+                raise self.error("number without a letter before it")
+            else:
+                raise self.error(f"unexpected character {char!r}")
+        return Statement(words, assignments, None)
+
+
+def read_statement(code: str, line: int, source: str, lookup: Lookup,
+                   exists: Exists) -> Statement:
+    """Read one line of the LinuxCNC language.
+
+    Parameters
+    ----------
+    code : str
+        The line with comments blanked and in upper case (``lexer.clean``); columns match
+        ``source``.
+    line : int
+        1-based line number, for errors.
+    source : str
+        The line as written, for errors.
+    lookup : callable
+        ``lookup(key, column)``: the value of parameter ``key`` (number or lower-case name).
+    exists : callable
+        ``exists(name)``: whether a named parameter is set.
+
+    Returns
+    -------
+    Statement
+        Its words (values evaluated), its assignments and its O-word, if any.
+
+    Raises
+    ------
+    GCodeError
+        At the first character or operation that is wrong, with its column.
+    """
+    compact: list[str] = []
+    columns: list[int] = []
+    for index, char in enumerate(code):
+        if char != " " and char != "\t":
+            compact.append(char)
+            columns.append(index + 1)
+    reader = _Reader("".join(compact), columns, line, source, lookup, exists)
+    return reader.statement()

@@ -1,0 +1,557 @@
+"""Run a program's lines: parameters, O-word control flow and subroutines around the block
+interpreter.
+
+The runner reads one line at a time, as LinuxCNC's interpreter does, and keeps in memory
+only what a jump back may need:
+
+* the lines of a loop (``while``/``endwhile``, ``do``/``while``, ``repeat``/``endrepeat``)
+  while it runs, from its first line (``Tape``); a program without loops streams in constant
+  memory;
+* the body of every subroutine defined so far (``O<name> sub`` … ``O<name> endsub``), read
+  when its definition is passed over. A ``call`` of a name not defined in the program loads
+  ``name.ngc`` from the search path (once per run).
+
+Scopes as in LinuxCNC: ``#1``–``#30`` and names without a leading underscore are local to a
+call (a call's arguments are its ``#1``, ``#2``, …); ``#31``–``#5601`` and names that begin
+with ``_`` are global. ``endsub [v]`` or ``return [v]`` sets ``#<_value>`` and
+``#<_value_returned>``.
+
+Bounds: each loop may run at most ``Limits.loop_iterations`` times and calls may nest
+``Limits.call_depth`` deep; past either the program stops with a ``GCodeError`` at the line
+that passed it.
+"""
+
+from __future__ import annotations
+
+import os
+import re
+from collections.abc import Callable, Iterable, Iterator
+from dataclasses import dataclass, field
+from pathlib import Path
+
+from twin.controller.gcode.expr import OWord, read_statement
+from twin.controller.gcode.lexer import clean, words
+from twin.errors import ConfigError, GCodeError
+
+__all__ = ["Limits", "Parameters", "Runner", "Tape"]
+
+_OWORD_LINE = re.compile(r"[ \t]*(?:N[ \t]*[0-9.]+[ \t]*)?O[ \t]*(<[^>]*>|[0-9][0-9 \t]*)"
+                         r"[ \t]*([A-Z]+)")
+
+
+@dataclass(frozen=True, slots=True)
+class Limits:
+    """What stops a runaway program.
+
+    Attributes
+    ----------
+    loop_iterations : int
+        Most passes of one loop (each ``while``, ``do`` or ``repeat`` counted on its own).
+    call_depth : int
+        Most subroutine calls open at once (recursion included).
+    search_path : tuple of str
+        Folders searched for ``name.ngc`` when ``O<name> call`` names a subroutine the
+        program does not define; the program's own folder is searched first.
+    """
+
+    loop_iterations: int = 100_000
+    call_depth: int = 64
+    search_path: tuple[str, ...] = ()
+
+    def __post_init__(self) -> None:
+        for name in ("loop_iterations", "call_depth"):
+            value = getattr(self, name)
+            if not isinstance(value, int) or value < 1:
+                raise ConfigError(f"gcode.{name}", f"must be a whole number >= 1, got "
+                                                   f"{value!r}")
+
+
+class Tape:
+    """Lines of a program, read forward, that can go back to any line still ``mark``-ed.
+
+    Lines are kept from the oldest mark on, and only while a mark is held.
+    """
+
+    __slots__ = ("_base", "_buffer", "_last", "_lines", "_marks", "first_line", "pos")
+
+    def __init__(self, lines: Iterable[str], first_line: int = 1):
+        self._lines = iter(lines)
+        self._buffer: list[str] = []
+        self._base = 0
+        self._marks: list[int] = []
+        self._last = ""
+        self.pos = 0
+        """Index of the next line."""
+        self.first_line = first_line
+        """Line number of index 0."""
+
+    def next(self) -> str | None:
+        """The next line without its line break; None at the end."""
+        pos, base = self.pos, self._base
+        if pos < base + len(self._buffer):
+            text = self._buffer[pos - base]
+        else:
+            raw = next(self._lines, None)
+            if raw is None:
+                return None
+            text = raw.rstrip("\r\n")
+            if self._marks:
+                self._buffer.append(text)
+            else:
+                if self._buffer:
+                    self._buffer.clear()
+                self._base = pos + 1
+        self._last = text
+        self.pos = pos + 1
+        return text
+
+    def mark(self, pos: int) -> None:
+        """Hold line ``pos`` (the line read last, or a later one) for a later ``seek``."""
+        if not self._marks and not self._buffer:
+            self._base = self.pos
+        if pos == self._base - 1 == self.pos - 1:
+            self._buffer.insert(0, self._last)
+            self._base = pos
+        if pos < self._base:
+            raise RuntimeError("a tape can only mark lines it still holds")
+        self._marks.append(pos)
+
+    def release(self, pos: int) -> None:
+        self._marks.remove(pos)
+        keep = min(self._marks, default=self.pos)
+        if keep > self._base:
+            del self._buffer[:keep - self._base]
+            self._base = keep
+
+    def seek(self, pos: int) -> None:
+        if not self._base <= pos <= self._base + len(self._buffer):
+            raise RuntimeError("seek to a line the tape does not hold")
+        self.pos = pos
+
+    @property
+    def line(self) -> int:
+        """Line number of the line read last."""
+        return self.first_line + self.pos - 1
+
+
+class Parameters:
+    """Numbered and named parameters with LinuxCNC's scopes (see the module docstring)."""
+
+    LOCAL = 30
+    """``#1``–``#30`` are local to a call."""
+
+    def __init__(self, system: dict[str, Callable[[], float]] | None = None,
+                 numbered: dict[int, float] | None = None):
+        self.numbered: dict[int, float] = dict(numbered or {})
+        self.named: dict[str, float] = {}
+        self.scopes: list[tuple[dict[int, float], dict[str, float]]] = [({}, {})]
+        self.system = system or {}
+
+    def get(self, key: int | str) -> float | None:
+        if isinstance(key, int):
+            table = self.scopes[-1][0] if key <= self.LOCAL else self.numbered
+            return table.get(key, 0.0)
+        if key.startswith("_"):
+            if key in self.system:
+                return self.system[key]()
+            return self.named.get(key)
+        return self.scopes[-1][1].get(key)
+
+    def exists(self, name: str) -> bool:
+        return self.get(name) is not None
+
+    def set(self, key: int | str, value: float) -> None:
+        if isinstance(key, int):
+            (self.scopes[-1][0] if key <= self.LOCAL else self.numbered)[key] = value
+        elif key.startswith("_"):
+            self.named[key] = value
+        else:
+            self.scopes[-1][1][key] = value
+
+    def enter(self, arguments: tuple[float, ...]) -> None:
+        self.scopes.append(({i + 1: value for i, value in enumerate(arguments)}, {}))
+
+    def leave(self) -> None:
+        self.scopes.pop()
+
+
+@dataclass(slots=True)
+class _Control:
+    """An open ``while``, ``do``, ``repeat`` or ``if``."""
+
+    kind: str
+    label: str
+    line: int
+    column: int
+    source: str
+    pos: int = -1             # loops: the line to go back to (held on the tape)
+    passes: int = 0
+    remaining: int = 0        # repeat
+    taken: bool = False       # if: a branch has run
+
+
+@dataclass(slots=True)
+class _Frame:
+    """The main program or one open call."""
+
+    tape: Tape
+    file: str | None
+    label: str | None = None
+    controls: list[_Control] = field(default_factory=list)
+    line: int = 0             # the call's line in the caller (for errors)
+
+
+@dataclass(slots=True)
+class _Sub:
+    lines: list[str]
+    first_line: int
+    file: str | None
+
+
+class Runner:
+    """Read a program line by line and hand its blocks to an interpreter.
+
+    Parameters
+    ----------
+    execute : callable
+        ``execute(words, line, source, file)`` runs one block's words and returns its items
+        (``Interpreter.execute_words``).
+    parameters : Parameters
+        The parameter table, shared with the interpreter (system parameters).
+    limits : Limits
+        Loop, call and search-path bounds.
+    folder : str, optional
+        The program's folder, searched first for ``name.ngc``.
+    """
+
+    def __init__(self, execute: Callable[..., tuple], parameters: Parameters, limits: Limits,
+                 folder: str | None = None):
+        self._execute = execute
+        self.parameters = parameters
+        self.limits = limits
+        self._folders = ([folder] if folder else []) + list(limits.search_path)
+        self._subs: dict[str, _Sub] = {}
+        self._frames: list[_Frame] = []
+        self.ended = False
+
+    # -- errors -------------------------------------------------------------------------
+    def _error(self, line: int, column: int, message: str, code: str, source: str = "",
+               frame: _Frame | None = None) -> GCodeError:
+        frame = frame or self._frames[-1]
+        return GCodeError(line, column, message, code=code, source=source, file=frame.file)
+
+    # -- the main loop ------------------------------------------------------------------
+    def run(self, lines: Iterable[str], started: Callable[[], bool]) -> Iterator[tuple]:
+        """Items of every block, in execution order.
+
+        ``started()`` tells whether a block has run (a ``%`` before any opens the tape)."""
+        tape = Tape(lines)
+        self._frames = [_Frame(tape, None)]
+        tape_opened = False
+        parameters = self.parameters
+        while not self.ended:
+            frame = self._frames[-1]
+            text = frame.tape.next()
+            if text is None:
+                if len(self._frames) > 1:   # a body read to its end has no endsub: return
+                    self._return(None)
+                    continue
+                self._unclosed(frame)
+                return
+            line = frame.tape.line
+            code = clean(text, line) if text else ""
+            if not code or code.isspace():
+                continue
+            if len(self._frames) == 1 and code.lstrip(" \t").startswith("%"):
+                if not started() and not tape_opened:
+                    tape_opened = True
+                    continue
+                self._unclosed(frame)
+                return
+            if "#" in code or "[" in code or "O" in code:
+                statement = read_statement(code, line, text, self._lookup(frame, text),
+                                           parameters.exists)
+                if statement.oword is not None:
+                    self._control(statement.oword, line, text)
+                    continue
+                block_words, assignments = statement.words, statement.assignments
+            else:
+                block_words, assignments = words(code, line, text), ()
+            if block_words:
+                yield from self._execute(block_words, line, text, frame.file)
+            for assignment in assignments:
+                parameters.set(assignment.target, assignment.value)
+
+    def _lookup(self, frame: _Frame, text: str) -> Callable[[int | str, int], float]:
+        parameters = self.parameters
+
+        def lookup(key: int | str, column: int) -> float:
+            value = parameters.get(key)
+            if value is None:
+                line = frame.tape.line
+                raise self._error(line, column, f"named parameter #<{key}> is not set",
+                                  "unset-parameter", text)
+            return value
+        return lookup
+
+    def _unclosed(self, frame: _Frame) -> None:
+        if frame.controls:
+            control = frame.controls[-1]
+            ends = {"while": "endwhile", "do": "while", "repeat": "endrepeat",
+                    "if": "endif"}[control.kind]
+            raise self._error(control.line, control.column,
+                              f"O{control.label} {control.kind} without its "
+                              f"O{control.label} {ends}", "unclosed-block", control.source)
+
+    # -- control statements ---------------------------------------------------------------
+    def _control(self, oword: OWord, line: int, text: str) -> None:
+        frame = self._frames[-1]
+        keyword, label = oword.keyword, oword.label
+        controls = frame.controls
+        top = controls[-1] if controls else None
+        if keyword == "sub":
+            if len(self._frames) > 1 and frame.label == label:
+                raise self._error(line, oword.column, f"O{label} sub inside its own body",
+                                  "bad-block", text)
+            self._define(frame, label, line, oword.column, text)
+        elif keyword == "call":
+            self._call(label, oword.arguments, line, oword.column, text)
+        elif keyword in ("endsub", "return"):
+            if len(self._frames) == 1:
+                raise self._error(line, oword.column, f"O{label} {keyword} outside a "
+                                  "subroutine", "bad-block", text)
+            self._return(oword.arguments[0] if oword.arguments else None)
+        elif keyword == "while" and top is not None and top.kind == "do" \
+                and top.label == label:
+            self._loop_again(frame, top, oword, line, text)
+        elif keyword == "while":
+            if not oword.arguments:
+                raise self._error(line, oword.column, f"O{label} while needs a condition "
+                                  "[...]", "missing-word", text)
+            if top is not None and top.kind == "while" and top.label == label \
+                    and top.pos == frame.tape.pos - 1:
+                control = top                           # back at the top of the loop
+            else:
+                control = _Control("while", label, line, oword.column, text,
+                                   frame.tape.pos - 1)
+                frame.tape.mark(control.pos)
+                controls.append(control)
+            if oword.arguments[0] != 0.0:
+                self._count(control, line, text)
+            else:
+                self._close(frame, control)
+                self._skip(frame, label, ("endwhile",), line, oword.column, text)
+        elif keyword == "do":
+            control = _Control("do", label, line, oword.column, text, frame.tape.pos)
+            frame.tape.mark(control.pos)
+            controls.append(control)
+        elif keyword == "repeat":
+            count = round(oword.arguments[0])
+            if count <= 0:
+                self._skip(frame, label, ("endrepeat",), line, oword.column, text)
+                return
+            control = _Control("repeat", label, line, oword.column, text, frame.tape.pos,
+                               remaining=count)
+            frame.tape.mark(control.pos)
+            controls.append(control)
+        elif keyword in ("endwhile", "endrepeat"):
+            kind = "while" if keyword == "endwhile" else "repeat"
+            control = self._open(frame, label, (kind,), keyword, line, oword.column, text)
+            if kind == "while":
+                frame.tape.seek(control.pos)          # the while line tests again
+            else:
+                control.remaining -= 1
+                if control.remaining > 0:
+                    self._count(control, line, text)
+                    frame.tape.seek(control.pos)
+                else:
+                    self._close(frame, control)
+        elif keyword == "if":
+            control = _Control("if", label, line, oword.column, text)
+            controls.append(control)
+            if oword.arguments[0] != 0.0:
+                control.taken = True
+            else:
+                self._branch(frame, control)
+        elif keyword in ("elseif", "else"):
+            control = self._open(frame, label, ("if",), keyword, line, oword.column, text)
+            if control.taken:
+                self._close(frame, control)
+                self._skip(frame, label, ("endif",), line, oword.column, text)
+            elif keyword == "else" or oword.arguments[0] != 0.0:
+                control.taken = True
+            else:
+                self._branch(frame, control)
+        elif keyword == "endif":
+            self._close(frame, self._open(frame, label, ("if",), keyword, line, oword.column,
+                                          text))
+        elif keyword in ("break", "continue"):
+            control = self._open(frame, label, ("while", "do", "repeat"), keyword, line,
+                                 oword.column, text, inner_ifs=True)
+            while controls[-1] is not control:
+                self._close(frame, controls[-1])
+            if keyword == "break":
+                self._close(frame, control)
+                ends = {"while": ("endwhile",), "do": ("while",),
+                        "repeat": ("endrepeat",)}[control.kind]
+                self._skip(frame, label, ends, line, oword.column, text)
+            elif control.kind == "repeat":
+                control.remaining -= 1
+                if control.remaining > 0:
+                    self._count(control, line, text)
+                    frame.tape.seek(control.pos)
+                else:
+                    self._close(frame, control)
+                    self._skip(frame, label, ("endrepeat",), line, oword.column, text)
+            else:
+                if control.kind == "do":
+                    self._count(control, line, text)
+                frame.tape.seek(control.pos)
+
+    def _loop_again(self, frame: _Frame, control: _Control, oword: OWord, line: int,
+                    text: str) -> None:
+        if not oword.arguments:
+            raise self._error(line, oword.column, f"O{oword.label} while closing a do needs "
+                              "a condition [...]", "missing-word", text)
+        if oword.arguments[0] != 0.0:
+            self._count(control, line, text)
+            frame.tape.seek(control.pos)
+        else:
+            self._close(frame, control)
+
+    def _count(self, control: _Control, line: int, text: str) -> None:
+        control.passes += 1
+        if control.passes > self.limits.loop_iterations:
+            raise self._error(control.line, control.column,
+                              f"O{control.label} {control.kind} ran more than "
+                              f"{self.limits.loop_iterations} times (controller.gcode."
+                              "loop_iterations): a runaway loop?", "loop-limit",
+                              control.source)
+
+    def _open(self, frame: _Frame, label: str, kinds: tuple[str, ...], keyword: str,
+              line: int, column: int, text: str, inner_ifs: bool = False) -> _Control:
+        """The open control ``keyword`` belongs to: the innermost one with ``label``."""
+        for control in reversed(frame.controls):
+            if control.label == label and control.kind in kinds:
+                return control
+            if not (inner_ifs and control.kind == "if"):
+                break
+        opening = " or ".join(kinds)
+        raise self._error(line, column, f"O{label} {keyword} without an open O{label} "
+                          f"{opening}", "unmatched-block", text)
+
+    def _close(self, frame: _Frame, control: _Control) -> None:
+        frame.controls.remove(control)
+        if control.pos >= 0:
+            frame.tape.release(control.pos)
+
+    def _branch(self, frame: _Frame, control: _Control) -> None:
+        """Skip an untaken branch up to the next elseif, else or endif of the same label,
+        and run that line."""
+        text = self._skip(frame, control.label, ("elseif", "else", "endif"), control.line,
+                          control.column, control.source)
+        line = frame.tape.line
+        statement = read_statement(clean(text, line), line, text, self._lookup(frame, text),
+                                   self.parameters.exists)
+        assert statement.oword is not None
+        self._control(statement.oword, line, text)
+
+    def _skip(self, frame: _Frame, label: str, ends: tuple[str, ...], line: int,
+              column: int, source: str) -> str:
+        """Read forward, evaluating nothing, through the next line ``O<label> <one of
+        ends>``; return that line."""
+        tape = frame.tape
+        while True:
+            text = tape.next()
+            if text is None:
+                raise self._error(line, column, f"O{label}: no matching "
+                                  f"{' / '.join('O' + label + ' ' + e for e in ends)} "
+                                  "before the end of the program", "unclosed-block",
+                                  source, frame=frame)
+            if "o" not in text and "O" not in text:
+                continue
+            found = self._oword_of(text, tape.line)
+            if found is not None and found[0] == label and found[1] in ends:
+                return text
+
+    @staticmethod
+    def _oword_of(text: str, line: int) -> tuple[str, str] | None:
+        code = clean(text, line)
+        match = _OWORD_LINE.match(code)
+        if match is None:
+            return None
+        label = match.group(1).replace(" ", "").replace("\t", "")
+        label = label.lower() if label.startswith("<") else str(int(label))
+        keyword = match.group(2).lower()
+        return label, keyword
+
+    # -- subroutines ----------------------------------------------------------------------
+    def _define(self, frame: _Frame, label: str, line: int, column: int, text: str) -> None:
+        tape = frame.tape
+        body: list[str] = []
+        first = line + 1
+        while True:
+            row = tape.next()
+            if row is None:
+                raise self._error(line, column, f"O{label} sub without its O{label} endsub",
+                                  "unclosed-block", text)
+            body.append(row)
+            if "o" in row or "O" in row:
+                found = self._oword_of(row, tape.line)
+                if found is not None and found[0] == label:
+                    if found[1] == "endsub":
+                        break
+                    if found[1] == "sub":
+                        raise self._error(tape.line, 1, f"O{label} sub inside the body of "
+                                          f"O{label} sub", "bad-block", row)
+        self._subs[label] = _Sub(body, first, frame.file)
+
+    def _call(self, label: str, arguments: tuple[float, ...], line: int, column: int,
+              text: str) -> None:
+        sub = self._subs.get(label)
+        if sub is None:
+            sub = self._load(label, line, column, text)
+        if len(self._frames) > self.limits.call_depth:
+            raise self._error(line, column, f"O{label} call: calls nest deeper than "
+                              f"{self.limits.call_depth} (controller.gcode.call_depth): a "
+                              "runaway recursion?", "call-depth", text)
+        self.parameters.enter(arguments)
+        self._frames.append(_Frame(Tape(sub.lines, sub.first_line), sub.file, label,
+                                   line=line))
+
+    def _load(self, label: str, line: int, column: int, text: str) -> _Sub:
+        if not label.startswith("<"):
+            raise self._error(line, column, f"O{label} call of a subroutine not defined "
+                              "before it", "unknown-sub", text)
+        name = label[1:-1]
+        for folder in self._folders:
+            path = Path(folder) / f"{name}.ngc"
+            if path.is_file():
+                break
+        else:
+            where = ", ".join(self._folders) or "no folders (controller.gcode.search_path)"
+            raise self._error(line, column, f"O{label} call: no subroutine {label} in the "
+                              f"program and no {name}.ngc in {where}", "unknown-sub", text)
+        file = os.fspath(path)
+        lines = path.read_text(encoding="utf-8", errors="replace").splitlines()
+        for number, row in enumerate(lines, start=1):
+            if "o" in row or "O" in row:
+                found = self._oword_of(row, number)
+                if found == (label, "sub"):
+                    frame = _Frame(Tape(lines[number:], number + 1), file)
+                    self._frames.append(frame)
+                    try:
+                        self._define(frame, label, number, 1, row)
+                    finally:
+                        self._frames.pop()
+                    return self._subs[label]
+        raise self._error(line, column, f"O{label} call: {file} does not define O{label} "
+                          "sub", "unknown-sub", text)
+
+    def _return(self, value: float | None) -> None:
+        frame = self._frames.pop()
+        self.parameters.leave()
+        if value is not None:
+            self.parameters.set("_value", value)
+        self.parameters.set("_value_returned", 0.0 if value is None else 1.0)
+        del frame
