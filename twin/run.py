@@ -186,6 +186,21 @@ class _Loop:
         self.kept: list[np.ndarray] | None = [] if keep_fine and p.plant is not None else None
         self._deflection = [_FINE_COLUMNS["screw_deflection"],
                             _FINE_COLUMNS["screw_deflection"] + 1]
+        # the program's events (tool on/off, spindle, coolant, pauses) as the interpolator
+        # reaches them: on the recording's event log, counted in the summary
+        self.events: dict[str, int] = {}
+        p.controller.interpolator.on_event = self._event
+
+    def _event(self, t: float, item: Any) -> None:
+        kind = getattr(item, "kind", None)
+        if kind is None:
+            return
+        self.events[kind] = self.events.get(kind, 0) + 1
+        value = getattr(item, "value", None)
+        text = f"line {item.line}: {kind.replace('_', ' ')}"
+        if value is not None:
+            text += f" {value:g}" if isinstance(value, float) else f" {value}"
+        self.sink.event(t, text)
 
     def drain(self) -> None:
         """Move the twin's drive-rate samples since the last drain to the telemetry, the
@@ -340,6 +355,8 @@ class _Loop:
                                    "machine_file": machine_identity(p.cfg),
                                    "controller_model_file": machine_identity(p.belief or p.cfg)}
         summary.update(self.summary.result())
+        if self.events:
+            summary["events"] = dict(sorted(self.events.items()))
         if self.meter is not None:
             summary["elastic_oscillation_um"] = self.meter.peak * 1e6
         summary.update({

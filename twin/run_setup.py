@@ -15,7 +15,7 @@ import numpy as np
 
 from twin.config import AXES, MachineConfig, load_machine
 from twin.controller.controller import Controller, ControllerStatus
-from twin.controller.gcode import decode_program, parse
+from twin.controller.gcode import Limits, ReaderOptions, decode_program, parse
 from twin.controller.library import build_program, program_path
 from twin.controller.linear import LinearAxisModel
 from twin.drive.linear import axis_transfer_function
@@ -24,7 +24,7 @@ from twin.hardware.sim import SimDriver
 from twin.plant import Plant
 
 __all__ = ["Prepared", "RunResult", "RunSpec", "axis_models", "load_program",
-           "measured_position", "model_options", "prepare"]
+           "measured_position", "model_options", "prepare", "reader_options"]
 
 
 @dataclass(frozen=True)
@@ -195,7 +195,16 @@ def load_program(spec: RunSpec, cfg: MachineConfig, start: np.ndarray,
     text, found = decode_program(path.read_bytes())
     if notes is not None:
         notes.extend(f"{path.name}: {n}" for n in found)
-    return list(parse(text, start=tuple(start.tolist())))
+    return list(parse(text, start=tuple(start.tolist()), options=reader_options(cfg),
+                      folder=str(path.resolve().parent)))
+
+
+def reader_options(cfg: MachineConfig) -> ReaderOptions:
+    """The G-code reader's options from the machine's ``controller.gcode`` section."""
+    g = cfg.controller.gcode
+    return ReaderOptions(z=g.z, tool_z=g.tool_z,
+                         limits=Limits(loop_iterations=int(g.loop_iterations),
+                                       call_depth=int(g.call_depth)))
 
 
 @dataclass

@@ -175,3 +175,39 @@ def test_a_calibrated_corner_constant_changes_nothing_on_chorded_programs():
     one = [(b.v_start, b.v_end) for b in planned(text)]
     two = [(b.v_start, b.v_end) for b in planned(text, corner_model=calibrated)]
     assert one == two
+
+
+# ------------------------------------------------------------------------ path control
+SQUARE = "G21 G90 F3000\nG1 X20 Y10\nG1 X30 Y10\nG1 X30 Y20\nG1 X20 Y20\nG1 X20 Y10\nM2"
+
+
+@pytest.mark.parametrize(("header", "blends", "stops"), [
+    ("", 3, 0),                   # G64 at power-on: the machine's blend tolerance
+    ("G61", 0, 0),                # exact path: sharp corners, passed at speed
+    ("G61.1", 0, 4),              # exact stop: at rest at every node, the straight one too
+    ("G64 P0.05", 3, 0),          # a program's own tolerance
+    ("G64 P0", 3, 0),             # P0 is plain G64
+])
+def test_a_programs_path_control_sets_rounding_and_stops(header, blends, stops):
+    text = SQUARE.replace("F3000", f"F3000 {header}")
+    blocks = planned(text)
+    assert sum(b.blend for b in blocks) == blends
+    inner = blocks[:-1]
+    assert sum(b.v_end == 0.0 for b in inner) == stops
+    if header == "G61":
+        assert all(b.v_end > 0.0 for b in inner)
+
+
+def test_g64_p_is_the_largest_deviation_of_a_rounded_corner():
+    def deviation(text):
+        arcs = [b.segment for b in planned(text) if b.blend]
+        corner = np.array([0.030, 0.010])
+        # the distance of a blend arc's midpoint from the vertex it rounds, less the
+        # distance of the arc from the vertex along the bisector (= the deviation)
+        arc = min(arcs, key=lambda a: np.linalg.norm(np.asarray(a.center) - corner))
+        return np.linalg.norm(corner - np.asarray(arc.center)) - arc.radius
+
+    wide = deviation(SQUARE.replace("F3000", "F3000 G64 P0.05"))
+    narrow = deviation(SQUARE.replace("F3000", "F3000 G64 P0.001"))
+    assert wide == pytest.approx(0.05e-3, rel=1e-6)
+    assert narrow == pytest.approx(0.001e-3, rel=1e-6)

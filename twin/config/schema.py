@@ -40,6 +40,7 @@ __all__ = [
     "DacConfig",
     "DeadlineConfig",
     "EncoderConfig",
+    "GcodeSettings",
     "LimitsConfig",
     "MachineConfig",
     "MechanicsConfig",
@@ -165,6 +166,21 @@ class DeadlineConfig(Validated):
 
 
 @dataclass(frozen=True, kw_only=True)
+class GcodeSettings(Validated):
+    """How programs are read (``twin.controller.gcode.ReaderOptions``)."""
+
+    z: str = choice("error", ("error", "ignore", "tool"), "Z words on this two-axis "
+                    "machine: refuse them, ignore them, or run Z and M3/M5 as the tool on "
+                    "and off (pen plotters, lasers)")
+    tool_z: float = num(0.0, "m", ge=-1.0, le=1.0, doc="with z = \"tool\": work Z at or "
+                        "below which the tool is on")
+    loop_iterations: int = num(100_000, "1", ge=1, le=100_000_000,
+                               doc="most passes of one O-word loop (a runaway loop is an "
+                               "error at its line)")
+    call_depth: int = num(64, "1", ge=1, le=10_000, doc="most subroutine calls open at once")
+
+
+@dataclass(frozen=True, kw_only=True)
 class ControllerSettings(Validated):
     """The CNC: period, contour limits, planner and regulator settings."""
 
@@ -200,6 +216,7 @@ class ControllerSettings(Validated):
         "bound (every move at its full feed, plus the dwells): beyond it the program is "
         "refused at the line that passes it")
     regulator: RegulatorSettings = field(default_factory=RegulatorSettings)
+    gcode: GcodeSettings = field(default_factory=GcodeSettings)
     timing: TimingConfig = field(default_factory=TimingConfig)
     deadlines: DeadlineConfig = field(default_factory=DeadlineConfig)
 

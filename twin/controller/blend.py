@@ -30,6 +30,10 @@ blend whose radius would fall below ``MIN_RADIUS`` (a reversal).
 The contour tolerance is shared: the geometric rounding takes ``share`` of it (default one
 half) and the rest is left to the servo, whose dynamic error on the rounded path the
 acceleration limits bound (issue 12).
+
+A program's own path control changes the tolerance from its block on (``PathControl``):
+G61 and G61.1 round nothing, ``G64 P p`` rounds within p, G64 (or ``G64 P0``) goes back to
+the machine's share of the contour tolerance.
 """
 
 from __future__ import annotations
@@ -38,6 +42,7 @@ import math
 from collections.abc import Iterable, Iterator
 from typing import Any, NamedTuple
 
+from twin.controller.gcode.items import PathControl
 from twin.controller.geometry import Arc, Line
 from twin.errors import ConfigError
 
@@ -109,7 +114,7 @@ class Blender:
     def __init__(self, tolerance: float):
         if not (math.isfinite(tolerance) and tolerance > 0.0):
             raise ConfigError("tolerance", f"must be finite and > 0 (m), got {tolerance!r}")
-        self.tolerance = float(tolerance)
+        self.default = self.tolerance = float(tolerance)
         self.blends = 0
         """Number of arcs inserted so far."""
 
@@ -134,6 +139,8 @@ class Blender:
                 if pend is not None:
                     yield self._flush(pend)
                     pend = None
+                if type(item) is PathControl:
+                    self.tolerance = self._path_tolerance(item)
                 yield item
                 continue
             seg, feed, line = item[0], item[1], item[2]
@@ -166,6 +173,13 @@ class Blender:
             yield self._flush(pend)
 
     # ------------------------------------------------------------------ internals
+    def _path_tolerance(self, control: PathControl) -> float:
+        """The blend tolerance a G61/G61.1/G64 sets: none in G61 and G61.1; in G64 its P
+        when it has one > 0, else the machine's own (LinuxCNC: G64 P0 is G64)."""
+        if control.mode != "blend":
+            return 0.0
+        return control.tolerance if control.tolerance else self.default
+
     @staticmethod
     def _flush(p: _Pending) -> BlendedBlock:
         """The pending line from its trimmed start to its programmed end."""
@@ -178,7 +192,7 @@ class Blender:
         cross = a.ux * b.uy - a.uy * b.ux
         dot = a.ux * b.ux + a.uy * b.uy
         angle = math.atan2(abs(cross), dot)
-        if angle < MIN_ANGLE:
+        if angle < MIN_ANGLE or self.tolerance == 0.0:
             return None
         room = min(a.half, b.half)
         radius = blend_radius(angle, room, self.tolerance)

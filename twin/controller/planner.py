@@ -74,6 +74,9 @@ Decisions
 * The machine starts at rest; nodes next to a rapid (G0) are exact stops (seed 003: G0
   brakes at block end), and so are Dwell, Event and ProgramEnd items: they flush the window
   and pass through in order. Nothing after a ProgramEnd is read.
+* A program's path control (``PathControl``) is no stop: G61 and G61.1 turn corner
+  rounding off and ``G64 P`` sets its tolerance (the blender applies them), and under G61.1
+  every block ends at rest (exact stop).
 * Contour ``max_velocity`` limits feed moves; rapids are limited by ``rapid_velocity`` and
   the per-axis limits only.
 * Segment caps (per-axis projections, centripetal acceleration and jerk on curves) are
@@ -96,7 +99,7 @@ from twin.config import AxisConfig, ControllerSettings
 from twin.controller.blend import BlendedBlock, Blender
 from twin.controller.blocks import MotionBlock, PlannedBlock, segment_of, segments_from_program
 from twin.controller.corner import CornerModel, SeedCornerModel
-from twin.controller.gcode.items import Dwell, Move, ProgramEnd
+from twin.controller.gcode.items import Dwell, Move, PathControl, ProgramEnd
 from twin.controller.geometry import Line, Segment
 from twin.controller.loop_defaults import default_corner_model
 from twin.controller.profiles import Limits, min_distance, plan_move
@@ -281,6 +284,7 @@ class Planner:
         self._count = 0
         self._time_bound = 0.0
         self._length = 0.0
+        exact_stop = False
         run: _Block | None = None       # the run being grown
         held: _Block | None = None      # a run closed for its length, its successor to come
         while True:
@@ -293,6 +297,17 @@ class Planner:
                 break
             if type(item) is BlendedBlock:
                 block = self._block(*item)
+                if exact_stop:                  # G61.1: every block ends at rest
+                    if run is not None:
+                        yield from self._end_run(window, held, run)
+                        run = held = None
+                    yield from self._append(window, block)
+                    while window:
+                        yield from self._pop(window)
+                    continue
+            elif type(item) is PathControl:     # G61, G61.1, G64: no stop, nothing to run
+                exact_stop = item.mode == "exact_stop"
+                continue
             else:
                 if run is not None:
                     yield from self._end_run(window, held, run)
