@@ -43,6 +43,7 @@ class Reference:
     moves: list[CanonMove]
     error: str | None               # rs274's message when it stopped on an error
     error_block: str | None         # the block it stopped at
+    other_axes: bool = False        # a move of A, B, C (U, V, W), or a probe
 
 
 def _numbers(args: str) -> list[float]:
@@ -53,10 +54,12 @@ def _numbers(args: str) -> list[float]:
 def run_rs274(path: Path) -> Reference:
     """Run LinuxCNC's interpreter on ``path``; its moves in SI machine coordinates."""
     done = subprocess.run([RS274, "-g", str(path)], capture_output=True, text=True,
-                          timeout=60, stdin=subprocess.DEVNULL)
+                          timeout=60, stdin=subprocess.DEVNULL, cwd=path.parent,
+                          errors="replace")
+    other = False
     unit, feed = MM, None
     g5x, g92 = (0.0, 0.0), (0.0, 0.0)
-    position = None
+    position = (0.0, 0.0)               # where the program starts, as parse() does
     moves: list[CanonMove] = []
     lines = done.stdout.splitlines()
     for row in lines:
@@ -64,9 +67,14 @@ def run_rs274(path: Path) -> Reference:
         if found is None:
             continue
         name, args = found.groups()
+        if name == "STRAIGHT_PROBE":
+            other = True
         if name not in _READ:
             continue
         values = _numbers(args)
+        if name in ("STRAIGHT_TRAVERSE", "STRAIGHT_FEED", "ARC_FEED"):
+            rest = values[3:] if name != "ARC_FEED" else values[6:]
+            other = other or any(value != 0.0 for value in rest)
         if name == "USE_LENGTH_UNITS":
             unit = INCH if "INCHES" in args else MM
         elif name == "SET_FEED_RATE":
@@ -84,7 +92,7 @@ def run_rs274(path: Path) -> Reference:
                 moves.append(CanonMove("arc", end, feed, center, rotation > 0,
                                        abs(rotation) - 1, unit))
             else:
-                if position is not None and end == position:
+                if end == position:
                     continue                       # a Z-only move: no XY motion
                 moves.append(CanonMove("rapid" if name == "STRAIGHT_TRAVERSE" else "line",
                                        end, None if name == "STRAIGHT_TRAVERSE" else feed,
@@ -96,4 +104,4 @@ def run_rs274(path: Path) -> Reference:
                 if row.strip() and row.strip() != "executing"]
         error = said[0] if said else f"rs274 exited {done.returncode}"
         block = said[-1] if len(said) > 1 else ""
-    return Reference(moves, error, block)
+    return Reference(moves, error, block, other)

@@ -54,7 +54,8 @@ ERRORS = [
     ("G1 X1 R5 F100", 1, 7, "unused-word", "R word"),
     ("P1", 1, 1, "unused-word", "P word without G4"),
     ("G4 P1 G2 I0.5 F100", 1, 4, "ambiguous-word", "both G4"),
-    ("G1 F100\nG4 X1.5", 2, 4, "ambiguous-word", "dwell time is P"),
+    ("G1 F100\nG4 X1.5", 2, 1, "missing-word", "G4 needs a P word"),
+    ("G1 F100 X1 @1", 1, 9, "ambiguous-word", "with polar words"),
     ("G4", 1, 1, "missing-word", "G4 needs a P word"),
     # bad values
     ("G4 P-1", 1, 4, "bad-value", "dwell time"),

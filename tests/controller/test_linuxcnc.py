@@ -73,7 +73,7 @@ def hand_program(rng: np.random.Generator) -> str:
     """What people type: G91, R arcs, turns, comments, N numbers, lower case, odd spacing."""
     lines = ["(a part by hand)", "N10 g21 g90 f 600"]
     for n in range(30):
-        kind = rng.integers(0, 6)
+        kind = rng.integers(0, 8)
         dx, dy = np.round(rng.uniform(-15, 15, 2), 2)
         if kind == 0:
             lines.append(f"N{20 + 10 * n} G91 G1 X{dx} Y{dy} ; relative")
@@ -90,8 +90,12 @@ def hand_program(rng: np.random.Generator) -> str:
             lines.append(f"g0 x {dx * 3} y {dy * 3}")
         elif kind == 4:
             lines.append(f"G1 X{dx * 2}Y{dy * 2}F{rng.integers(50, 900)}")
+        elif kind == 5:
+            lines.append(f"G4 P0.{rng.integers(1, 9)} G1 X{dx} Y{dy} (dwell, then move)")
+        elif kind == 6:
+            lines.append(f"G1 @{abs(dx)} ^{dy * 20:.1f} (polar)")
         else:
-            lines.append(f"G4 P0.{rng.integers(1, 9)}")
+            lines.append(f"G91 G1 @{dx / 5} ^{dy:.1f}\nG90")
     return "\n".join([*lines, "M30"]) + "\n"
 
 
@@ -210,14 +214,17 @@ def _from_spiral(pieces: list[Move], start: tuple[float, float], ref) -> float:
     return worst
 
 
-def _compare(text: str, path) -> dict[str, float]:
+def _compare(text: str, path, folder: str | None = None) -> dict[str, float]:
     """Read ``text`` with both; assert agreement; return the largest differences."""
-    path.write_text(text)
+    if folder is None:
+        path.write_text(text)
     reference = run_rs274(path)
     try:
-        ours = [item for item in parse(text, options=ReaderOptions(z="ignore"))
-                if isinstance(item, Move)]
+        ours = [item for item in parse(text, options=ReaderOptions(z="ignore"),
+                                       folder=folder) if isinstance(item, Move)]
     except GCodeError as error:
+        if folder is not None and reference.error is None:
+            raise                           # a shipped program: the caller judges it
         assert reference.error is not None, f"we refuse what LinuxCNC runs: {error}"
         assert error.source.strip() == reference.error_block, (error, reference.error)
         return {"refused by both": 1}
@@ -305,3 +312,42 @@ def test_arcs_off_their_circle_are_refused_where_linuxcnc_refuses_them(tmp_path)
         agree["refused by both" if "refused by both" in found else "run by both"] += 1
     print(f"\narcs near the tolerance: {agree}")
     assert min(agree.values()) > 0
+
+
+SHIPPED = ("/usr/share/linuxcnc/ncfiles", "/usr/share/doc/linuxcnc/examples")
+FEATURES = ("canned cycles", "cutter radius compensation", "lathe", "modal-state",
+            "splines", "spindle-synchronised", "only the XY plane", "G10 L", "probing",
+            "tool")
+"""What a refusal of a shipped program must name: the LinuxCNC feature it needs."""
+
+
+def test_linuxcncs_own_programs_run_or_name_the_feature_they_need(tmp_path):
+    """Every .ngc LinuxCNC ships that its interpreter runs and that moves no axis but X, Y
+    and Z (or defines subroutines and moves nothing): at least two thirds run here with
+    ``z = "ignore"``, and those with moves give LinuxCNC's moves; each of the rest is
+    refused with one error naming the feature it needs."""
+    from pathlib import Path
+
+    files = sorted(p for root in SHIPPED for p in Path(root).rglob("*.ngc"))
+    assert files, "linuxcnc-uspace ships its example programs under " + ", ".join(SHIPPED)
+    chosen, ran, moved, refused = 0, 0, 0, {}
+    for path in files:
+        reference = run_rs274(path)
+        if reference.error is not None or reference.other_axes:
+            continue
+        chosen += 1
+        text = path.read_text(encoding="utf-8", errors="replace")
+        try:
+            found = _compare(text, path, folder=str(path.parent))
+        except GCodeError as error:
+            assert any(word in error.message for word in FEATURES), (path, error)
+            refused[path.name] = error.message
+            continue
+        ran += 1
+        moved += bool(reference.moves)
+        assert "refused by both" not in found
+    print(f"\nLinuxCNC's programs it runs moving only X, Y, Z: {chosen}; run here {ran} "
+          f"({moved} with moves, all equal to LinuxCNC's); refused {len(refused)}:")
+    for name, message in refused.items():
+        print(f"  {name}: {message}")
+    assert ran >= 2 * chosen / 3

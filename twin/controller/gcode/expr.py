@@ -13,7 +13,8 @@ A line that holds none of ``#``, ``[`` or ``O`` goes through the fast word lexer
 * ``#n = value`` and ``#<name> = value`` assign, taking effect after the whole line is read
   (``#1=2 X#1`` uses the old ``#1``), and only if the block runs;
 * ``O<name> keyword [args]`` or ``O123 keyword [args]`` is a control statement: nothing but
-  a comment may share its line.
+  a comment may share its line;
+* ``@`` (distance) and ``^`` (angle, degrees) are polar coordinates, words like X and Y.
 
 Angles of the trigonometric functions are in degrees, as in LinuxCNC. ``EQ`` and ``NE``
 compare within ``EQUAL_TOLERANCE`` (LinuxCNC's ``TOLERANCE_EQUAL``).
@@ -380,7 +381,7 @@ class _Reader:
                                      "as a word's value (X#1)", pos=start)
                 self.pos += 1
                 assignments.append(Assignment(key, self.value(), self.column(start)))
-            elif "A" <= char <= "Z":
+            elif "A" <= char <= "Z" or char == "@" or char == "^":
                 if char == "O":
                     raise self.error("an O-word must begin its line (after an N word)",
                                      pos=start)

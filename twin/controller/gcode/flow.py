@@ -268,7 +268,7 @@ class Runner:
                     continue
                 self._unclosed(frame)
                 return
-            if "#" in code or "[" in code or "O" in code:
+            if "#" in code or "[" in code or "O" in code or "@" in code or "^" in code:
                 statement = read_statement(code, line, text, self._lookup(frame, text),
                                            parameters.exists)
                 if statement.oword is not None:

@@ -68,7 +68,7 @@ ORDER = (
 )
 """Order of execution inside one block (LinuxCNC's ``execute_block``), as (words, note)."""
 
-_VALUE_LETTERS = frozenset("DFHIJLNPQRSTXYZ")
+_VALUE_LETTERS = frozenset("DFHIJLNPQRSTXYZ@^")
 _OTHER_AXES = frozenset("ABCUVW")
 _WRITTEN = {"rapid": "G0", "line": "G1", "arc_cw": "G2", "arc_ccw": "G3"}
 _SPINDLE = {"cw": "spindle_cw", "ccw": "spindle_ccw", "stop": "spindle_stop"}
@@ -170,8 +170,12 @@ def _read(words: list[Word], line: int, source: str, file: str | None, z_mode: s
                                   "no-axis")
             block.values[letter] = (value, column)
         elif letter == "K":
-            raise block.error(column, "K word (arc centre along Z): no Z axis on this machine",
-                              "no-axis")
+            if z_mode == "error":
+                raise block.error(column, "K word (arc centre along Z): no Z axis on this "
+                                  f"machine ({_Z_HINT})", "no-axis")
+            if letter in block.values:
+                raise block.error(column, "repeated K word in one block", "repeated-word")
+            block.values[letter] = (value, column)
         elif letter in _OTHER_AXES:
             raise block.error(column, f"no {letter} axis on this machine", "no-axis")
         else:
@@ -262,6 +266,7 @@ class Interpreter:
             "_feed": lambda: (self._modal.feed or 0.0) * 60.0 / unit(),
             "_rpm": lambda: self._modal.spindle_speed / RPM,
             "_coord_system": lambda: float(self._modal.coordinate_system),
+            "_task": lambda: 1.0,      # the program runs on the machine (not a preview)
             5420: lambda: self._program(0) / unit(),
             5421: lambda: self._program(1) / unit(),
             5422: lambda: self._program(2) / unit(),
@@ -367,12 +372,7 @@ class Interpreter:
         unit = INCH if changes.get("units", old.units) == "inch" else MM
         items = self._machine_functions(block, old, changes)
         non_modal = codes["non_modal"][0].value if "non_modal" in codes else None
-        if non_modal == "dwell":
-            if "X" in values or "Y" in values:
-                letter = "X" if "X" in values else "Y"
-                raise block.error(values[letter][1], f"{letter} word in a G4 block: dwell "
-                                  "time is P (s), and a move beside a dwell is not run here",
-                                  "ambiguous-word")
+        if non_modal == "dwell":     # then the block's motion, if any (LinuxCNC's order)
             if "P" not in values:
                 raise block.error(codes["non_modal"][2], "G4 needs a P word (dwell time, s)",
                                   "missing-word")
@@ -381,6 +381,8 @@ class Interpreter:
         modal = replace(old, **changes) if changes else old
         self._modal = modal
         claimed = {"N", "F", "S", "T"}
+        if "tool_change" in codes and codes["tool_change"][0].value == "set":
+            claimed.add("Q")
         if non_modal == "dwell":
             claimed.add("P")
         if "tool_length" in codes:
@@ -399,12 +401,12 @@ class Interpreter:
             self._g92_on = True
         arc = modal.motion == "arc_cw" or modal.motion == "arc_ccw"
         moves = non_modal not in _AXIS_GROUP and (
-            "X" in values or "Y" in values or "Z" in values
-            or (arc and not values.keys().isdisjoint("IJR")))
+            "X" in values or "Y" in values or "Z" in values or "@" in values
+            or "^" in values or (arc and not values.keys().isdisjoint("IJKR")))
         if moves:
-            claimed.update("XYZ")
+            claimed.update("XYZ@^")
             if arc:
-                claimed.update("IJR")
+                claimed.update("IJKR")
                 claimed.add("P")
                 if non_modal == "dwell":
                     raise block.error(values["P"][1] if "P" in values else 1,
@@ -425,7 +427,8 @@ class Interpreter:
         uses = {"I": "an arc (G2/G3)", "J": "an arc (G2/G3)", "R": "an arc (G2/G3)",
                 "P": "G4, G10, G64 or an arc", "L": "G10", "Q": "G64",
                 "H": "G43", "D": "G41/G42", "X": "a motion", "Y": "a motion",
-                "Z": "a motion"}
+                "Z": "a motion", "@": "a motion", "^": "a motion",
+                "K": "an arc in the XZ or YZ plane"}
         return f"{letter} word without {uses.get(letter, 'a command')} to use it"
 
     def _machine_functions(self, block: _Block, old: ModalState,
@@ -442,7 +445,14 @@ class Interpreter:
             tool = _whole_number(block, "T", "tool number T")
             changes["tool"] = tool
             items.append(Event("tool_select", tool, line))
-        if "tool_change" in codes:
+        if "tool_change" in codes and codes["tool_change"][0].value == "set":   # M61 Q
+            if "Q" not in values:
+                raise block.error(codes["tool_change"][2], "M61 needs a Q word (the tool now "
+                                  "in the spindle)", "missing-word")
+            tool = _whole_number(block, "Q", "M61 Q (tool number)")
+            changes["tool"] = tool
+            items.append(Event("tool_select", tool, line))
+        elif "tool_change" in codes:
             items.append(Event("tool_change", changes.get("tool", old.tool), line))
         for group, kinds in (("spindle", _SPINDLE), ("coolant", _COOLANT)):
             if group in codes:
@@ -560,6 +570,8 @@ class Interpreter:
         values = block.values
         start = self._position
         end = [*start]
+        if "@" in values or "^" in values:
+            self._polar(block, modal, unit, end)
         for axis, letter in enumerate("XY"):
             if letter in values:
                 value = values[letter][0] * unit
@@ -581,6 +593,32 @@ class Interpreter:
         if abs(end[0] - start[0]) <= COINCIDENT and abs(end[1] - start[1]) <= COINCIDENT:
             end = [*start]
         return (end[0], end[1]), z
+
+    def _polar(self, block: _Block, modal: ModalState, unit: float, end: list[float]) -> None:
+        """``@`` (distance) and ``^`` (angle, degrees) about the work origin, as LinuxCNC:
+        in G90 they are the end point's polar coordinates, in G91 they add to those of the
+        current point."""
+        values = block.values
+        for letter in "XY":
+            if letter in values:
+                raise block.error(values[letter][1], f"{letter} word with polar words (@, ^):"
+                                  " program the end point one way", "ambiguous-word")
+        x, y = self._program(0), self._program(1)
+        radius, angle = math.hypot(x, y), math.degrees(math.atan2(y, x))
+        distance = values["@"][0] * unit if "@" in values else None
+        turn = values["^"][0] if "^" in values else None
+        if modal.distance == "incremental":
+            if x == 0.0 and y == 0.0:
+                raise block.error(block.column("@", "^"), "incremental polar words (G91 @ ^) "
+                                  "at the work origin: the angle there is undefined",
+                                  "bad-value")
+            radius += distance or 0.0
+            angle += turn or 0.0
+        else:
+            radius = radius if distance is None else distance
+            angle = angle if turn is None else turn
+        end[0] = radius * math.cos(math.radians(angle)) + self._offset(0)
+        end[1] = radius * math.sin(math.radians(angle)) + self._offset(1)
 
     def _motion(self, block: _Block, modal: ModalState, unit: float, number: int | None,
                 machine: bool) -> list[Item]:

@@ -95,6 +95,8 @@ CODES: dict[tuple[str, float], Code] = {
     ("G", 61): Code("path", "exact_path"),         # G61 exact path: corners not rounded
     ("G", 61.1): Code("path", "exact_stop"),       # G61.1 exact stop at every move end
     ("G", 64): Code("path", "blend"),              # G64 [P Q] blend (power-on)
+    # -- G group 14, spindle speed mode: RPM only ------------------------------------------
+    ("G", 97): Code("spindle_mode", "rpm"),        # G97 RPM mode (power-on)
     # -- G group 10, canned cycle return mode: accepted, no cycles run --------------------
     ("G", 98): Code("return_mode", "initial"),
     ("G", 99): Code("return_mode", "r_plane"),
@@ -114,8 +116,7 @@ CODES: dict[tuple[str, float], Code] = {
     ("M", 73): Code("modal_state", "autorestore", "modal-state save (M73) is not "
                     "supported"),
     ("M", 66): Code("io", "wait", "waiting on an input (M66) is not supported"),
-    ("M", 61): Code("tool_change", "set", "setting the tool without a change (M61) is not "
-                    "supported"),
+    ("M", 61): Code("tool_change", "set"),         # M61 Q: the tool in the spindle is Q
     # -- M group 6, tool change -----------------------------------------------------------
     ("M", 6): Code("tool_change", "change"),       # M6  change to the selected tool (T)
     # -- M group 7, spindle ---------------------------------------------------------------
@@ -134,6 +135,8 @@ _REFUSED_G = {
     **{(g,): "probing (G38.x) is not supported: the twin has no probe input"
        for g in (38.2, 38.3, 38.4, 38.5)},
     (33,): "spindle-synchronised motion (G33) is not supported: no spindle encoder",
+    **{(g,): "lathe roughing and finishing cycles (G70–G72) are not supported on an XY "
+             "table" for g in (70, 71, 71.1, 71.2, 72, 72.1, 72.2)},
     (33.1,): "rigid tapping (G33.1) is not supported: no spindle encoder",
     (7,): "lathe diameter mode (G7) is not supported on an XY table",
     (8,): "lathe radius mode (G8) is not supported on an XY table",
@@ -159,6 +162,7 @@ GROUP_NAMES = {
     "cutter_comp": "cutter compensation",
     "tool_length": "tool length offset",
     "coordinate_system": "coordinate system",
+    "spindle_mode": "spindle speed mode",
     "arc_distance": "arc distance mode",
     "path": "path control",
     "return_mode": "canned cycle return mode",
