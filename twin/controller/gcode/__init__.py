@@ -66,7 +66,7 @@ from collections.abc import Iterable, Iterator
 
 from twin.controller.gcode.arcs import ArcTolerance, arc_sweep
 from twin.controller.gcode.flow import Limits, Runner
-from twin.controller.gcode.interpreter import ORDER, Interpreter, ReaderOptions
+from twin.controller.gcode.interpreter import FAST_LINE, ORDER, Interpreter, ReaderOptions
 from twin.controller.gcode.items import (
     EVENT_KINDS,
     MOVE_KINDS,
@@ -108,7 +108,7 @@ __all__ = [
 def iter_items(lines: Iterable[str], *, start: tuple[float, float] = (0.0, 0.0),
                arc_tolerance: ArcTolerance | None = None,
                options: ReaderOptions | None = None,
-               folder: str | None = None) -> Iterator[Item]:
+               folder: str | None = None, fast: bool = True) -> Iterator[Item]:
     """Items of a program given as lines, one block at a time.
 
     Parameters
@@ -123,6 +123,10 @@ def iter_items(lines: Iterable[str], *, start: tuple[float, float] = (0.0, 0.0),
         Z handling, loop bounds, subroutine search path.
     folder : str, optional
         The program's folder: searched first for a called ``name.ngc``.
+    fast : bool
+        Run the commonest CAM lines by the reader's fast path (``Interpreter.fast_line``);
+        False: every line the general way, the reference the tests compare it with. The
+        items are the same.
 
     Yields
     ------
@@ -136,7 +140,8 @@ def iter_items(lines: Iterable[str], *, start: tuple[float, float] = (0.0, 0.0),
     """
     interpreter = Interpreter(start=start, arc_tolerance=arc_tolerance, options=options)
     runner = Runner(interpreter.execute_words, interpreter.parameters,
-                    interpreter.options.limits, folder)
+                    interpreter.options.limits, folder,
+                    (FAST_LINE.fullmatch, interpreter.fast_line) if fast else None)
 
     def started() -> bool:
         return interpreter.blocks > 0

@@ -222,11 +222,17 @@ class Runner:
         Loop, call and search-path bounds.
     folder : str, optional
         The program's folder, searched first for ``name.ngc``.
+    fast : (match, run), optional
+        A fast path for the commonest lines: ``match(text)`` (a regex's ``fullmatch``) and
+        ``run(found, line)`` returning the item, True (nothing to yield) or None (run the
+        line the general way). None: every line the general way (the reference).
     """
 
     def __init__(self, execute: Callable[..., tuple], parameters: Parameters, limits: Limits,
-                 folder: str | None = None):
+                 folder: str | None = None,
+                 fast: tuple[Callable[[str], re.Match[str] | None], Callable] | None = None):
         self._execute = execute
+        self._fast = fast
         self.parameters = parameters
         self.limits = limits
         self._folders = ([folder] if folder else []) + list(limits.search_path)
@@ -249,9 +255,18 @@ class Runner:
         self._frames = [_Frame(tape, None)]
         tape_opened = False
         parameters = self.parameters
+        match, fast = self._fast if self._fast is not None else (None, None)
         while not self.ended:
             frame = self._frames[-1]
             text = frame.tape.next()
+            if match is not None and text is not None:
+                found = match(text)
+                if found is not None:
+                    item = fast(found, frame.tape.line)
+                    if item is not None:
+                        if item is not True:
+                            yield item
+                        continue
             if text is None:
                 if len(self._frames) > 1:   # a body read to its end has no endsub: return
                     self._return(None)

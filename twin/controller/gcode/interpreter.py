@@ -17,6 +17,7 @@ Units are converted to SI here: lengths by 1 mm or 1 inch, F by unit/min, S by r
 from __future__ import annotations
 
 import math
+import re
 from dataclasses import dataclass, field, replace
 
 from twin.controller.gcode.arcs import (
@@ -26,13 +27,27 @@ from twin.controller.gcode.arcs import (
     center_from_radius,
 )
 from twin.controller.gcode.flow import Limits, Parameters
-from twin.controller.gcode.items import Dwell, Event, Item, Move, PathControl, ProgramEnd
-from twin.controller.gcode.lexer import Word, lex
+from twin.controller.gcode.items import (
+    Dwell,
+    Event,
+    Item,
+    Move,
+    PathControl,
+    ProgramEnd,
+    trusted_move,
+)
+from twin.controller.gcode.lexer import MAX_VALUE, Word, lex
 from twin.controller.gcode.modal import CODES, GROUP_NAMES, Code, ModalState, code_name
 from twin.errors import ConfigError, GCodeError
 from twin.units import INCH, MM, RPM
 
-__all__ = ["COINCIDENT", "ORDER", "WORKSPACE", "Interpreter", "ReaderOptions"]
+__all__ = ["COINCIDENT", "FAST_LINE", "ORDER", "WORKSPACE", "Interpreter", "ReaderOptions"]
+
+_NUMBER = r"[-+]?(?:[0-9]+\.?[0-9]*|\.[0-9]+)"
+FAST_LINE = re.compile(rf"(?:[Nn]([0-9]+) ?)?(?:[Gg]0?([01]) ?)?(?:[Xx]({_NUMBER}) ?)?"
+                       rf"(?:[Yy]({_NUMBER}) ?)?(?:[Ff]([0-9]+\.?[0-9]*|\.[0-9]+))? *")
+"""The commonest line of CAM output, ``[N…] [G0|G1] X… Y… [F…]``: ``Interpreter.fast_line``
+runs it."""
 
 COINCIDENT = 1e-9
 """End points within 1 nm of the start are the start (m), far below the 0.2 µm encoder
@@ -348,6 +363,58 @@ class Interpreter:
         self.blocks += 1
         self.ended = self.ended or "stopping" in block.codes
         return tuple(items)
+
+    def fast_line(self, found: re.Match[str], line: int) -> Move | bool | None:
+        """The commonest CAM block, ``[N…] [G0|G1] X… Y… [F…]`` in plain words, matched by
+        ``FAST_LINE``: the same result as ``execute_words`` (the same arithmetic in the
+        same order, so the same floats), without its general machinery.
+
+        Returns
+        -------
+        Move, True or None
+            The block's move; True when it moves nothing (a repeated point); None when the
+            block needs the general path (another mode in force, a missing feed, anything
+            that may be an error), which then runs it from the start.
+        """
+        number, g, x, y, f = found.groups()
+        if x is None and y is None:
+            return None
+        modal = self._modal
+        motion = modal.motion if g is None else ("rapid" if g == "0" else "line")
+        if motion != "line" and motion != "rapid" or modal.plane != "xy":
+            return None
+        unit = INCH if modal.units == "inch" else MM
+        feed = modal.feed
+        if f is not None:
+            value = float(f)
+            if not value < MAX_VALUE:
+                return None
+            feed = value * unit / 60.0
+        if motion == "line" and not feed:
+            return None
+        start = self._position
+        incremental = modal.distance == "incremental"
+        end_x, end_y = start
+        if x is not None:
+            value = float(x)
+            if not -MAX_VALUE < value < MAX_VALUE:
+                return None
+            end_x = start[0] + value * unit if incremental else value * unit + self._offset(0)
+        if y is not None:
+            value = float(y)
+            if not -MAX_VALUE < value < MAX_VALUE:
+                return None
+            end_y = start[1] + value * unit if incremental else value * unit + self._offset(1)
+        if not (abs(end_x) <= WORKSPACE and abs(end_y) <= WORKSPACE):
+            return None
+        if motion != modal.motion or feed != modal.feed:
+            self._modal = replace(modal, motion=motion, feed=feed)
+        self.blocks += 1
+        if abs(end_x - start[0]) <= COINCIDENT and abs(end_y - start[1]) <= COINCIDENT:
+            return True
+        target = self._position = (end_x, end_y)
+        return trusted_move(motion, start, target, None if motion == "rapid" else feed, line,
+                            None if number is None else int(number))
 
     # -- one block ------------------------------------------------------------------------
     def _run(self, block: _Block) -> list[Item]:

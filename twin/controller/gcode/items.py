@@ -155,6 +155,30 @@ class Move:
         return self.radius * abs(self.sweep)
 
 
+_new = object.__new__
+_slots = {name: Move.__dict__[name].__set__ for name in
+          ("kind", "start", "end", "feed", "center", "ccw", "turns", "line", "block_number")}
+
+
+def trusted_move(kind: str, start: tuple[float, float], end: tuple[float, float],
+                 feed: float | None, line: int, block_number: int | None) -> Move:
+    """A line or rapid ``Move`` from the reader's own checked values, without the checks of
+    ``Move.__post_init__`` (the reader's fast path, ``Interpreter.fast_line``); equal to
+    ``Move(kind, start, end, feed, line=line, block_number=block_number)``."""
+    move = _new(Move)
+    s = _slots
+    s["kind"](move, kind)
+    s["start"](move, start)
+    s["end"](move, end)
+    s["feed"](move, feed)
+    s["center"](move, None)
+    s["ccw"](move, False)
+    s["turns"](move, 0)
+    s["line"](move, line)
+    s["block_number"](move, block_number)
+    return move
+
+
 @dataclass(frozen=True, slots=True)
 class Dwell:
     """G4: stand still.
