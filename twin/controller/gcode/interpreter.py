@@ -381,7 +381,7 @@ class Interpreter:
             return None
         modal = self._modal
         motion = modal.motion if g is None else ("rapid" if g == "0" else "line")
-        if motion != "line" and motion != "rapid" or modal.plane != "xy":
+        if (motion != "line" and motion != "rapid") or modal.plane != "xy":
             return None
         unit = INCH if modal.units == "inch" else MM
         feed = modal.feed
