@@ -250,7 +250,18 @@ class Runner:
     def run(self, lines: Iterable[str], started: Callable[[], bool]) -> Iterator[tuple]:
         """Items of every block, in execution order.
 
-        ``started()`` tells whether a block has run (a ``%`` before any opens the tape)."""
+        ``started()`` tells whether a block has run (a ``%`` before any opens the tape).
+        An error in a called file names that file."""
+        try:
+            yield from self._run(lines, started)
+        except GCodeError as error:
+            file = self._frames[-1].file if self._frames else None
+            if error.file is not None or file is None:
+                raise
+            raise GCodeError(error.line, error.column, error.message, code=error.code,
+                             source=error.source, file=file) from None
+
+    def _run(self, lines: Iterable[str], started: Callable[[], bool]) -> Iterator[tuple]:
         tape = Tape(lines)
         self._frames = [_Frame(tape, None)]
         tape_opened = False
