@@ -48,7 +48,8 @@ def value_of(expression: str, parameters: dict | None = None) -> float:
 _BINARY = {"+": operator.add, "-": operator.sub, "*": operator.mul, "/": operator.truediv,
            "**": math.pow, "MOD": lambda a, b: math.fmod(a, b) + (abs(b) if math.fmod(a, b) < 0
                                                                   else 0.0),
-           "EQ": lambda a, b: float(abs(a - b) < 1e-4), "NE": lambda a, b: float(abs(a - b) >= 1e-4),
+           "EQ": lambda a, b: float(abs(a - b) < 1e-4),
+           "NE": lambda a, b: float(abs(a - b) >= 1e-4),
            "GT": lambda a, b: float(a > b), "GE": lambda a, b: float(a >= b),
            "LT": lambda a, b: float(a < b), "LE": lambda a, b: float(a <= b),
            "AND": lambda a, b: float(bool(a) and bool(b)),
