@@ -6,6 +6,7 @@ reader's memory on long programs."""
 from __future__ import annotations
 
 import io
+import itertools
 import math
 import operator
 import time
@@ -316,3 +317,50 @@ def test_the_order_table_is_tested_row_by_row():
 def test_item_types_of_the_reader():
     assert {type(i) for i in items_of("G1 F1 G64 P0 X1\nG4 P1\nM3\nM2")} == {
         Move, PathControl, Dwell, Event, ProgramEnd}
+
+
+# ------------------------------------------------------------------------ G64 Q
+def _chorded_circle(chord_mm: float, radius_mm: float = 20.0) -> tuple[str, list]:
+    n = int(2 * math.pi * radius_mm / chord_mm)
+    points = [(radius_mm * math.cos(2 * math.pi * k / n),
+               radius_mm * math.sin(2 * math.pi * k / n)) for k in range(n + 1)]
+    lines = [f"G1 X{x:.4f} Y{y:.4f}" for x, y in points]
+    return "\n".join(lines), [(float(f"{x:.4f}"), float(f"{y:.4f}")) for x, y in points]
+
+
+@pytest.mark.parametrize("q", [0.001, 0.01, 0.05])
+def test_g64_q_merges_collinear_chords_within_q(q):
+    body, points = _chorded_circle(0.05)
+    header = f"G21 G90 F600\nG0 X20 Y0\nG64 P0.1 Q{q}\n"
+    merged = [m for m in parse(header + body) if isinstance(m, Move) and m.kind == "line"]
+    plain = [m for m in parse(header.replace(f" Q{q}", "") + body)
+             if isinstance(m, Move) and m.kind == "line"]
+    assert len(plain) == len(points) - 1
+    assert len(merged) < len(plain)
+    for a, b in itertools.pairwise(merged):         # one continuous path
+        assert a.end == b.start
+    # every programmed point lies within Q of the merged path
+    a = np.array([m.start for m in merged])
+    b = np.array([m.end for m in merged])
+    ab = b - a
+    for p in np.array(points) * MM:
+        t = np.clip(np.einsum("ij,ij->i", p - a, ab) / np.einsum("ij,ij->i", ab, ab), 0, 1)
+        best = np.min(np.linalg.norm(p - (a + t[:, None] * ab), axis=1))
+        assert best <= q * MM * (1 + 1e-9)
+    # fewer lines the larger Q
+    if q == 0.05:
+        assert len(merged) < len(plain) / 3
+
+
+def test_g64_q_keeps_corners_feeds_and_reversals():
+    text = ("G21 G90 F600 G64 P0.1 Q0.01\nG1 X10\nX20\nX30\nY10\nY20\nX40 F300\nX30\nX20\n"
+            "G64\nX10\nX0\nM2")
+    lines = [(round(m.start[0] / MM, 9), round(m.start[1] / MM, 9), round(m.end[0] / MM, 9),
+              round(m.end[1] / MM, 9), m.line) for m in parse(text) if isinstance(m, Move)]
+    assert lines == [
+        (0, 0, 30, 0, 2),             # three collinear lines: one
+        (30, 0, 30, 20, 5),           # the corner stays
+        (30, 20, 40, 20, 7),          # another feed
+        (40, 20, 20, 20, 8),          # turning back ends the chain; then a new one
+        (20, 20, 10, 20, 11),         # after G64 without Q: no merging
+        (10, 20, 0, 20, 12)]

@@ -78,6 +78,7 @@ from twin.controller.gcode.items import (
     Program,
     ProgramEnd,
 )
+from twin.controller.gcode.merge import merge_lines
 from twin.controller.gcode.modal import ModalState
 from twin.errors import byte_place
 
@@ -146,7 +147,7 @@ def iter_items(lines: Iterable[str], *, start: tuple[float, float] = (0.0, 0.0),
     def started() -> bool:
         return interpreter.blocks > 0
 
-    for item in runner.run(lines, started):
+    for item in merge_lines(runner.run(lines, started)):
         yield item
         if type(item) is ProgramEnd:
             return
