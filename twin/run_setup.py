@@ -14,6 +14,7 @@ from typing import Any
 import numpy as np
 
 from twin.config import AXES, MachineConfig, load_machine
+from twin.config.schema import WORK_SYSTEMS
 from twin.controller.controller import Controller, ControllerStatus
 from twin.controller.gcode import Limits, ReaderOptions, decode_program, parse
 from twin.controller.library import build_program, program_path
@@ -204,7 +205,9 @@ def reader_options(cfg: MachineConfig) -> ReaderOptions:
     g = cfg.controller.gcode
     return ReaderOptions(z=g.z, tool_z=g.tool_z,
                          limits=Limits(loop_iterations=int(g.loop_iterations),
-                                       call_depth=int(g.call_depth)))
+                                       call_depth=int(g.call_depth)),
+                         work_offsets={WORK_SYSTEMS.index(name) + 1: offset
+                                       for name, offset in g.work_offsets.items()})
 
 
 @dataclass

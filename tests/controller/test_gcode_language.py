@@ -364,3 +364,20 @@ def test_g64_q_keeps_corners_feeds_and_reversals():
         (40, 20, 20, 20, 8),          # turning back ends the chain; then a new one
         (20, 20, 10, 20, 11),         # after G64 without Q: no merging
         (10, 20, 0, 20, 12)]
+
+
+def test_work_offsets_from_the_machine_file_and_from_the_program():
+    from twin.config import load_machine
+    from twin.run_setup import reader_options
+
+    cfg = load_machine("laser_belt").with_overrides(
+        {"controller.gcode.work_offsets": {"G55": [0.01, 0.02], "G59.3": [-0.005, 0.0]}})
+    options = reader_options(cfg)
+    text = ("G21 G90 G1 F100 G55 X1 Y1\nG59.3 X1\nG54 X1\nG10 L2 P2 X0 Y0\nG55 X1 Y1\n"
+            "G1 X[#5241 * 1000] Y#5242\nM2")
+    ends_mm = [(round(m.end[0] / MM, 9), round(m.end[1] / MM, 9))
+               for m in parse(text, options=options) if isinstance(m, Move)]
+    assert ends_mm == [(11, 21), (-4, 21), (1, 21), (1, 1), (0, 0)]
+    with pytest.raises(Exception, match="work_offsets.G53"):
+        load_machine("laser_belt").with_overrides(
+            {"controller.gcode.work_offsets": {"G53": [0.0, 0.0]}})

@@ -165,6 +165,10 @@ class DeadlineConfig(Validated):
                               f"got {self.warn_on_time}")
 
 
+WORK_SYSTEMS = ("G54", "G55", "G56", "G57", "G58", "G59", "G59.1", "G59.2", "G59.3")
+"""The work coordinate systems, 1 to 9, as ``controller.gcode.work_offsets`` names them."""
+
+
 @dataclass(frozen=True, kw_only=True)
 class GcodeSettings(Validated):
     """How programs are read (``twin.controller.gcode.ReaderOptions``)."""
@@ -178,6 +182,20 @@ class GcodeSettings(Validated):
                                doc="most passes of one O-word loop (a runaway loop is an "
                                "error at its line)")
     call_depth: int = num(64, "1", ge=1, le=10_000, doc="most subroutine calls open at once")
+    work_offsets: dict[str, tuple[float, float]] = field(
+        default_factory=dict, metadata={"doc": "work offsets of the machine, e.g. G55 = "
+                                        "[0.1, 0.05]: where each coordinate system's zero is "
+                                        "(m, machine coordinates); G10 L2 in a program "
+                                        "changes them for that run"})
+
+    def _check(self) -> None:
+        for name, offset in self.work_offsets.items():
+            if name not in WORK_SYSTEMS:
+                raise ConfigError(f"work_offsets.{name}", f"must be one of "
+                                  f"{', '.join(WORK_SYSTEMS)}")
+            if not all(abs(v) <= 1.0 for v in offset):
+                raise ConfigError(f"work_offsets.{name}", f"must lie within ±1 m, got "
+                                  f"{list(offset)}")
 
 
 @dataclass(frozen=True, kw_only=True)

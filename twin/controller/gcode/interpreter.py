@@ -111,14 +111,23 @@ class ReaderOptions:
         the block.
     limits : Limits
         Loop and call bounds and the subroutine search path.
+    work_offsets : dict
+        Coordinate system (1 = G54 … 9 = G59.3) → its zero in machine coordinates (x, y)
+        (m), the machine's at the start; G10 L2/L20 change them for the program.
     """
 
     z: str = "error"
     tool_z: float = 0.0
     arc_tolerance: ArcTolerance | None = None
     limits: Limits = field(default_factory=Limits)
+    work_offsets: dict[int, tuple[float, float]] = field(default_factory=dict)
 
     def __post_init__(self) -> None:
+        for system, offset in self.work_offsets.items():
+            if system not in range(1, 10) or len(offset) != 2 or not all(
+                    math.isfinite(v) and abs(v) <= WORKSPACE for v in offset):
+                raise ConfigError("gcode.work_offsets", f"system {system!r}: must be 1-9 with "
+                                  f"a finite (x, y) (m), got {offset!r}")
         if self.z not in _Z_MODES:
             raise ConfigError("gcode.z", f"must be one of {_Z_MODES}, got {self.z!r}")
         if not (isinstance(self.tool_z, float | int) and math.isfinite(self.tool_z)
@@ -254,7 +263,9 @@ class Interpreter:
         self._position = (x, y)
         self._z: float | None = None          # machine Z (m), None until a Z word
         self._modal = ModalState()
-        self._offsets: dict[int, tuple[float, float, float]] = {}   # G54.. → (x, y, z) m
+        self._offsets: dict[int, tuple[float, float, float]] = {   # G54.. → (x, y, z) m
+            system: (float(x), float(y), 0.0)
+            for system, (x, y) in options.work_offsets.items()}
         self._g92 = (0.0, 0.0, 0.0)
         self._g92_on = False
         self._homes = {"home_g28": (0.0, 0.0), "home_g30": (0.0, 0.0)}
