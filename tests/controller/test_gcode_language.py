@@ -29,7 +29,7 @@ from twin.controller.gcode import (
 from twin.controller.gcode.expr import read_statement
 from twin.controller.gcode.flow import Tape
 from twin.controller.gcode.lexer import clean
-from twin.errors import GCodeError
+from twin.errors import ConfigError, GCodeError
 from twin.units import INCH, MM
 
 
@@ -378,6 +378,31 @@ def test_work_offsets_from_the_machine_file_and_from_the_program():
     ends_mm = [(round(m.end[0] / MM, 9), round(m.end[1] / MM, 9))
                for m in parse(text, options=options) if isinstance(m, Move)]
     assert ends_mm == [(11, 21), (-4, 21), (1, 21), (1, 1), (0, 0)]
-    with pytest.raises(Exception, match="work_offsets.G53"):
+    with pytest.raises(ConfigError, match=r"work_offsets\.G53"):
         load_machine("laser_belt").with_overrides(
             {"controller.gcode.work_offsets": {"G53": [0.0, 0.0]}})
+
+
+def test_the_docs_table_is_the_order_of_execution():
+    from pathlib import Path
+
+    doc = (Path(__file__).resolve().parents[2] / "docs" / "GCODE.md").read_text()
+    rows = [line.split(" | ") for line in doc.splitlines()
+            if line.startswith("| ") and line.split(" | ")[0][2:].isdigit()]
+    assert [(words, note.rstrip(" |")) for _, words, note in rows] == list(ORDER)
+
+
+def test_canned_cycles_run_their_holes_and_plunge_the_tool():
+    text = ("G21 G90 F100\nG0 Z5\nG82 X10 Y10 R2 Z-1 P0.5\nX20\nG91 G81 X5 R2 Z-1 L3\nG90 G80\n"
+            "G0 X0 Y0\nM2")
+    kinds = [(type(i).__name__, getattr(i, "kind", None)) for i in
+             parse(text, options=ReaderOptions(z="tool")) if not isinstance(i, ProgramEnd)]
+    hole = [("Move", "rapid"), ("Event", "tool_on"), ("Dwell", None), ("Event", "tool_off")]
+    drill = [("Move", "rapid"), ("Event", "tool_on"), ("Event", "tool_off")]
+    assert kinds == [*hole, *hole, *drill, *drill, *drill, ("Move", "rapid")]
+    holes = [m.end for m in parse(text, options=ReaderOptions(z="ignore"))
+             if isinstance(m, Move)][:-1]
+    assert [(round(x / MM, 9), round(y / MM, 9)) for x, y in holes] == [
+        (10, 10), (20, 10), (25, 10), (30, 10), (35, 10)]
+    with pytest.raises(GCodeError, match="canned cycles"):
+        parse("G21 G90 F100\nG82 X10 Y10 R2 P0.5")   # z = "error": they drill along Z

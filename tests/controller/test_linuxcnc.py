@@ -179,6 +179,26 @@ M2
 """
 
 
+def cycles_program(rng: np.random.Generator) -> str:
+    """Drilling cycles: holes at X/Y, repeated with L in G91, and around a circle by polar
+    words (their Z moves are not run here; their XY moves are)."""
+    lines = ["G21 G90 G17 F200", "G0 Z5"]
+    for _ in range(6):
+        g = rng.choice(["G81", "G82 P0.2", "G83 Q1", "G73 Q0.5", "G85", "G89 P0.1"])
+        x, y = np.round(rng.uniform(-40, 40, 2), 3)
+        lines.append(f"{g} X{x} Y{y} R2 Z-3")
+        lines.append(f"X{x + 5} Y{y - 5}")
+        if rng.random() < 0.5:
+            lines.append(f"G91 {g} X{np.round(rng.uniform(-5, 5), 3)} Y2 R2 Z-3 "
+                         f"L{rng.integers(2, 5)}")
+            lines.append("G90")
+        if rng.random() < 0.5:
+            lines.append(f"G91 G81 R2 Z-3 ^{rng.integers(10, 90)} L{rng.integers(2, 7)}")
+            lines.append("G90")
+        lines.append("G80")
+    return "\n".join([*lines, "M2"]) + "\n"
+
+
 KINDS = {
     "cam-mm": lambda rng: cam_program(rng, inch=False),
     "cam-inch": lambda rng: cam_program(rng, inch=True),
@@ -186,6 +206,7 @@ KINDS = {
     "parameters": parameter_program,
     "units": units_program,
     "offsets": offsets_program,
+    "cycles": cycles_program,
 }
 
 

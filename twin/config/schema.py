@@ -185,8 +185,8 @@ class GcodeSettings(Validated):
     work_offsets: dict[str, tuple[float, float]] = field(
         default_factory=dict, metadata={"doc": "work offsets of the machine, e.g. G55 = "
                                         "[0.1, 0.05]: where each coordinate system's zero is "
-                                        "(m, machine coordinates); G10 L2 in a program "
-                                        "changes them for that run"})
+                                        "(m, machine coordinates, each within ±1 m); G10 L2 "
+                                        "in a program changes them for that run"})
 
     def _check(self) -> None:
         for name, offset in self.work_offsets.items():

@@ -21,8 +21,9 @@ The language of LinuxCNC 2.9's RS-274/NGC interpreter, for a machine with X and 
 * Parameters (``#1``, ``#<name>``, ``#<_global>``), expressions and functions, and O-word
   control flow with subroutines (``expr``, ``flow``).
 * Z: ``ReaderOptions.z`` decides: refused (default), ignored, or the tool (pen, laser).
-* What LinuxCNC has and an XY table cannot run is refused naming the feature: canned
-  cycles, probing, cutter compensation, lathe modes, spindle synchronisation, modal-state
+* Canned cycles (G73, G81–G89) with Z ignored or the tool: their moves between the holes.
+* What LinuxCNC has and an XY table cannot run is refused naming the feature: probing,
+  cutter compensation, lathe modes and cycles, spindle synchronisation, splines, modal-state
   save, other axes.
 
 Decisions

@@ -59,8 +59,8 @@ WORKSPACE = 1e3
 """Largest coordinate a program may reach (m); keeps every computation far from overflow."""
 
 ORDER = (
-    ("parameters", "#n=… and #<name>=… take effect after the line is read (X#1 in the same "
-                   "line uses the old value)"),
+    ("parameters", "assignments (`#1 = …`) take effect after the line is read: `X#1` in "
+                   "the same line uses the old value"),
     ("O-words", "a control statement is alone on its line"),
     ("F", "feed, in the units in force before this block's G20/G21"),
     ("S", "spindle speed"),
@@ -271,6 +271,7 @@ class Interpreter:
         self._homes = {"home_g28": (0.0, 0.0), "home_g30": (0.0, 0.0)}
         self._tool = False
         self._spindle_known = False
+        self._cycle_p: float | None = None     # a dwell cycle's P, kept from block to block
         self.blocks = 0
         """Blocks run so far (lines with at least one word)."""
         self.ended = False
@@ -364,12 +365,13 @@ class Interpreter:
         """Run one block given as its words (values evaluated); all or nothing."""
         block = _read(words, line, source, file, self.options.z)
         saved = (self._modal, self._position, self._z, dict(self._offsets), self._g92,
-                 self._g92_on, dict(self._homes), self._tool, self._spindle_known)
+                 self._g92_on, dict(self._homes), self._tool, self._spindle_known,
+                 self._cycle_p)
         try:
             items = self._run(block)
         except BaseException:
             (self._modal, self._position, self._z, self._offsets, self._g92, self._g92_on,
-             self._homes, self._tool, self._spindle_known) = saved
+             self._homes, self._tool, self._spindle_known, self._cycle_p) = saved
             raise
         self.blocks += 1
         self.ended = self.ended or "stopping" in block.codes
@@ -484,12 +486,13 @@ class Interpreter:
         if moves:
             claimed.update("XYZ@^")
             if arc:
-                claimed.update("IJKR")
-                claimed.add("P")
+                claimed.update("IJKRP")
                 if non_modal == "dwell":
                     raise block.error(values["P"][1] if "P" in values else 1,
                                       "P word claimed by both G4 (dwell) and the arc "
                                       "(turns): put them in two blocks", "ambiguous-word")
+            elif modal.motion is not None and modal.motion.startswith("cycle"):
+                claimed.update("RQLPK")
             items.extend(self._motion(block, modal, unit, number, non_modal == "machine"))
         for letter in values:
             if letter not in claimed:
@@ -709,6 +712,8 @@ class Interpreter:
         if motion is None:
             raise block.error(block.column("X", "Y", "Z"), "axis words without a motion mode "
                               "in force: program G0, G1, G2 or G3", "no-motion-mode")
+        if motion.startswith("cycle"):
+            return self._cycle(block, modal, unit, column)
         name = _WRITTEN[motion]
         if modal.plane != "xy":
             plane = {"xz": "G18", "yz": "G19"}[modal.plane]
@@ -741,6 +746,40 @@ class Interpreter:
                                                        or "R" in values):
             return items    # a Z-only block in an arc mode
         items.extend(self._arc(block, motion, start, target, feed, unit, number, column))
+        return items
+
+    def _cycle(self, block: _Block, modal: ModalState, unit: float,
+               column: int) -> list[Item]:
+        """A canned cycle (G73, G81–G89) on this machine: its holes' XY positions, reached
+        by rapids, L times (in G91 each repeat moves on by X, Y or the polar words); at each
+        hole the plunge is the tool on and off (``z = "tool"``) and G82, G86, G88, G89 dwell
+        P seconds. Its Z moves are not run: Z is ignored or the tool."""
+        values, name = block.values, "G" + modal.motion[7:]
+        if self.options.z == "error":
+            raise block.error(column, f"canned cycles ({name}) drill along Z: set "
+                              "controller.gcode.z = \"ignore\" or \"tool\" to run their "
+                              "moves between the holes", "unsupported")
+        if modal.plane != "xy":
+            raise block.error(column, "canned cycles run only in the XY plane (G17)", "plane")
+        repeats = _whole_number(block, "L", f"{name} L (repeats)", least=1) \
+            if "L" in values else 1
+        if "P" in values:                   # sticky, as LinuxCNC's cycle_p
+            self._cycle_p = _at_least_zero(block, "P", f"{name} P (dwell, s)")
+        dwell = self._cycle_p if name in ("G82", "G86", "G88", "G89") else None
+        items: list[Item] = []
+        for _ in range(repeats):
+            start = self._position
+            target, _ = self._target(block, modal, unit, False)
+            if target != start:
+                items.append(Move("rapid", start, target, None, line=block.line))
+            self._position = target
+            plunge = self.options.z == "tool" and not self._tool
+            if plunge:
+                items.append(Event("tool_on", None, block.line))
+            if dwell is not None:
+                items.append(Dwell(dwell, block.line))
+            if plunge:
+                items.append(Event("tool_off", None, block.line))
         return items
 
     def _arc(self, block: _Block, motion: str, start: tuple[float, float],

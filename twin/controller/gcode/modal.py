@@ -35,6 +35,9 @@ CODES: dict[tuple[str, float], Code] = {
     ("G", 2): Code("motion", "arc_cw"),            # G2  clockwise arc at F
     ("G", 3): Code("motion", "arc_ccw"),           # G3  counter-clockwise arc at F
     ("G", 80): Code("motion", None),               # G80 cancel motion mode (power-on)
+    # canned cycles: their moves between the holes (Z ignored, or the tool: see the reader)
+    **{("G", g): Code("motion", f"cycle_g{g}") for g in (73, 81, 82, 83, 84, 85, 86, 87,
+                                                          88, 89)},
     # -- G group 0, non-modal -------------------------------------------------------------
     ("G", 4): Code("non_modal", "dwell"),          # G4  dwell P seconds
     ("G", 10): Code("non_modal", "set_offsets"),   # G10 L2/L20 P: work offsets
@@ -130,8 +133,7 @@ CODES: dict[tuple[str, float], Code] = {
 }
 
 _REFUSED_G = {
-    **{(g,): "canned cycles (G73, G76, G81–G89) are not supported: they drill or bore "
-             "along Z" for g in (73, 76, 81, 82, 83, 84, 85, 86, 87, 88, 89)},
+    (76,): "the lathe threading cycle (G76) is not supported on an XY table",
     **{(g,): "probing (G38.x) is not supported: the twin has no probe input"
        for g in (38.2, 38.3, 38.4, 38.5)},
     (33,): "spindle-synchronised motion (G33) is not supported: no spindle encoder",
