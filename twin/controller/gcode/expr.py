@@ -23,6 +23,7 @@ compare within ``EQUAL_TOLERANCE`` (LinuxCNC's ``TOLERANCE_EQUAL``).
 from __future__ import annotations
 
 import math
+import re
 from collections.abc import Callable
 from typing import NamedTuple
 
@@ -109,17 +110,24 @@ _OPERATORS = (("**", 6), ("*", 5), ("/", 5), ("MOD", 5), ("+", 4), ("-", 4), ("E
               ("NE", 3), ("GT", 3), ("GE", 3), ("LT", 3), ("LE", 3), ("AND", 2),
               ("XOR", 2), ("OR", 2))
 _DIGITS = "0123456789"
+_BY_FIRST: dict[str, tuple[tuple[str, int], ...]] = {}
+for _spelling, _precedence in _OPERATORS:
+    _BY_FIRST[_spelling[0]] = (*_BY_FIRST.get(_spelling[0], ()), (_spelling, _precedence))
+_NUMBER = re.compile(r"[+-]?(?:[0-9]+(?:\.[0-9]*)?|\.[0-9]+)").match
+_NUMBER_START = frozenset("+-.0123456789")
+_NUMBER_BODY = frozenset(".0123456789")
 
 
 class _Reader:
     """One compacted line (blanks removed, upper case) and the columns of its characters."""
 
-    __slots__ = ("columns", "exists", "line", "lookup", "pos", "source", "text")
+    __slots__ = ("columns", "end", "exists", "line", "lookup", "pos", "source", "text")
 
-    def __init__(self, text: str, columns: list[int], line: int, source: str,
+    def __init__(self, text: str, columns: list[int] | None, line: int, source: str,
                  lookup: Lookup, exists: Exists):
-        self.text = text
-        self.columns = columns
+        self.text = text + "\0"            # a sentinel: no bounds checks while reading
+        self.end = len(text)
+        self.columns = columns              # None: no blanks were removed
         self.line = line
         self.source = source
         self.lookup = lookup
@@ -127,46 +135,39 @@ class _Reader:
         self.pos = 0
 
     def column(self, pos: int | None = None) -> int:
-        at = self.pos if pos is None else pos
-        return self.columns[min(at, len(self.columns) - 1)] if self.columns else 1
+        at = min(self.pos if pos is None else pos, max(self.end - 1, 0))
+        if self.columns is None:
+            return at + 1
+        return self.columns[at] if self.columns else 1
 
     def error(self, message: str, code: str = "syntax", pos: int | None = None) -> GCodeError:
         return GCodeError(self.line, self.column(pos), message, code=code, source=self.source)
 
     def peek(self) -> str:
-        return self.text[self.pos] if self.pos < len(self.text) else ""
+        return self.text[self.pos]
 
     # -- values -----------------------------------------------------------------------
     def number(self) -> float:
-        text, start = self.text, self.pos
-        pos = start
-        if pos < len(text) and text[pos] in "+-":
-            pos += 1
-        digits_at = pos
-        while pos < len(text) and text[pos] in _DIGITS:
-            pos += 1
-        if pos < len(text) and text[pos] == ".":
-            pos += 1
-            while pos < len(text) and text[pos] in _DIGITS:
-                pos += 1
-        body = text[digits_at:pos]
-        if body in ("", "."):
+        found = _NUMBER(self.text, self.pos)
+        if found is None:
             raise self.error("expected a number, a [expression], a #parameter or a function",
-                             "bad-number", start)
-        self.pos = pos
-        return float(text[start:pos])
+                             "bad-number")
+        self.pos = found.end()
+        return float(found.group())
 
     def value(self) -> float:
-        char = self.peek()
+        text, pos = self.text, self.pos
+        char = text[pos]
+        if char in _NUMBER_START:
+            if (char == "+" or char == "-") and text[pos + 1] not in _NUMBER_BODY:
+                self.pos = pos + 1
+                value = self.value()
+                return -value if char == "-" else value
+            return self.number()
         if char == "[":
             return self.expression()
         if char == "#":
             return self.parameter()
-        if char in "+-" and self.pos + 1 < len(self.text) \
-                and self.text[self.pos + 1] not in "0123456789.":
-            self.pos += 1
-            value = self.value()
-            return -value if char == "-" else value
         if "A" <= char <= "Z":
             return self.function()
         return self.number()
@@ -175,7 +176,7 @@ class _Reader:
         """After a ``#``: the number or ``<name>`` it refers to."""
         start = self.pos
         self.pos += 1  # the '#'
-        if self.pos >= len(self.text):
+        if self.pos >= self.end:
             raise self.error("'#' without a parameter number or <name>", pos=start)
         if self.peek() == "<":
             close = self.text.find(">", self.pos)
@@ -236,7 +237,7 @@ class _Reader:
 
     def operator(self) -> tuple[str, int] | None:
         text, pos = self.text, self.pos
-        for spelling, precedence in _OPERATORS:
+        for spelling, precedence in _BY_FIRST.get(text[pos], ()):
             if text.startswith(spelling, pos):
                 return spelling, precedence
         return None
@@ -256,7 +257,7 @@ class _Reader:
                 return values[0]
             found = self.operator()
             if found is None:
-                if self.pos >= len(self.text):
+                if self.pos >= self.end:
                     raise self.error("expression '[' is not closed on this line", pos=start)
                 raise self.error("expected an operator or ']'")
             spelling, precedence = found
@@ -338,7 +339,7 @@ class _Reader:
             if digits == self.pos:
                 raise self.error("O-word needs a number or a <name> as its label", pos=start)
             label = str(int(self.text[digits:self.pos]))
-        rest = self.text[self.pos:]
+        rest = self.text[self.pos:self.end]
         keyword = next((k for k in sorted(KEYWORDS, key=len, reverse=True)
                         if rest.startswith(k.upper())), None)
         if keyword is None:
@@ -349,7 +350,7 @@ class _Reader:
         arguments = []
         while self.peek() == "[":
             arguments.append(self.expression())
-        if self.pos < len(self.text):
+        if self.pos < self.end:
             raise self.error(f"unexpected text after 'O{label} {keyword}': nothing but a "
                              "comment may follow a control statement")
         fewest, most = _ARGUMENTS.get(keyword, (0, 0))
@@ -364,14 +365,14 @@ class _Reader:
     def statement(self) -> Statement:
         words: list[Word] = []
         assignments: list[Assignment] = []
-        text = self.text
+        text, end = self.text, self.end
         if self.peek() == "N":  # a block number may precede an O-word
             start = self.pos
             self.pos += 1
             words.append(("N", self.number(), self.column(start)))
         if self.peek() == "O":
             return Statement(words, [], self.oword())
-        while self.pos < len(text):
+        while self.pos < end:
             char = text[self.pos]
             start = self.pos
             if char == "#":
@@ -386,7 +387,7 @@ class _Reader:
                     raise self.error("an O-word must begin its line (after an N word)",
                                      pos=start)
                 self.pos += 1
-                if self.pos >= len(text):
+                if self.pos >= end:
                     raise self.error(f"{char} word without a value", "bad-number", start)
                 value = self.value()
                 if not -MAX_VALUE < value < MAX_VALUE:
@@ -428,11 +429,10 @@ def read_statement(code: str, line: int, source: str, lookup: Lookup,
     GCodeError
         At the first character or operation that is wrong, with its column.
     """
-    compact: list[str] = []
-    columns: list[int] = []
-    for index, char in enumerate(code):
-        if char != " " and char != "\t":
-            compact.append(char)
-            columns.append(index + 1)
-    reader = _Reader("".join(compact), columns, line, source, lookup, exists)
+    if " " in code or "\t" in code:
+        columns = [index + 1 for index, char in enumerate(code) if char != " " and char != "\t"]
+        compact = code.replace(" ", "").replace("\t", "")
+    else:
+        columns, compact = None, code
+    reader = _Reader(compact, columns, line, source, lookup, exists)
     return reader.statement()
