@@ -123,3 +123,99 @@ def test_random_blocks_are_all_or_nothing(program):
                 assert math.isfinite(item.length)
                 position = item.end
         assert interp.position == position
+
+
+# ---------------------------------------------------------------- the LinuxCNC language
+LANGUAGE_TOKENS = [
+    "#1", "#2", "#<a>", "#<_b>", "##1", "#[1+1]", "=", "[", "]", "+", "-", "*", "/", "**",
+    " MOD ", " EQ ", " NE ", " LT ", " GT ", " AND ", " OR ", " XOR ", "SIN[", "ATAN[1]/[",
+    "SQRT[", "LN[", "EXP[", "ROUND[", "FIX[", "EXISTS[#<a>]", "0", "1", "2", "-1", "0.5",
+    "360", "1000000", "X", "Y", "G1 ", "G0 ", "G2 ", "G91 ", "F100 ", "@", "^", "P", "R",
+    "\n", "\n", "\n", "o1 while ", "o1 endwhile", "o1 do", "o1 if ", "o1 else", "o1 endif",
+    "o2 repeat ", "o2 endrepeat", "o1 break", "o1 continue", "o<s> sub", "o<s> endsub",
+    "o<s> call ", "o<s> return ", "o<t> call", "(c)", ";", "%",
+]
+
+
+@settings(suppress_health_check=[HealthCheck.too_slow], max_examples=400, deadline=None)
+@given(st.lists(st.sampled_from(LANGUAGE_TOKENS), max_size=60))
+def test_language_soup_ends_in_items_or_a_placed_error_quickly(tokens):
+    """Random parameters, expressions and O-words: a placed GCodeError or items, never
+    another exception, and bounded loops and recursion end quickly."""
+    import time
+
+    from twin.controller.gcode import Limits, ReaderOptions
+
+    text = "".join(tokens)
+    options = ReaderOptions(limits=Limits(loop_iterations=200, call_depth=20))
+    t0 = time.perf_counter()
+    try:
+        items = parse(text, options=options)
+    except GCodeError as error:
+        lines = text.replace("\r\n", "\n").replace("\r", "\n").split("\n")
+        assert 1 <= error.line <= len(lines)
+        if error.file is None:
+            assert error.source == lines[error.line - 1]
+            assert 1 <= error.column <= max(len(error.source), 1)
+        assert error.code and error.message
+    else:
+        for move in items.moves:
+            assert all(math.isfinite(v) for v in (*move.start, *move.end))
+    assert time.perf_counter() - t0 < 10.0
+
+
+def _structured(rng, depth: int, labels: list[int], loops: list[str]) -> list[str]:
+    """Random well-nested control flow: loops that may or may not end, branches, breaks,
+    subroutine calls that may recurse."""
+    lines: list[str] = []
+    for _ in range(rng.randint(1, 4)):
+        kind = rng.choice(["set", "move", "if", "while", "do", "repeat", "call", "jump"])
+        if depth == 0 or kind in ("set", "move"):
+            lines.append(rng.choice(["#1 = [#1 + 1]", "#2 = [#2 * 2 MOD 7]",
+                                     "G1 X[#1 MOD 50] Y[#2]", "G0 X0 Y0"]))
+            continue
+        labels[0] += 1
+        o = f"o{labels[0]}"
+        condition = rng.choice(["[#1 LT 5]", "[1]", "[0]", "[#2 NE 3]"])
+        if kind == "if":
+            lines += [f"{o} if {condition}", *_structured(rng, depth - 1, labels, loops),
+                      f"{o} else", *_structured(rng, depth - 1, labels, loops), f"{o} endif"]
+        elif kind == "while":
+            body = _structured(rng, depth - 1, labels, [*loops, o])
+            lines += [f"{o} while {condition}", *body, f"{o} endwhile"]
+        elif kind == "do":
+            body = _structured(rng, depth - 1, labels, [*loops, o])
+            lines += [f"{o} do", *body, f"{o} while {condition}"]
+        elif kind == "repeat":
+            body = _structured(rng, depth - 1, labels, [*loops, o])
+            lines += [f"{o} repeat [{rng.randint(0, 4)}]", *body, f"{o} endrepeat"]
+        elif kind == "call":
+            lines.append(f"o<s> call [#1] [{rng.randint(0, 3)}]")
+        elif loops:
+            lines.append(f"{loops[-1]} {rng.choice(['break', 'continue'])}")
+    return lines
+
+
+@settings(suppress_health_check=[HealthCheck.too_slow], max_examples=300, deadline=None)
+@given(st.integers(0, 2**32 - 1))
+def test_random_control_flow_ends_in_items_or_a_bound_quickly(seed):
+    import random
+    import time
+
+    from twin.controller.gcode import Limits, ReaderOptions
+
+    rng = random.Random(seed)
+    labels = [0]
+    sub = ["o<s> sub", "o100 if [#2 GT 0]", "o<s> call [#1 + 1] [#2 - 1]", "o100 endif",
+           *_structured(rng, 2, labels, []), "o<s> return [#1]", "o<s> endsub"]
+    if rng.random() < 0.3:                       # recursion that never ends
+        sub[1:4] = ["o<s> call [#1] [#2]"]
+    text = "\n".join(["G21 G90 F500 G1", "#1 = 0", "#2 = 0", *sub,
+                      *_structured(rng, 3, labels, []), "M2"])
+    options = ReaderOptions(limits=Limits(loop_iterations=300, call_depth=30))
+    t0 = time.perf_counter()
+    try:
+        parse(text, options=options)
+    except GCodeError as error:
+        assert error.code in ("loop-limit", "call-depth", "out-of-range"), (error, text)
+    assert time.perf_counter() - t0 < 10.0
