@@ -9,6 +9,7 @@ into machine-coordinate moves in SI, the form of ``twin.controller.gcode.Move``.
 
 from __future__ import annotations
 
+import math
 import re
 import shutil
 import subprocess
@@ -23,19 +24,20 @@ PRINTED = 0.5e-4
 """rs274 prints 4 decimals: a coordinate is known to half a unit of the 4th (program units)."""
 
 _READ = {"USE_LENGTH_UNITS", "SET_FEED_RATE", "SET_G5X_OFFSET", "SET_G92_OFFSET",
-         "STRAIGHT_TRAVERSE", "STRAIGHT_FEED", "ARC_FEED"}
+         "STRAIGHT_TRAVERSE", "STRAIGHT_FEED", "ARC_FEED", "NURBS_FEED"}
 _CALL = re.compile(r"^\s*\d+\s+N\S*\s+([A-Z_0-9]+)\((.*)\)\s*$")
 
 
 @dataclass
 class CanonMove:
-    kind: str                       # "rapid", "line", "arc"
+    kind: str                       # "rapid", "line", "arc", "spline" (end unknown)
     end: tuple[float, float]        # machine coordinates (m)
     feed: float | None              # m/s
     center: tuple[float, float] | None = None
     ccw: bool = False
     turns: int = 0
     unit: float = MM                # the program unit the numbers were printed in
+    unsure: bool = False            # after a spline: may be a Z-only move (XY unknown)
 
 
 @dataclass
@@ -72,6 +74,10 @@ def run_rs274(path: Path) -> Reference:
         if name not in _READ:
             continue
         values = _numbers(args)
+        if name == "NURBS_FEED":              # G5/G5.1: rs274 prints no end point
+            moves.append(CanonMove("spline", (math.nan, math.nan), feed, unit=unit))
+            position = (math.nan, math.nan)
+            continue
         if name in ("STRAIGHT_TRAVERSE", "STRAIGHT_FEED", "ARC_FEED"):
             rest = values[3:] if name != "ARC_FEED" else values[6:]
             other = other or any(value != 0.0 for value in rest)
@@ -96,7 +102,7 @@ def run_rs274(path: Path) -> Reference:
                     continue                       # a Z-only move: no XY motion
                 moves.append(CanonMove("rapid" if name == "STRAIGHT_TRAVERSE" else "line",
                                        end, None if name == "STRAIGHT_TRAVERSE" else feed,
-                                       unit=unit))
+                                       unit=unit, unsure=math.isnan(position[0])))
             position = end
     error = block = None
     if done.returncode != 0:

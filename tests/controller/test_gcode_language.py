@@ -406,3 +406,45 @@ def test_canned_cycles_run_their_holes_and_plunge_the_tool():
         (10, 10), (20, 10), (25, 10), (30, 10), (35, 10)]
     with pytest.raises(GCodeError, match="canned cycles"):
         parse("G21 G90 F100\nG82 X10 Y10 R2 P0.5")   # z = "error": they drill along Z
+
+
+# ------------------------------------------------------------------------ G5, G5.1
+def _within_chords(curve: np.ndarray, moves: list) -> float:
+    """Largest distance of the curve's points from the chord polyline (m)."""
+    a = np.array([m.start for m in moves])
+    b = np.array([m.end for m in moves])
+    ab = b - a
+    worst = 0.0
+    for p in curve:
+        t = np.clip(np.einsum("ij,ij->i", p - a, ab) / np.einsum("ij,ij->i", ab, ab), 0, 1)
+        worst = max(worst, float(np.min(np.linalg.norm(p - (a + t[:, None] * ab), axis=1))))
+    return worst
+
+
+def test_g5_and_g5_1_run_as_chords_within_the_tolerance_of_the_curve():
+    from twin.controller.gcode.splines import SPLINE_TOLERANCE
+
+    text = "G21 G90 G1 F600 X0 Y0\nG5 I0 J30 P0 Q-30 X10 Y10\nG5 P0 Q-30 X20 Y20\n" \
+           "G5.1 X40 Y0 I10 J-25\nM2"
+    moves = [m for m in parse(text) if isinstance(m, Move)]
+    t = np.linspace(0.0, 1.0, 2001)[:, None]
+
+    def bezier(p0, p1, p2, p3):
+        p0, p1, p2, p3 = (np.array(p) * MM for p in (p0, p1, p2, p3))
+        return ((1 - t) ** 3 * p0 + 3 * (1 - t) ** 2 * t * p1 + 3 * (1 - t) * t ** 2 * p2
+                + t ** 3 * p3)
+
+    first = bezier((0, 0), (0, 30), (10, -20), (10, 10))
+    second = bezier((10, 10), (10, 40), (20, -10), (20, 20))   # I, J mirror the last P, Q
+    third = (1 - t) ** 2 * np.array([20, 20]) * MM + 2 * (1 - t) * t * np.array([30, -5]) \
+        * MM + t ** 2 * np.array([40, 0]) * MM                 # the quadratic itself
+    for curve, line in ((first, 2), (second, 3), (third, 4)):
+        chords = [m for m in moves if m.line == line]
+        assert len(chords) > 10
+        assert chords[-1].end == pytest.approx(tuple(curve[-1]), abs=1e-15)
+        assert _within_chords(curve, chords) <= SPLINE_TOLERANCE * (1 + 1e-9)
+        assert all(m.kind == "line" and m.feed == pytest.approx(0.01) for m in chords)
+    with pytest.raises(GCodeError, match="needs I and J unless it follows a G5"):
+        parse("G21 G1 F1 X1\nG5 P0 Q1 X2 Y2")
+    with pytest.raises(GCodeError, match=r"G5\.1 needs I and J"):
+        parse("G21 G1 F1\nG5.1 X2 Y2 I1")

@@ -18,12 +18,13 @@ The language of LinuxCNC 2.9's RS-274/NGC interpreter, for a machine with X and 
   G80, G90/G91, G90.1/G91.1, G92/G92.1/G92.2/G92.3, G94 (G93 and G95 are refused), G98/G99;
   F, N, S, T; M0/M1/M60 (``pause`` events: the twin runs on), M2/M30, M3/M4/M5, M6,
   M7/M8/M9, M48/M49.
+* G5/G5.1 splines, run as chords within 1 µm (``splines``).
 * Parameters (``#1``, ``#<name>``, ``#<_global>``), expressions and functions, and O-word
   control flow with subroutines (``expr``, ``flow``).
 * Z: ``ReaderOptions.z`` decides: refused (default), ignored, or the tool (pen, laser).
 * Canned cycles (G73, G81–G89) with Z ignored or the tool: their moves between the holes.
 * What LinuxCNC has and an XY table cannot run is refused naming the feature: probing,
-  cutter compensation, lathe modes and cycles, spindle synchronisation, splines, modal-state
+  cutter compensation, lathe modes and cycles, spindle synchronisation, NURBS, modal-state
   save, other axes.
 
 Decisions

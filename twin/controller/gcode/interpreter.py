@@ -16,6 +16,7 @@ Units are converted to SI here: lengths by 1 mm or 1 inch, F by unit/min, S by r
 
 from __future__ import annotations
 
+import itertools
 import math
 import re
 from dataclasses import dataclass, field, replace
@@ -38,6 +39,7 @@ from twin.controller.gcode.items import (
 )
 from twin.controller.gcode.lexer import MAX_VALUE, Word, lex
 from twin.controller.gcode.modal import CODES, GROUP_NAMES, Code, ModalState, code_name
+from twin.controller.gcode.splines import SPLINE_TOLERANCE, bezier_chords
 from twin.errors import ConfigError, GCodeError
 from twin.units import INCH, MM, RPM
 
@@ -85,7 +87,8 @@ ORDER = (
 
 _VALUE_LETTERS = frozenset("DFHIJLNPQRSTXYZ@^")
 _OTHER_AXES = frozenset("ABCUVW")
-_WRITTEN = {"rapid": "G0", "line": "G1", "arc_cw": "G2", "arc_ccw": "G3"}
+_WRITTEN = {"rapid": "G0", "line": "G1", "arc_cw": "G2", "arc_ccw": "G3", "cubic": "G5",
+            "quadratic": "G5.1"}
 _SPINDLE = {"cw": "spindle_cw", "ccw": "spindle_ccw", "stop": "spindle_stop"}
 _COOLANT = {"mist": "coolant_mist", "flood": "coolant_flood", "off": "coolant_off"}
 _Z_MODES = ("error", "ignore", "tool")
@@ -272,6 +275,7 @@ class Interpreter:
         self._tool = False
         self._spindle_known = False
         self._cycle_p: float | None = None     # a dwell cycle's P, kept from block to block
+        self._last_control: tuple[float, float] | None = None   # a G5's second control point
         self.blocks = 0
         """Blocks run so far (lines with at least one word)."""
         self.ended = False
@@ -366,12 +370,13 @@ class Interpreter:
         block = _read(words, line, source, file, self.options.z)
         saved = (self._modal, self._position, self._z, dict(self._offsets), self._g92,
                  self._g92_on, dict(self._homes), self._tool, self._spindle_known,
-                 self._cycle_p)
+                 self._cycle_p, self._last_control)
         try:
             items = self._run(block)
         except BaseException:
             (self._modal, self._position, self._z, self._offsets, self._g92, self._g92_on,
-             self._homes, self._tool, self._spindle_known, self._cycle_p) = saved
+             self._homes, self._tool, self._spindle_known, self._cycle_p,
+             self._last_control) = saved
             raise
         self.blocks += 1
         self.ended = self.ended or "stopping" in block.codes
@@ -493,6 +498,8 @@ class Interpreter:
                                       "(turns): put them in two blocks", "ambiguous-word")
             elif modal.motion is not None and modal.motion.startswith("cycle"):
                 claimed.update("RQLPK")
+            elif modal.motion == "cubic" or modal.motion == "quadratic":
+                claimed.update("IJPQ")
             items.extend(self._motion(block, modal, unit, number, non_modal == "machine"))
         for letter in values:
             if letter not in claimed:
@@ -714,6 +721,9 @@ class Interpreter:
                               "in force: program G0, G1, G2 or G3", "no-motion-mode")
         if motion.startswith("cycle"):
             return self._cycle(block, modal, unit, column)
+        if motion == "cubic" or motion == "quadratic":
+            return self._spline(block, modal, unit, number, column)
+        self._last_control = None
         name = _WRITTEN[motion]
         if modal.plane != "xy":
             plane = {"xz": "G18", "yz": "G19"}[modal.plane]
@@ -747,6 +757,59 @@ class Interpreter:
             return items    # a Z-only block in an arc mode
         items.extend(self._arc(block, motion, start, target, feed, unit, number, column))
         return items
+
+    def _spline(self, block: _Block, modal: ModalState, unit: float, number: int | None,
+                column: int) -> list[Item]:
+        """G5 (cubic Bézier: I, J from the start to the first control point, P, Q from the
+        end to the second; after a G5, I and J may be left out and the first control point
+        mirrors the last one) or G5.1 (quadratic: I, J from the start to the control
+        point), run as feed lines within ``SPLINE_TOLERANCE`` of the curve."""
+        values, name = block.values, _WRITTEN[modal.motion]
+        if modal.plane != "xy":
+            raise block.error(column, f"{name} runs only in the XY plane (G17)", "plane")
+        feed = modal.feed
+        if not feed:
+            raise block.error(column, f"{name} needs a feed: no F word programmed yet"
+                              if feed is None else f"{name} with zero feed (F0)",
+                              "missing-feed" if feed is None else "zero-feed")
+        start = self._position
+        target, _ = self._target(block, modal, unit, False)
+        if modal.motion == "quadratic":
+            if "I" not in values or "J" not in values:
+                raise block.error(column, "G5.1 needs I and J (the control point, from the "
+                                  "start)", "missing-word")
+            control = (start[0] + values["I"][0] * unit, start[1] + values["J"][0] * unit)
+            # the quadratic as a cubic: control points 2/3 of the way to the quadratic's
+            points = (start, (start[0] + 2.0 / 3.0 * (control[0] - start[0]),
+                              start[1] + 2.0 / 3.0 * (control[1] - start[1])),
+                      (target[0] + 2.0 / 3.0 * (control[0] - target[0]),
+                       target[1] + 2.0 / 3.0 * (control[1] - target[1])), target)
+            self._last_control = None
+        else:
+            if "P" not in values or "Q" not in values:
+                raise block.error(column, "G5 needs P and Q (the second control point, from "
+                                  "the end)", "missing-word")
+            if "I" in values and "J" in values:
+                first = (start[0] + values["I"][0] * unit, start[1] + values["J"][0] * unit)
+            elif "I" in values or "J" in values:
+                raise block.error(block.column("I", "J"), "G5 needs both I and J, or neither "
+                                  "after a G5", "missing-word")
+            elif self._last_control is not None:
+                first = (2.0 * start[0] - self._last_control[0],
+                         2.0 * start[1] - self._last_control[1])
+            else:
+                raise block.error(column, "G5 needs I and J unless it follows a G5",
+                                  "missing-word")
+            second = (target[0] + values["P"][0] * unit, target[1] + values["Q"][0] * unit)
+            points = (start, first, second, target)
+            self._last_control = second
+        self._position = target
+        ends = bezier_chords(points, SPLINE_TOLERANCE)
+        moves: list[Item] = []
+        for a, b in itertools.pairwise([start, *ends]):
+            if a != b:
+                moves.append(Move("line", a, b, feed, line=block.line, block_number=number))
+        return moves
 
     def _cycle(self, block: _Block, modal: ModalState, unit: float,
                column: int) -> list[Item]:

@@ -34,6 +34,8 @@ CODES: dict[tuple[str, float], Code] = {
     ("G", 1): Code("motion", "line"),              # G1  straight line at F
     ("G", 2): Code("motion", "arc_cw"),            # G2  clockwise arc at F
     ("G", 3): Code("motion", "arc_ccw"),           # G3  counter-clockwise arc at F
+    ("G", 5): Code("motion", "cubic"),             # G5  cubic spline (Bézier) at F
+    ("G", 5.1): Code("motion", "quadratic"),       # G5.1 quadratic spline at F
     ("G", 80): Code("motion", None),               # G80 cancel motion mode (power-on)
     # canned cycles: their moves between the holes (Z ignored, or the tool: see the reader)
     **{("G", g): Code("motion", f"cycle_g{g}") for g in (73, 81, 82, 83, 84, 85, 86, 87,
@@ -143,9 +145,7 @@ _REFUSED_G = {
     (7,): "lathe diameter mode (G7) is not supported on an XY table",
     (8,): "lathe radius mode (G8) is not supported on an XY table",
     (96,): "constant surface speed (G96) is not supported: no spindle control",
-    (5,): "cubic splines (G5) are not supported in programs; the planner makes its own",
-    (5.1,): "quadratic splines (G5.1) are not supported",
-    (5.2,): "NURBS (G5.2) are not supported",
+    (5.2,): "NURBS (G5.2) are not supported: program G5 or G5.1 splines",
     (2.5,): "arcs in another plane are not supported",
     (17.1,): "the UV planes (G17.1–G19.1) are not supported",
     (18.1,): "the UV planes (G17.1–G19.1) are not supported",
