@@ -47,10 +47,10 @@ def _rate(args: argparse.Namespace, period: float, out: str) -> dict:
     server_args = ["--machine", args.machine, "--rt-priority", "0" if args.no_rt else "10"]
     if args.no_sync:
         server_args.append("--no-sync")
-    server_args += ["--output-window-ms", str(args.output_window_ms)]
+    server_args += ["--output-window-ms", str(args.output_window_ms), "--map", args.map]
     with spawn_hil_server(*server_args) as server:
         hil_spec = RunSpec(machine=args.machine, builtin=args.program, period=period,
-                           driver=server.url)
+                           driver=f"{server.url}?map={args.map}")
         p = prepare(hil_spec)
         requests0 = p.driver.requests
         with fifo_priority(0 if args.no_rt else 10) as client_rt:
@@ -83,6 +83,8 @@ def main() -> None:
     parser.add_argument("--rates", default="200,1000", help="controller rates (Hz)")
     parser.add_argument("--rerun", default="file", help="telemetry of the HIL run: file "
                         "(as twin run) or none")
+    parser.add_argument("--map", default="default", help="register map: default (three "
+                        "requests per tick), packed (two) or a TOML file")
     parser.add_argument("--no-rt", action="store_true", help="normal scheduling")
     parser.add_argument("--no-sync", action="store_true", help="free-running server grid")
     parser.add_argument("--output-window-ms", type=float, default=2.0, help="the server's "
@@ -98,6 +100,7 @@ def main() -> None:
         "program": args.program,
         "phase_lock": not args.no_sync,
         "output_window_ms": args.output_window_ms,
+        "register_map": args.map,
         "cpus": os.cpu_count(),
         "load_average_before": load,
         "load_average_after": os.getloadavg(),

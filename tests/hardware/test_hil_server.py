@@ -271,3 +271,49 @@ def test_the_module_survives_bad_clients_and_serves_its_owner():
             assert hr[0] == 3277 and owner.read_coils(0, count=1, device_id=UNIT).bits[0]
         stats = server.stop()
     assert stats["fault"] is None and stats["refused"] == 4 and stats["watchdog_trips"] == 0
+
+
+def test_the_packed_map_status_and_control_registers_follow_the_coil_rules():
+    """``--map packed``: input register 6 mirrors the discrete inputs bit for bit; holding
+    register 3 is the enable, written with the references, under the coil's rules (refused
+    before the watchdog is fed, dropped while a trip is latched, 0 acknowledges)."""
+    with hil_server("--map", "packed", "--from", "50", "20", watchdog_ms=100.0) as server, \
+            client(server.info["port"]) as c:
+        ir = c.read_input_registers(0, count=7, device_id=UNIT).registers
+        di = c.read_discrete_inputs(0, count=9, device_id=UNIT).bits[:9]
+        assert [bool(ir[6] >> n & 1) for n in range(9)] == di
+        assert ir[6] == 1 << 6 | 1 << 7                  # both drives ready, nothing else
+        early = c.write_registers(3, [1], device_id=UNIT)
+        assert early.isError() and early.exception_code == 4     # not fed yet
+        assert not c.write_registers(0, [3277, 0, 1, 1], device_id=UNIT).isError()
+        assert c.read_coils(0, count=1, device_id=UNIT).bits[0] is True   # the same enable
+        assert c.read_holding_registers(3, count=1, device_id=UNIT).registers == [1]
+        time.sleep(0.3)                                   # no feed: the watchdog trips
+        hr = c.read_holding_registers(0, count=4, device_id=UNIT).registers
+        ir = c.read_input_registers(0, count=7, device_id=UNIT).registers
+        assert hr[0] == 0 and hr[3] == 0 and ir[6] >> 8 & 1
+        c.write_registers(0, [3277, 0, 2, 1], device_id=UNIT)   # dropped while latched
+        assert c.read_holding_registers(0, count=4, device_id=UNIT).registers[3] == 0
+        c.write_registers(0, [0, 0, 3, 0], device_id=UNIT)      # acknowledge
+        assert not c.read_input_registers(6, count=1, device_id=UNIT).registers[0] >> 8 & 1
+        stats = server.stop()
+    assert stats["watchdog_trips"] == 1
+
+
+def test_a_program_through_the_packed_map_is_two_requests_per_tick(tmp_path):
+    ref = run(RunSpec(builtin="corner"), out_dir=tmp_path, run_id="lockstep")
+    with hil_server("--map", "packed") as server, fifo_priority():
+        spec = RunSpec(builtin="corner", driver=f"{server.url}?map=packed")
+        p = prepare(spec)
+        before = p.driver.requests
+        hil = run(spec, out_dir=tmp_path, run_id="packed", prepared=p)
+        module = server.stop()
+    s, r = hil.summary, ref.summary
+    assert s["status"] == "FINISHED" and s["aborted"] is None, s.get("aborted")
+    for key in ("max_contour_error_um", "rms_contour_error_um"):
+        assert s[key] == pytest.approx(r[key], rel=0.10), (key, s["ticks"], module)
+    ran = s["ticks"]["due"] - s["ticks"]["skipped"]
+    per_tick = (p.driver.requests - before) / ran
+    print(f"\npacked map: {per_tick:.4f} requests per tick over {ran} ticks, "
+          f"ticks {s['ticks']}")
+    assert 2.0 <= per_tick <= 2.0 + 4 / ran          # a read and a write; the close's write

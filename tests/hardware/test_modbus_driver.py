@@ -36,9 +36,9 @@ class FakeModule:
     "bad_echo" (for writes); once a connection was closed by a fault, the next one behaves.
     """
 
-    def __init__(self, fault: tuple[int, int, str] | None = None):
-        self.ir = {a: 0 for a in range(6)}
-        self.hr = {a: 0 for a in range(3)}
+    def __init__(self, fault: tuple[int, int, str] | None = None, *, registers=(6, 3)):
+        self.ir = {a: 0 for a in range(registers[0])}
+        self.hr = {a: 0 for a in range(registers[1])}
         self.di = {a: False for a in range(9)}
         self.coils = {0: False}
         self.log: list[tuple[int, int, object]] = []
@@ -413,6 +413,36 @@ def test_a_process_held_after_an_answer_does_not_make_an_honest_step_implausible
         module.ir[1] = 1200 + 400                # 400 counts in well under a millisecond
         with pytest.raises(DriverError, match="axis x: implausible counter step of 400"):
             drv.read()
+        drv.close()
+    finally:
+        module.close()
+
+
+def test_the_packed_map_is_two_requests_per_tick():
+    """``?map=packed``: the switches come in the status register with the counters, the
+    enable goes in the control register with the references: one read, one write."""
+    from twin.hardware.register_map import load_register_map
+
+    module = FakeModule(registers=(7, 4))
+    try:
+        drv = ModbusDriver("127.0.0.1", module.port, register_map=load_register_map("packed"))
+        assert module.log == [(16, 0, [0, 0, 1, 0])]        # the safe state, no coil
+        module.ir.update({0: 0x0001, 1: 0x0002, 2: 0xFFFF, 3: 0xFFFE, 4: 0x8001, 5: 16384,
+                          6: 1 << 0 | 1 << 5 | 1 << 6 | 1 << 7})
+        before, logged = drv.requests, len(module.log)
+        inputs = drv.read()
+        drv.write(Outputs(dac_volts=np.array([1.0, -2.0]), enable=True))
+        assert drv.requests - before == 2
+        assert module.log[logged:] == [
+            (4, 0, 7), (16, 0, [volts_to_word(1.0, 10.0), volts_to_word(-2.0, 10.0), 2, 1])]
+        np.testing.assert_array_equal(inputs.encoder_counts, [0x00010002, 0xFFFFFFFE])
+        np.testing.assert_array_equal(inputs.limit_min, [True, False])
+        np.testing.assert_array_equal(inputs.home, [False, True])
+        assert inputs.drive_ready
+        module.ir[6] |= 1 << 8                      # the module's watchdog tripped
+        assert not drv.read().drive_ready
+        drv.write(Outputs(dac_volts=np.zeros(2), enable=False))
+        assert module.log[-1] == (16, 0, [0, 0, 3, 0])
         drv.close()
     finally:
         module.close()

@@ -188,6 +188,8 @@ class HilModule:
                                                     m.word_order)
         self._dac_addr = [register_map.axes[a].dac for a in AXES]
         self._hr = {addr: 0 for addr in (*self._dac_addr, m.watchdog)}
+        if m.control is not None:
+            self._hr[m.control] = 0
         self._u = np.zeros(2)
         self._zero = np.zeros(2)
         self.enabled = False
@@ -298,6 +300,8 @@ class HilModule:
     def _set_enable(self, flag: bool) -> None:
         self.enabled = flag
         self.plant.enable(flag)
+        if self.map.module.control is not None:   # the control register mirrors the enable
+            self._hr[self.map.module.control] = int(flag)
 
     # ------------------------------------------------------------------ process image
     def input_registers(self) -> dict[int, int]:
@@ -310,6 +314,9 @@ class HilModule:
                 int(r.encoder_counts[k]), self._order)
             if ax.tacho is not None:
                 words[ax.tacho] = volts_to_word(float(r.tacho_volts[k]), self._fs_tacho)
+        if self.map.module.status is not None:
+            words[self.map.module.status] = sum(
+                1 << address for address, on in self.discrete_inputs().items() if on)
         return words
 
     def discrete_inputs(self) -> dict[int, bool]:
@@ -336,18 +343,34 @@ class HilModule:
         return self._last_reading
 
     def holding_registers(self) -> dict[int, int]:
-        """DAC references and the watchdog register: {address: register value}."""
+        """DAC references, the watchdog and the control register: {address: value}."""
         return dict(self._hr)
 
     def coils(self) -> dict[int, bool]:
         """The enable coil: {address: state}."""
         return {self.map.module.enable: self.enabled}
 
+
+
     def write_holding(self, address: int, word: int) -> int:
         """Write one holding register (a DAC reference or the watchdog); returns the value
         the register holds afterwards (a DAC write is dropped while a trip is latched).
         Raises ``Refused``: another client owns the outputs, or a non-zero reference
         before anybody fed the watchdog."""
+        if address == self.map.module.control:
+            self._claim("enable")
+            flag = bool(word & 1)
+            if flag and self.owner is _NOBODY:
+                self.refused += 1
+                raise Refused(ExcCodes.DEVICE_FAILURE, "enable before the watchdog was fed: "
+                              "the drives stay off")
+            if flag and self.tripped:       # dropped while a trip is latched
+                self._hr[address] = 0
+                return 0
+            if not flag:
+                self.tripped = False
+            self._set_enable(flag)
+            return self._hr[address]
         if address == self.map.module.watchdog:
             self._claim("watchdog")
             if word != self._hr[address]:

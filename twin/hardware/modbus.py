@@ -5,7 +5,9 @@ speed references through an I/O module; this driver talks to such a module (or t
 standing in for one, ``twin hil-server``) with the pymodbus client. Which signal lives where
 is the register map (``twin.hardware.register_map``).
 
-One tick is as few requests as the map allows — with the default map three:
+One tick is as few requests as the map allows — with the default map three, with the
+``packed`` map (``?map=packed``: the switches in a status register, the enable in a control
+register beside the references) two:
 
 * ``read``: one ``read_input_registers`` (counters + tachos), one ``read_discrete_inputs``
   (switches, drive ready, watchdog trip);
@@ -175,6 +177,9 @@ class ModbusDriver:
                            f" {len(words)} registers")
             ir.update(zip(range(start, start + count), words, strict=True))
         di: dict[int, bool] = {}
+        if self.map.module.status is not None:      # the switches packed in one register
+            word = ir[self.map.module.status]
+            di = {a: bool(word >> a & 1) for a in self._di_bits}
         for start, count in self._di_spans:
             resp = self._request(f"read_discrete_inputs({start}, count={count})",
                                  _FC_READ_DISCRETE, self._client.read_discrete_inputs,
@@ -251,9 +256,12 @@ class ModbusDriver:
         """Requests of one tick, from the map (computed once)."""
         rmap = self.map
         self._ir_spans = rmap.input_spans()
-        self._di_spans = rmap.discrete_spans()
+        packed = rmap.module.status is not None
+        self._di_spans = [] if packed else rmap.discrete_spans()
+        self._di_bits = [address for _, address, _ in rmap.signals()[2]]
         slots = {f"axes.{a}.dac": k for k, a in enumerate(AXES)}
         slots["module.watchdog"] = 2
+        slots["module.control"] = 3
         self._hr_runs = [(start, [slots[n] for n in names])
                          for start, names in rmap.holding_runs()]
 
@@ -269,8 +277,9 @@ class ModbusDriver:
         fs = self.map.module.dac_full_scale
         self._life = (self._life + 1) & 0xFFFF
         values = (volts_to_word(float(dac_volts[0]), fs),
-                  volts_to_word(float(dac_volts[1]), fs), self._life)
-        change = enable != self._enable
+                  volts_to_word(float(dac_volts[1]), fs), self._life, int(enable))
+        control = self.map.module.control is not None   # the enable rides with the words
+        change = enable != self._enable and not control
         if change and not enable:
             self._write_enable(False)
         for start, slots in self._hr_runs:
@@ -283,6 +292,8 @@ class ModbusDriver:
                            f"count {resp.count}")
         if change and enable:
             self._write_enable(True)
+        if control:
+            self._enable = enable
 
     def _write_enable(self, flag: bool) -> None:
         coil = self.map.module.enable

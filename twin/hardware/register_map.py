@@ -36,6 +36,7 @@ from twin.errors import ConfigError
 __all__ = [
     "DEFAULT_MAP",
     "INT16_FULL",
+    "MAPS",
     "MAX_READ_BITS",
     "MAX_READ_REGISTERS",
     "MAX_WRITE_REGISTERS",
@@ -129,6 +130,13 @@ class ModuleSettings:
     watchdog_tripped : int or None
         Discrete input: the module's watchdog zeroed the outputs (latched); None: not
         reported.
+    status : int or None
+        Input register that packs every discrete input as a bit (bit n = discrete input n,
+        so those addresses must be 0 … 15): the driver reads the switches with the counters
+        in one request. None: they are read from the discrete inputs.
+    control : int or None
+        Holding register whose bit 0 is the drive enable (the coil's twin): the driver
+        writes it with the references and the watchdog in one request. None: the coil.
     """
 
     enable: int
@@ -138,9 +146,11 @@ class ModuleSettings:
     dac_full_scale: float = 10.0
     tacho_full_scale: float = 10.24
     watchdog_tripped: int | None = None
+    status: int | None = None
+    control: int | None = None
 
     def __post_init__(self) -> None:
-        for name in ("enable", "watchdog", "watchdog_tripped"):
+        for name in ("enable", "watchdog", "watchdog_tripped", "status", "control"):
             _check_address(getattr(self, name), name)
         if not 0 <= self.device_id <= 247:
             raise ConfigError("device_id", f"must be 0 … 247, got {self.device_id}")
@@ -186,6 +196,12 @@ class RegisterMap:
                         raise ConfigError(name, f"{table[:-1]} {a} is already used by "
                                           f"{owner[a]}")
                     owner[a] = name
+        if self.module.status is not None:
+            for name, address, _ in self.signals()[2]:
+                if address > 15:
+                    raise ConfigError(name, f"discrete input {address} cannot be a bit of "
+                                      "the status register (module.status packs inputs "
+                                      "0 … 15)")
 
     def signals(self) -> tuple[list[tuple[str, int, int]], ...]:
         """Mapped signals per table (input registers, holding registers, discrete inputs,
@@ -204,6 +220,10 @@ class RegisterMap:
                    if getattr(ax, n) is not None]
         m = self.module
         hr.append(("module.watchdog", m.watchdog, 1))
+        if m.status is not None:
+            ir.append(("module.status", m.status, 1))
+        if m.control is not None:
+            hr.append(("module.control", m.control, 1))
         if m.watchdog_tripped is not None:
             di.append(("module.watchdog_tripped", m.watchdog_tripped, 1))
         return ir, hr, di, [("module.enable", m.enable, 1)]
@@ -237,6 +257,7 @@ class RegisterMap:
                "dac": f"int16, ±{INT16_FULL} = ±{m.dac_full_scale:g} V",
                "watchdog": "uint16, a new value every tick",
                "enable": "1 = drives enabled", "watchdog_tripped": "1 = outputs zeroed",
+               "status": "bit n = discrete input n", "control": "bit 0 = drive enable",
                "drive_ready": "1 = no drive fault"}
         rows = []
         for table, entries in zip(_TABLES, self.signals(), strict=True):
@@ -269,8 +290,14 @@ def register_map_from_dict(doc: dict[str, Any], *, source: str = "<dict>") -> Re
     return RegisterMap(rmap.module, rmap.axes, source)
 
 
+MAPS = {"default": DEFAULT_MAP, "packed": DEFAULT_MAP.with_name("register_map_packed.toml")}
+"""The shipped maps by name: ``default`` (three requests per tick) and ``packed`` (two:
+the switches in a status register, the enable in a control register)."""
+
+
 def load_register_map(path: str | Path | None = None) -> RegisterMap:
-    """Load and validate a register map TOML file (default: the documented default map).
+    """Load and validate a register map TOML file, or a shipped map by name (``MAPS``;
+    default: the documented default map).
 
     Raises
     ------
@@ -278,7 +305,7 @@ def load_register_map(path: str | Path | None = None) -> RegisterMap:
         If the file is missing or not TOML (field ``register_map``), or a field is missing,
         of the wrong type, out of range or overlapping another signal (its dotted name).
     """
-    p = DEFAULT_MAP if path is None else Path(path)
+    p = DEFAULT_MAP if path is None else MAPS.get(str(path), Path(path))
     if not p.is_file():
         raise ConfigError("register_map", f"no such file: {str(p)!r}")
     return register_map_from_dict(read_toml(p, "register_map"), source=str(p))
