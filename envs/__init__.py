@@ -1,29 +1,37 @@
 """Gymnasium environments for tuning xy-twin machines.
 
-Importing ``envs`` registers the versioned ids:
+Importing ``envs`` registers the versioned ids, in the ``xy_twin`` namespace:
 
-* ``XYTable-GainTuning-v0`` (``envs.gain_tuning.GainTuningEnv``): one step is one test run
+* ``xy_twin/GainTuning-v0`` (``envs.gain_tuning.GainTuningEnv``): one step is one test run
   with the gains the action sets; 5 runs per episode.
-* ``XYTable-Servo-v0`` (``envs.servo.ServoEnv``): one step is one control period; the
+* ``xy_twin/Servo-v0`` (``envs.servo.ServoEnv``): one step is one control period; the
   action is a residual correction added to the position regulator's output.
 
-Use ``gymnasium.make("XYTable-GainTuning-v0", randomize=True)`` etc.; the constructor
-keywords are documented in each class docstring.
+Without importing anything first, name the module in the id, as gymnasium allows::
+
+    env = gymnasium.make("envs:xy_twin/GainTuning-v0", randomize=True,
+                         render_mode="rgb_array")
+
+(gymnasium 1.x has no entry-point plugins, so this is how an id registers itself on
+demand). The constructor keywords are documented in each class docstring. The earlier
+ids ``XYTable-GainTuning-v0`` and ``XYTable-Servo-v0`` stay registered as aliases.
 """
 
 from gymnasium.envs.registration import register, registry
 
 __all__ = ["GAIN_TUNING_ID", "SERVO_ID"]
 
-GAIN_TUNING_ID = "XYTable-GainTuning-v0"
-SERVO_ID = "XYTable-Servo-v0"
+GAIN_TUNING_ID = "xy_twin/GainTuning-v0"
+SERVO_ID = "xy_twin/Servo-v0"
 GAIN_TUNING_RUNS = 5
 """Tuning runs per episode of the registered gain-tuning id."""
 
-if GAIN_TUNING_ID not in registry:
-    register(id=GAIN_TUNING_ID, entry_point="envs.gain_tuning:GainTuningEnv",
-             max_episode_steps=GAIN_TUNING_RUNS)
-if SERVO_ID not in registry:
-    register(id=SERVO_ID, entry_point="envs.servo:ServoEnv", max_episode_steps=20_000)
+for _id, _entry, _steps in (
+        (GAIN_TUNING_ID, "envs.gain_tuning:GainTuningEnv", GAIN_TUNING_RUNS),
+        ("XYTable-GainTuning-v0", "envs.gain_tuning:GainTuningEnv", GAIN_TUNING_RUNS),
+        (SERVO_ID, "envs.servo:ServoEnv", 20_000),
+        ("XYTable-Servo-v0", "envs.servo:ServoEnv", 20_000)):
+    if _id not in registry:
+        register(id=_id, entry_point=_entry, max_episode_steps=_steps)
 
 __all__ += ["GAIN_TUNING_RUNS"]

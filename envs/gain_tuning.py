@@ -185,17 +185,24 @@ class GainTuningEnv(gym.Env):
     | randomize   | False        | draw a machine variant on every reset               |
     | weights     | ``Weights()``| cost weights per metric                             |
     | penalty     | 50.0         | cost of a failed run                                |
+    | render_mode | None         | "rgb_array": ``render()`` plots the last run        |
 
     ## Version History
 
     * v0: initial version.
     """
 
-    metadata: ClassVar[dict[str, Any]] = {"render_modes": []}
+    metadata: ClassVar[dict[str, Any]] = {"render_modes": ["rgb_array"], "render_fps": 1}
 
     def __init__(self, *, machine: str | MachineConfig = "tomsk_xy",
                  program: str | Sequence[str] = "compact", randomize: bool = False,
-                 weights: Weights | dict[str, float] | None = None, penalty: float = 50.0):
+                 weights: Weights | dict[str, float] | None = None, penalty: float = 50.0,
+                 render_mode: str | None = None):
+        if render_mode is not None and render_mode not in self.metadata["render_modes"]:
+            raise ConfigError("render_mode", f"must be None or one of "
+                              f"{self.metadata['render_modes']}, got {render_mode!r}")
+        self.render_mode = render_mode
+        self._last: tuple[RunOutcome, float] | None = None
         self._base = machine if isinstance(machine, MachineConfig) else load_machine(machine)
         self._programs = (program,) if isinstance(program, str) else tuple(program)
         for p in self._programs:
@@ -233,6 +240,7 @@ class GainTuningEnv(gym.Env):
         self._best = self.tuning.relative(base)
         self._best_cost = self.tuning.baseline_cost
         obs = self._observation(self.tuning, base, np.zeros(self.action_space.shape[0]))
+        self._last = (base, self._best_cost)
         return obs, {"machine": cfg.name, "program": program,
                      "baseline_cost": self._best_cost,
                      "baseline_metrics": dict(base.metrics)}
@@ -247,11 +255,42 @@ class GainTuningEnv(gym.Env):
             self._best_cost = cost
             self._best = self.tuning.relative(outcome)
         obs = self._observation(self.tuning, outcome, a)
+        self._last = (outcome, cost)
         info = {"terms": terms, "cost": cost, "metrics": dict(outcome.metrics),
                 "diverged": outcome.diverged, "tripped": outcome.tripped,
                 "status": outcome.status, "settings": settings.to_dict(),
                 "sim_time": outcome.sim_time}
         return obs, -cost, outcome.failed, False, info
+
+    def render(self) -> np.ndarray | None:
+        """``render_mode="rgb_array"``: a plot of the last run, (H, W, 3) uint8. Each metric
+        of the last run (and of the best so far) as a ratio to the analytic baseline, on a
+        log scale, with the run's cost in the title; None without a render mode."""
+        if self.render_mode is None or self.tuning is None or self._last is None:
+            return None
+        from matplotlib.backends.backend_agg import FigureCanvasAgg
+        from matplotlib.figure import Figure
+
+        outcome, cost = self._last
+        last = np.exp(self.tuning.relative(outcome))
+        best = np.exp(self._best)
+        fig = Figure(figsize=(6.4, 3.6), dpi=100)
+        canvas = FigureCanvasAgg(fig)
+        ax = fig.subplots()
+        x = np.arange(len(METRICS))
+        ax.bar(x - 0.2, last, 0.4, label="last run")
+        ax.bar(x + 0.2, best, 0.4, label="best so far")
+        ax.axhline(1.0, color="k", lw=0.8)
+        ax.set_yscale("log")
+        ax.set_xticks(x, [m.replace("_", " ") for m in METRICS], rotation=30, ha="right",
+                      fontsize=7)
+        ax.set_ylabel("÷ analytic design")
+        ax.set_title(f"{self.tuning.cfg.name}, {self.tuning.program}: cost {cost:.3f} "
+                     f"({outcome.status})", fontsize=9)
+        ax.legend(fontsize=7)
+        fig.tight_layout()
+        canvas.draw()
+        return np.asarray(canvas.buffer_rgba())[:, :, :3].copy()
 
     def _observation(self, t: Tuning, outcome: RunOutcome, action: np.ndarray
                      ) -> np.ndarray:

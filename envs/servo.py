@@ -92,12 +92,17 @@ class ServoEnv(gym.Env):
     * v0: initial version.
     """
 
-    metadata: ClassVar[dict[str, Any]] = {"render_modes": []}
+    metadata: ClassVar[dict[str, Any]] = {"render_modes": ["rgb_array"], "render_fps": 4}
 
     def __init__(self, *, machine: str | MachineConfig = "tomsk_xy", program: str = "tiny",
                  randomize: bool = False, max_correction: float = 0.5,
                  error_scale: float = 100e-6, w_tracking: float = 1.0, w_effort: float = 0.01,
-                 penalty: float = 100.0, dcu_order: int | None = None):
+                 penalty: float = 100.0, dcu_order: int | None = None,
+                 render_mode: str | None = None):
+        if render_mode is not None and render_mode not in self.metadata["render_modes"]:
+            raise ConfigError("render_mode", f"must be None or one of "
+                              f"{self.metadata['render_modes']}, got {render_mode!r}")
+        self.render_mode = render_mode
         self._base = machine if isinstance(machine, MachineConfig) else load_machine(machine)
         if program not in PROGRAMS:
             raise ConfigError("program", f"unknown program {program!r}; valid: "
@@ -166,6 +171,35 @@ class ServoEnv(gym.Env):
                 "status": "DIVERGED" if diverged else status.name,
                 "following_error": ctrl.regulator.error.copy()}
         return self._observation(), -math.fsum(terms.values()), done, False, info
+
+    def render(self) -> np.ndarray | None:
+        """``render_mode="rgb_array"``: the episode so far, (H, W, 3) uint8: each axis'
+        following error (µm) against time, and the table's path with the programmed one;
+        None without a render mode."""
+        if self.render_mode is None or self._ctrl is None:
+            return None
+        from matplotlib.backends.backend_agg import FigureCanvasAgg
+        from matplotlib.figure import Figure
+
+        rec = self._ctrl.record.as_arrays()
+        fig = Figure(figsize=(6.4, 3.6), dpi=100)
+        canvas = FigureCanvasAgg(fig)
+        left, right = fig.subplots(1, 2)
+        if len(rec["t"]):
+            for k, axis in enumerate("xy"):
+                left.plot(rec["t"], rec["following_error"][:, k] * 1e6, label=axis)
+            right.plot(rec["ref_position"][:, 0] * 1e3, rec["ref_position"][:, 1] * 1e3,
+                       "k--", lw=0.8, label="reference")
+            right.plot(rec["position"][:, 0] * 1e3, rec["position"][:, 1] * 1e3, lw=1.0,
+                       label="table")
+        left.set(xlabel="t (s)", ylabel="following error (µm)")
+        left.legend(fontsize=7)
+        right.set(xlabel="x (mm)", ylabel="y (mm)", aspect="equal")
+        right.legend(fontsize=7)
+        fig.suptitle(f"{self._program}: {self._ctrl.status.name}", fontsize=9)
+        fig.tight_layout()
+        canvas.draw()
+        return np.asarray(canvas.buffer_rgba())[:, :, :3].copy()
 
     def _observation(self) -> np.ndarray:
         ctrl = self._ctrl

@@ -61,3 +61,17 @@ def test_version():
 
     done = _twin("--version")
     assert done.returncode == 0 and done.stdout.strip() == f"xy-twin {version('xy-twin')}"
+
+
+def test_a_shipped_program_runs_from_any_folder_and_a_missing_one_is_named(tmp_path):
+    for name in ("twin/programs/square_circle.ngc", "square_circle.ngc"):
+        done = subprocess.run([sys.executable, "-m", "twin.cli", "run", name, "--rerun",
+                               "none", "--out", str(tmp_path), "--dry-run", "--json"],
+                              env=ENV, capture_output=True, text=True, timeout=300,
+                              cwd=tmp_path)
+        assert "no such file" not in done.stderr, done.stderr
+        assert "Traceback" not in done.stderr
+    done = _twin("run", str(tmp_path / "nope.ngc"), "--rerun", "none", "--out", str(tmp_path))
+    assert done.returncode == 2 and "Traceback" not in done.stderr
+    text = " ".join(done.stderr.split())
+    assert "no such file" in text and "square_circle.ngc" in text and "plotter_pen.ngc" in text

@@ -1,4 +1,4 @@
-"""Learned tuning: PPO or SAC (stable-baselines3) on ``XYTable-GainTuning-v0``.
+"""Learned tuning: PPO or SAC (stable-baselines3) on ``xy_twin/GainTuning-v0``.
 
 ``train`` learns a tuning policy on randomised machines (``envs.randomize``) with
 vectorised environments (``SubprocVecEnv`` for more than one) and saves checkpoints every

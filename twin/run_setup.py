@@ -25,7 +25,8 @@ from twin.hardware.sim import SimDriver
 from twin.plant import Plant
 
 __all__ = ["Prepared", "RunResult", "RunSpec", "axis_models", "load_program",
-           "measured_position", "model_options", "prepare", "reader_options"]
+           "measured_position", "model_options", "prepare", "reader_options",
+           "shipped_program"]
 
 
 @dataclass(frozen=True)
@@ -190,14 +191,37 @@ def load_program(spec: RunSpec, cfg: MachineConfig, start: np.ndarray,
         if spec.builtin == "none":
             return []
         return build_program(spec.builtin, cfg, start)
-    path = Path(spec.program)
-    if not path.is_file():
-        raise ConfigError("program", f"no such file: {spec.program}")
+    path = shipped_program(spec.program)
     text, found = decode_program(path.read_bytes())
     if notes is not None:
         notes.extend(f"{path.name}: {n}" for n in found)
     return list(parse(text, start=tuple(start.tolist()), options=reader_options(cfg),
                       folder=str(path.resolve().parent)))
+
+
+SHIPPED_PROGRAMS = Path(__file__).resolve().with_name("programs")
+"""The example programs that come with xy-twin (``twin/programs``)."""
+
+
+def shipped_program(name: str) -> Path:
+    """The program file ``name``: a path as given, or else, for a relative path whose file
+    is one of the shipped examples, that example (``twin run twin/programs/x.ngc`` and
+    ``twin run x.ngc`` work from any folder).
+
+    Raises
+    ------
+    ConfigError
+        ``program``: no such file, naming the shipped examples.
+    """
+    path = Path(name)
+    if path.is_file():
+        return path
+    shipped = SHIPPED_PROGRAMS / path.name
+    if not path.is_absolute() and shipped.is_file():
+        return shipped
+    examples = ", ".join(sorted(p.name for p in SHIPPED_PROGRAMS.glob("*.ngc")))
+    raise ConfigError("program", f"no such file: {name} (the shipped examples, found from "
+                      f"any folder by name: {examples})")
 
 
 def reader_options(cfg: MachineConfig) -> ReaderOptions:

@@ -133,3 +133,32 @@ def test_async_vector_env():
         assert rewards[1] == pytest.approx(single.step(actions[1])[1], rel=1e-12)
     finally:
         vec.close()
+
+
+def test_the_namespaced_id_makes_without_an_import_and_renders_the_last_run():
+    """``gym.make("envs:xy_twin/GainTuning-v0", render_mode="rgb_array")`` in a fresh
+    interpreter that never imported ``envs``; ``render`` plots the last run."""
+    import subprocess
+    import sys
+
+    code = ("import gymnasium as gym, numpy as np\n"
+            "env = gym.make('envs:xy_twin/GainTuning-v0', program='tiny', "
+            "render_mode='rgb_array')\n"
+            "env.reset(seed=0)\n"
+            "first = env.render()\n"
+            "env.step(np.full(11, 0.5, dtype=np.float32))\n"
+            "second = env.render()\n"
+            "print(first.shape, first.dtype, int((first != second).any()), env.spec.id)\n")
+    done = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
+                          timeout=300)
+    assert done.returncode == 0, done.stderr
+    assert done.stdout.split() == ["(360,", "640,", "3)", "uint8", "1",
+                                   "xy_twin/GainTuning-v0"]
+
+
+def test_the_checkers_pass_with_the_render_mode():
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        check_env(gym.make(envs.GAIN_TUNING_ID, render_mode="rgb_array", **KW).unwrapped)
+    with pytest.raises(Exception, match="render_mode"):
+        GainTuningEnv(render_mode="human", **KW)

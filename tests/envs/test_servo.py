@@ -112,3 +112,18 @@ def test_subproc_vec_env():
         assert rewards[0] == pytest.approx(rewards[1]) and not dones.any()
     finally:
         vec.close()
+
+
+def test_render_plots_the_episode_and_the_checker_passes_with_it():
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        check_env(gym.make("xy_twin/Servo-v0", render_mode="rgb_array").unwrapped)
+    env = gym.make("xy_twin/Servo-v0", render_mode="rgb_array")
+    env.reset(seed=0)
+    first = env.render()
+    for _ in range(100):
+        env.step(np.zeros(2, dtype=np.float32))
+    later = env.render()
+    assert first.shape == later.shape == (360, 640, 3) and later.dtype == np.uint8
+    assert (first != later).any()
+    env.close()
