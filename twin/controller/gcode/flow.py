@@ -198,7 +198,6 @@ class _Frame:
     file: str | None
     label: str | None = None
     controls: list[_Control] = field(default_factory=list)
-    line: int = 0             # the call's line in the caller (for errors)
 
 
 @dataclass(slots=True)
@@ -238,7 +237,6 @@ class Runner:
         self._folders = ([folder] if folder else []) + list(limits.search_path)
         self._subs: dict[str, _Sub] = {}
         self._frames: list[_Frame] = []
-        self.ended = False
 
     # -- errors -------------------------------------------------------------------------
     def _error(self, line: int, column: int, message: str, code: str, source: str = "",
@@ -267,7 +265,7 @@ class Runner:
         tape_opened = False
         parameters = self.parameters
         match, fast = self._fast if self._fast is not None else (None, None)
-        while not self.ended:
+        while True:
             frame = self._frames[-1]
             text = frame.tape.next()
             if match is not None and text is not None:
@@ -542,8 +540,7 @@ class Runner:
                               f"{self.limits.call_depth} (controller.gcode.call_depth): a "
                               "runaway recursion?", "call-depth", text)
         self.parameters.enter(arguments)
-        self._frames.append(_Frame(Tape(sub.lines, sub.first_line), sub.file, label,
-                                   line=line))
+        self._frames.append(_Frame(Tape(sub.lines, sub.first_line), sub.file, label))
 
     def _load(self, label: str, line: int, column: int, text: str) -> _Sub:
         if not label.startswith("<"):
@@ -575,9 +572,9 @@ class Runner:
                           "sub", "unknown-sub", text)
 
     def _return(self, value: float | None) -> None:
-        frame = self._frames.pop()
+        """Leave the call: its frame, its tape and its local parameters go."""
+        self._frames.pop()
         self.parameters.leave()
         if value is not None:
             self.parameters.set("_value", value)
         self.parameters.set("_value_returned", 0.0 if value is None else 1.0)
-        del frame
