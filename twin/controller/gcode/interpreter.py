@@ -16,16 +16,18 @@ Units are converted to SI here: lengths by 1 mm or 1 inch, F by unit/min, S by r
 
 from __future__ import annotations
 
-import itertools
 import math
 import re
 from dataclasses import dataclass, field, replace
 
-from twin.controller.gcode.arcs import (
-    ArcError,
-    ArcTolerance,
-    center_from_offset,
-    center_from_radius,
+from twin.controller.gcode.arcs import ArcTolerance
+from twin.controller.gcode.block import (
+    COINCIDENT,
+    WORKSPACE,
+    Block,
+    at_least_zero,
+    read_block,
+    whole_number,
 )
 from twin.controller.gcode.flow import Limits, Parameters
 from twin.controller.gcode.items import (
@@ -38,9 +40,9 @@ from twin.controller.gcode.items import (
     trusted_move,
 )
 from twin.controller.gcode.lexer import MAX_VALUE, Word, lex
-from twin.controller.gcode.modal import CODES, GROUP_NAMES, Code, ModalState, code_name
-from twin.controller.gcode.splines import SPLINE_TOLERANCE, bezier_chords
-from twin.errors import ConfigError, GCodeError
+from twin.controller.gcode.modal import ModalState, code_name
+from twin.controller.gcode.motion import Motion
+from twin.errors import ConfigError
 from twin.units import INCH, MM, RPM
 
 __all__ = ["COINCIDENT", "FAST_LINE", "ORDER", "WORKSPACE", "Interpreter", "ReaderOptions"]
@@ -50,15 +52,6 @@ FAST_LINE = re.compile(rf"(?:[Nn]([0-9]+) ?)?(?:[Gg]0?([01]) ?)?(?:[Xx]({_NUMBER
                        rf"(?:[Yy]({_NUMBER}) ?)?(?:[Ff]([0-9]+\.?[0-9]*|\.[0-9]+))? *")
 """The commonest line of CAM output, ``[N…] [G0|G1] X… Y… [F…]``: ``Interpreter.fast_line``
 runs it."""
-
-COINCIDENT = 1e-9
-"""End points within 1 nm of the start are the start (m), far below the 0.2 µm encoder
-resolution: ``G20 G2 X1 I…`` after ``G21 X25.4`` is a full circle although 1·25.4e-3 and
-25.4·1e-3 differ in the last bit, and no arc is left whose sweep rounding could not tell
-from a full turn. G0/G1 moves shorter than this produce no ``Move``."""
-
-WORKSPACE = 1e3
-"""Largest coordinate a program may reach (m); keeps every computation far from overflow."""
 
 ORDER = (
     ("parameters", "assignments (`#1 = …`) take effect after the line is read: `X#1` in "
@@ -85,10 +78,6 @@ ORDER = (
 )
 """Order of execution inside one block (LinuxCNC's ``execute_block``), as (words, note)."""
 
-_VALUE_LETTERS = frozenset("DFHIJLNPQRSTXYZ@^")
-_OTHER_AXES = frozenset("ABCUVW")
-_WRITTEN = {"rapid": "G0", "line": "G1", "arc_cw": "G2", "arc_ccw": "G3", "cubic": "G5",
-            "quadratic": "G5.1"}
 _SPINDLE = {"cw": "spindle_cw", "ccw": "spindle_ccw", "stop": "spindle_stop"}
 _COOLANT = {"mist": "coolant_mist", "flood": "coolant_flood", "off": "coolant_off"}
 _Z_MODES = ("error", "ignore", "tool")
@@ -139,94 +128,7 @@ class ReaderOptions:
                                               f"{self.tool_z!r}")
 
 
-def _whole(value: float) -> bool:
-    return value == math.floor(value)
-
-
-class _Block:
-    """The words of one block sorted by role, and its place for errors."""
-
-    __slots__ = ("codes", "file", "line", "source", "values")
-
-    def __init__(self, line: int, source: str, file: str | None = None):
-        self.line = line
-        self.source = source
-        self.file = file
-        self.codes: dict[str, tuple[Code, tuple[str, float], int]] = {}
-        """Modal group → (table row, (letter, value) as written, column)."""
-        self.values: dict[str, tuple[float, int]] = {}     # letter → (value, column)
-
-    def error(self, column: int, message: str, code: str) -> GCodeError:
-        return GCodeError(self.line, column, message, code=code, source=self.source,
-                          file=self.file)
-
-    def column(self, *letters: str) -> int:
-        """Column of the first present word among ``letters`` (in line order), else 1."""
-        columns = [self.values[letter][1] for letter in letters if letter in self.values]
-        return min(columns, default=1)
-
-
-_Z_HINT = ("set controller.gcode.z = \"ignore\" to drop Z, or \"tool\" to run Z (pen) "
-           "and M3/M5 (laser) as the tool on and off")
-
-
-def _read(words: list[Word], line: int, source: str, file: str | None, z_mode: str) -> _Block:
-    """Step 1: sort the words, refusing unknown, unsupported, conflicting, repeated ones."""
-    block = _Block(line, source, file)
-    for letter, value, column in words:
-        if letter == "G" or letter == "M":
-            row = CODES.get((letter, value))
-            if row is None:
-                kind = "gcode" if letter == "G" else "mcode"
-                raise block.error(column, f"unknown {letter} code {code_name(letter, value)}",
-                                  f"unknown-{kind}")
-            if row.refusal is not None:
-                raise block.error(column, row.refusal, "unsupported")
-            previous = block.codes.get(row.group)
-            if previous is not None:
-                raise block.error(column, f"two {GROUP_NAMES[row.group]} words in one block "
-                                          f"({code_name(*previous[1])}, "
-                                          f"{code_name(letter, value)})", "modal-conflict")
-            block.codes[row.group] = (row, (letter, value), column)
-        elif letter in _VALUE_LETTERS:
-            if letter in block.values:
-                raise block.error(column, f"repeated {letter} word in one block",
-                                  "repeated-word")
-            if letter == "Z" and z_mode == "error":
-                raise block.error(column, f"no Z axis on this machine ({_Z_HINT})",
-                                  "no-axis")
-            block.values[letter] = (value, column)
-        elif letter == "K":
-            if z_mode == "error":
-                raise block.error(column, "K word (arc centre along Z): no Z axis on this "
-                                  f"machine ({_Z_HINT})", "no-axis")
-            if letter in block.values:
-                raise block.error(column, "repeated K word in one block", "repeated-word")
-            block.values[letter] = (value, column)
-        elif letter in _OTHER_AXES:
-            raise block.error(column, f"no {letter} axis on this machine", "no-axis")
-        else:
-            raise block.error(column, f"unknown word {letter}", "unknown-word")
-    return block
-
-
-def _at_least_zero(block: _Block, letter: str, what: str) -> float:
-    value, column = block.values[letter]
-    if value < 0:
-        raise block.error(column, f"{what} must be >= 0", "bad-value")
-    return value
-
-
-def _whole_number(block: _Block, letter: str, what: str, *, least: int = 0,
-                  most: int | None = None) -> int:
-    value, column = block.values[letter]
-    if value < least or not _whole(value) or (most is not None and value > most):
-        span = f">= {least}" if most is None else f"from {least} to {most}"
-        raise block.error(column, f"{what} must be a whole number {span}", "bad-value")
-    return int(value)
-
-
-class Interpreter:
+class Interpreter(Motion):
     """The modal state, offsets and position of a running program; ``execute`` runs one
     block.
 
@@ -367,7 +269,7 @@ class Interpreter:
     def execute_words(self, words: list[Word], line: int, source: str,
                       file: str | None = None) -> tuple[Item, ...]:
         """Run one block given as its words (values evaluated); all or nothing."""
-        block = _read(words, line, source, file, self.options.z)
+        block = read_block(words, line, source, file, self.options.z)
         saved = (self._modal, self._position, self._z, dict(self._offsets), self._g92,
                  self._g92_on, dict(self._homes), self._tool, self._spindle_known,
                  self._cycle_p, self._last_control)
@@ -435,7 +337,7 @@ class Interpreter:
                             None if number is None else int(number))
 
     # -- one block ------------------------------------------------------------------------
-    def _run(self, block: _Block) -> list[Item]:
+    def _run(self, block: Block) -> list[Item]:
         """Step 2: what the block means; raises (the caller restores the state)."""
         old, codes, values = self._modal, block.codes, block.values
         changes: dict[str, object] = {
@@ -451,9 +353,9 @@ class Interpreter:
                               "modal-conflict")
         number = None
         if "N" in values:
-            number = _whole_number(block, "N", "block number N")
+            number = whole_number(block, "N", "block number N")
         if "F" in values:    # feed before units, as LinuxCNC: G20 F10 in G21 is 10 mm/min
-            changes["feed"] = _at_least_zero(block, "F", "feed F") * old.unit / 60.0
+            changes["feed"] = at_least_zero(block, "F", "feed F") * old.unit / 60.0
         unit = INCH if changes.get("units", old.units) == "inch" else MM
         items = self._machine_functions(block, old, changes)
         non_modal = codes["non_modal"][0].value if "non_modal" in codes else None
@@ -461,7 +363,7 @@ class Interpreter:
             if "P" not in values:
                 raise block.error(codes["non_modal"][2], "G4 needs a P word (dwell time, s)",
                                   "missing-word")
-            items.append(Dwell(_at_least_zero(block, "P", "dwell time P (s)"), block.line))
+            items.append(Dwell(at_least_zero(block, "P", "dwell time P (s)"), block.line))
         changes = {name: value for name, value in changes.items() if getattr(old, name) != value}
         modal = replace(old, **changes) if changes else old
         self._modal = modal
@@ -519,25 +421,25 @@ class Interpreter:
                 "K": "an arc in the XZ or YZ plane"}
         return f"{letter} word without {uses.get(letter, 'a command')} to use it"
 
-    def _machine_functions(self, block: _Block, old: ModalState,
+    def _machine_functions(self, block: Block, old: ModalState,
                            changes: dict[str, object]) -> list[Item]:
         """Events of S, T, M6, M3/M4/M5, M7/M8/M9 in that order; records them in
         ``changes``; the tool on/off of the spindle with ``z = "tool"``."""
         codes, values, line = block.codes, block.values, block.line
         items: list[Item] = []
         if "S" in values:
-            speed = _at_least_zero(block, "S", "spindle speed S") * RPM
+            speed = at_least_zero(block, "S", "spindle speed S") * RPM
             changes["spindle_speed"] = speed
             items.append(Event("spindle_speed", speed, line))
         if "T" in values:
-            tool = _whole_number(block, "T", "tool number T")
+            tool = whole_number(block, "T", "tool number T")
             changes["tool"] = tool
             items.append(Event("tool_select", tool, line))
         if "tool_change" in codes and codes["tool_change"][0].value == "set":   # M61 Q
             if "Q" not in values:
                 raise block.error(codes["tool_change"][2], "M61 needs a Q word (the tool now "
                                   "in the spindle)", "missing-word")
-            tool = _whole_number(block, "Q", "M61 Q (tool number)")
+            tool = whole_number(block, "Q", "M61 Q (tool number)")
             changes["tool"] = tool
             items.append(Event("tool_select", tool, line))
         elif "tool_change" in codes:
@@ -567,23 +469,23 @@ class Interpreter:
             self._tool = on
             items.append(Event("tool_on" if on else "tool_off", None, line))
 
-    def _path_control(self, block: _Block, modal: ModalState, unit: float,
+    def _path_control(self, block: Block, modal: ModalState, unit: float,
                       claimed: set[str]) -> PathControl:
         values = block.values
         tolerance = merge = None
         if modal.path == "blend":
             claimed.update("PQ")
             if "P" in values:
-                tolerance = _at_least_zero(block, "P", "G64 P (blend tolerance)") * unit
+                tolerance = at_least_zero(block, "P", "G64 P (blend tolerance)") * unit
             if "Q" in values:
                 if "P" not in values:
                     raise block.error(values["Q"][1], "G64 Q (merge tolerance) needs a P "
                                       "(blend tolerance) too", "missing-word")
-                merge = _at_least_zero(block, "Q", "G64 Q (merge tolerance)") * unit
+                merge = at_least_zero(block, "Q", "G64 Q (merge tolerance)") * unit
         return PathControl(modal.path, tolerance, merge, block.line)
 
     # -- G10, G28, G30, G92 -----------------------------------------------------------------
-    def _axis_command(self, block: _Block, command: str, unit: float,
+    def _axis_command(self, block: Block, command: str, unit: float,
                       claimed: set[str]) -> list[Item]:
         values, modal = block.values, self._modal
         claimed.update("XYZ")
@@ -594,7 +496,7 @@ class Interpreter:
             if "L" not in values:
                 raise block.error(block.codes["non_modal"][2], "G10 needs an L word (L2 or "
                                   "L20: work offsets)", "missing-word")
-            kind = _whole_number(block, "L", "G10 L")
+            kind = whole_number(block, "L", "G10 L")
             if kind not in (2, 20):
                 raise block.error(values["L"][1], f"G10 L{kind} is not supported (tool "
                                   "tables and fixtures): only G10 L2 and G10 L20 set work "
@@ -603,7 +505,7 @@ class Interpreter:
                 raise block.error(block.codes["non_modal"][2], f"G10 L{kind} needs a P word "
                                   "(coordinate system 1-9, 0: the current one)",
                                   "missing-word")
-            system = _whole_number(block, "P", f"G10 L{kind} P", most=9) \
+            system = whole_number(block, "P", f"G10 L{kind} P", most=9) \
                 or modal.coordinate_system
             offsets = list(self._offsets.get(system, (0.0,) * 3))
             for axis, value in given.items():
@@ -628,7 +530,7 @@ class Interpreter:
             return self._home(block, command, given)
         return []
 
-    def _home(self, block: _Block, command: str, given: dict[int, float]) -> list[Item]:
+    def _home(self, block: Block, command: str, given: dict[int, float]) -> list[Item]:
         """G28/G30: rapid to the given axes' point, then home along those axes (all with
         none given)."""
         modal, start = self._modal, self._position
@@ -653,234 +555,3 @@ class Interpreter:
         return items
 
     # -- motion ---------------------------------------------------------------------------
-    def _target(self, block: _Block, modal: ModalState, unit: float,
-                machine: bool) -> tuple[tuple[float, float], float | None]:
-        values = block.values
-        start = self._position
-        end = [*start]
-        if "@" in values or "^" in values:
-            self._polar(block, modal, unit, end)
-        for axis, letter in enumerate("XY"):
-            if letter in values:
-                value = values[letter][0] * unit
-                if modal.distance == "incremental":
-                    end[axis] = start[axis] + value
-                else:
-                    end[axis] = value + (0.0 if machine else self._offset(axis))
-        z = self._z
-        if "Z" in values:
-            value = values["Z"][0] * unit
-            if modal.distance == "incremental":
-                z = (z or 0.0) + value
-            else:
-                z = value + (0.0 if machine else self._offset(2))
-        if not (abs(end[0]) <= WORKSPACE and abs(end[1]) <= WORKSPACE):
-            raise block.error(block.column("X", "Y"), f"end point ({end[0] / MM:.6g}, "
-                              f"{end[1] / MM:.6g}) mm is beyond ±{WORKSPACE / MM:g} mm",
-                              "out-of-range")
-        if abs(end[0] - start[0]) <= COINCIDENT and abs(end[1] - start[1]) <= COINCIDENT:
-            end = [*start]
-        return (end[0], end[1]), z
-
-    def _polar(self, block: _Block, modal: ModalState, unit: float, end: list[float]) -> None:
-        """``@`` (distance) and ``^`` (angle, degrees) about the work origin, as LinuxCNC:
-        in G90 they are the end point's polar coordinates, in G91 they add to those of the
-        current point."""
-        values = block.values
-        for letter in "XY":
-            if letter in values:
-                raise block.error(values[letter][1], f"{letter} word with polar words (@, ^):"
-                                  " program the end point one way", "ambiguous-word")
-        x, y = self._program(0), self._program(1)
-        radius, angle = math.hypot(x, y), math.degrees(math.atan2(y, x))
-        distance = values["@"][0] * unit if "@" in values else None
-        turn = values["^"][0] if "^" in values else None
-        if modal.distance == "incremental":
-            if x == 0.0 and y == 0.0:
-                raise block.error(block.column("@", "^"), "incremental polar words (G91 @ ^) "
-                                  "at the work origin: the angle there is undefined",
-                                  "bad-value")
-            radius += distance or 0.0
-            angle += turn or 0.0
-        else:
-            radius = radius if distance is None else distance
-            angle = angle if turn is None else turn
-        end[0] = radius * math.cos(math.radians(angle)) + self._offset(0)
-        end[1] = radius * math.sin(math.radians(angle)) + self._offset(1)
-
-    def _motion(self, block: _Block, modal: ModalState, unit: float, number: int | None,
-                machine: bool) -> list[Item]:
-        """The moves of a block with axis (or arc centre) words, and the new position."""
-        values = block.values
-        written_motion = block.codes.get("motion")
-        column = (written_motion[2] if written_motion is not None
-                  else block.column("X", "Y", "Z", "I", "J", "R"))
-        motion = modal.motion
-        if motion is None:
-            raise block.error(block.column("X", "Y", "Z"), "axis words without a motion mode "
-                              "in force: program G0, G1, G2 or G3", "no-motion-mode")
-        if motion.startswith("cycle"):
-            return self._cycle(block, modal, unit, column)
-        if motion == "cubic" or motion == "quadratic":
-            return self._spline(block, modal, unit, number, column)
-        self._last_control = None
-        name = _WRITTEN[motion]
-        if modal.plane != "xy":
-            plane = {"xz": "G18", "yz": "G19"}[modal.plane]
-            raise block.error(column, f"this machine has only the XY plane ({plane} is in "
-                                      f"force): program G17", "plane")
-        if machine and motion not in ("rapid", "line"):
-            raise block.error(block.codes["non_modal"][2], "G53 works only with G0 or G1",
-                              "modal-conflict")
-        start = self._position
-        target, z = self._target(block, modal, unit, machine)
-        feed = None if motion == "rapid" else modal.feed
-        if motion != "rapid" and not feed:
-            if feed is None:
-                raise block.error(column, f"{name} needs a feed: no F word programmed yet",
-                                  "missing-feed")
-            raise block.error(values["F"][1] if "F" in values else column,
-                              f"{name} with zero feed (F0)", "zero-feed")
-        items: list[Item] = []
-        if "Z" in values:
-            if self.options.z == "tool":
-                self._switch_tool(items, block.line, modal.spindle, modal.spindle_speed, z)
-            self._z = z
-        self._position = target
-        if motion == "rapid" or motion == "line":
-            if target != start:
-                items.append(Move(motion, start, target, feed, line=block.line,
-                                  block_number=number))
-            return items
-        if target == start and "Z" in values and not ("I" in values or "J" in values
-                                                       or "R" in values):
-            return items    # a Z-only block in an arc mode
-        items.extend(self._arc(block, motion, start, target, feed, unit, number, column))
-        return items
-
-    def _spline(self, block: _Block, modal: ModalState, unit: float, number: int | None,
-                column: int) -> list[Item]:
-        """G5 (cubic Bézier: I, J from the start to the first control point, P, Q from the
-        end to the second; after a G5, I and J may be left out and the first control point
-        mirrors the last one) or G5.1 (quadratic: I, J from the start to the control
-        point), run as feed lines within ``SPLINE_TOLERANCE`` of the curve."""
-        values, name = block.values, _WRITTEN[modal.motion]
-        if modal.plane != "xy":
-            raise block.error(column, f"{name} runs only in the XY plane (G17)", "plane")
-        feed = modal.feed
-        if not feed:
-            raise block.error(column, f"{name} needs a feed: no F word programmed yet"
-                              if feed is None else f"{name} with zero feed (F0)",
-                              "missing-feed" if feed is None else "zero-feed")
-        start = self._position
-        target, _ = self._target(block, modal, unit, False)
-        if modal.motion == "quadratic":
-            if "I" not in values or "J" not in values:
-                raise block.error(column, "G5.1 needs I and J (the control point, from the "
-                                  "start)", "missing-word")
-            control = (start[0] + values["I"][0] * unit, start[1] + values["J"][0] * unit)
-            # the quadratic as a cubic: control points 2/3 of the way to the quadratic's
-            points = (start, (start[0] + 2.0 / 3.0 * (control[0] - start[0]),
-                              start[1] + 2.0 / 3.0 * (control[1] - start[1])),
-                      (target[0] + 2.0 / 3.0 * (control[0] - target[0]),
-                       target[1] + 2.0 / 3.0 * (control[1] - target[1])), target)
-            self._last_control = None
-        else:
-            if "P" not in values or "Q" not in values:
-                raise block.error(column, "G5 needs P and Q (the second control point, from "
-                                  "the end)", "missing-word")
-            if "I" in values and "J" in values:
-                first = (start[0] + values["I"][0] * unit, start[1] + values["J"][0] * unit)
-            elif "I" in values or "J" in values:
-                raise block.error(block.column("I", "J"), "G5 needs both I and J, or neither "
-                                  "after a G5", "missing-word")
-            elif self._last_control is not None:
-                first = (2.0 * start[0] - self._last_control[0],
-                         2.0 * start[1] - self._last_control[1])
-            else:
-                raise block.error(column, "G5 needs I and J unless it follows a G5",
-                                  "missing-word")
-            second = (target[0] + values["P"][0] * unit, target[1] + values["Q"][0] * unit)
-            points = (start, first, second, target)
-            self._last_control = second
-        self._position = target
-        ends = bezier_chords(points, SPLINE_TOLERANCE)
-        moves: list[Item] = []
-        for a, b in itertools.pairwise([start, *ends]):
-            if a != b:
-                moves.append(Move("line", a, b, feed, line=block.line, block_number=number))
-        return moves
-
-    def _cycle(self, block: _Block, modal: ModalState, unit: float,
-               column: int) -> list[Item]:
-        """A canned cycle (G73, G81–G89) on this machine: its holes' XY positions, reached
-        by rapids, L times (in G91 each repeat moves on by X, Y or the polar words); at each
-        hole the plunge is the tool on and off (``z = "tool"``) and G82, G86, G88, G89 dwell
-        P seconds. Its Z moves are not run: Z is ignored or the tool."""
-        values, name = block.values, "G" + modal.motion[7:]
-        if self.options.z == "error":
-            raise block.error(column, f"canned cycles ({name}) drill along Z: set "
-                              "controller.gcode.z = \"ignore\" or \"tool\" to run their "
-                              "moves between the holes", "unsupported")
-        if modal.plane != "xy":
-            raise block.error(column, "canned cycles run only in the XY plane (G17)", "plane")
-        repeats = _whole_number(block, "L", f"{name} L (repeats)", least=1) \
-            if "L" in values else 1
-        if "P" in values:                   # sticky, as LinuxCNC's cycle_p
-            self._cycle_p = _at_least_zero(block, "P", f"{name} P (dwell, s)")
-        dwell = self._cycle_p if name in ("G82", "G86", "G88", "G89") else None
-        items: list[Item] = []
-        for _ in range(repeats):
-            start = self._position
-            target, _ = self._target(block, modal, unit, False)
-            if target != start:
-                items.append(Move("rapid", start, target, None, line=block.line))
-            self._position = target
-            plunge = self.options.z == "tool" and not self._tool
-            if plunge:
-                items.append(Event("tool_on", None, block.line))
-            if dwell is not None:
-                items.append(Dwell(dwell, block.line))
-            if plunge:
-                items.append(Event("tool_off", None, block.line))
-        return items
-
-    def _arc(self, block: _Block, motion: str, start: tuple[float, float],
-             target: tuple[float, float], feed: float, unit: float, number: int | None,
-             column: int) -> list[Move]:
-        """The G2/G3 moves from ``start`` to ``target``: turns, centre, tolerance checks."""
-        values, name, modal = block.values, _WRITTEN[motion], self._modal
-        ccw = motion == "arc_ccw"
-        turns = 0
-        if "P" in values:
-            turns = _whole_number(block, "P", "arc P (number of turns)", least=1) - 1
-        has_offset = "I" in values or "J" in values
-        if "R" in values and has_offset:
-            raise block.error(values["R"][1], "arc with both I/J and R: program the centre "
-                                              "one way only", "arc-center-and-radius")
-        if not ("R" in values or has_offset):
-            raise block.error(column, f"{name} needs the centre as I/J or the radius as R",
-                              "arc-missing-center")
-        tolerance = self._tolerances[modal.units]
-        try:
-            if "R" in values:
-                pieces = [(start, target,
-                           center_from_radius(start, target, values["R"][0] * unit, ccw=ccw,
-                                              tolerance=tolerance))]
-            else:
-                if modal.arc_distance == "absolute":
-                    programmed = tuple(
-                        values[letter][0] * unit + self._offset(axis) if letter in values
-                        else start[axis] for axis, letter in enumerate("IJ"))
-                else:
-                    programmed = tuple(
-                        start[axis] + values[letter][0] * unit if letter in values
-                        else start[axis] for axis, letter in enumerate("IJ"))
-                pieces = center_from_offset(start, target, programmed, ccw=ccw, turns=turns,
-                                            tolerance=tolerance)
-        except ArcError as exc:
-            raise block.error(column, exc.message, exc.code) from None
-        if len(pieces) == 1:
-            return [Move("arc", start, target, feed, pieces[0][2], ccw, turns, block.line,
-                         number)]
-        return [Move("arc", p, q, feed, c, ccw, 0, block.line, number) for p, q, c in pieces]
