@@ -103,6 +103,10 @@ def test_jog_inside_the_work_zone(tmp_path):
     assert d["status"] == "FINISHED"
     # home keyframe y = 10 mm; 1 µm is 5 encoder counts.
     assert d["final_position_mm"]["y"] == pytest.approx(22.5, abs=2e-3)
+    # a manual move has no programmed path: the summary gives how far the reference went
+    # and for how long it moved (it gave 0 mm and 0 s)
+    assert d["path_length_mm"] == pytest.approx(12.5, abs=1e-3)
+    assert 0.5 < d["cycle_time_s"] < d["sim_time_s"]
 
 
 def test_end_switch_trips_the_drive_and_keeps_the_record(tmp_path):

@@ -65,6 +65,10 @@ class RunSummary:
         self.samples = 0
         self._held: dict[str, np.ndarray] | None = None   # samples waiting for a derivative
         self._edge = True                                  # the first sample is not out yet
+        # without a program (home, jog): when the reference moved, and how far
+        self._moved: list[float] = []                      # [first, last] moving time (s)
+        self._travel = 0.0                                 # reference travel (m)
+        self._last_ref: np.ndarray | None = None
 
     def feed(self, rec: Mapping[str, np.ndarray],
              truth: Mapping[str, np.ndarray] | None = None) -> None:
@@ -72,7 +76,10 @@ class RunSummary:
         ``position``) and of the twin's truth record (``table_velocity``) if there is one."""
         n = len(rec["t"])
         self.samples += n
-        if self._running is None or n == 0:
+        if n == 0:
+            return
+        if self._running is None:
+            self._manual(rec)
             return
         cols = {k: np.asarray(rec[k], dtype=float)
                 for k in ("t", "ref_position", "ref_velocity", "position")}
@@ -99,9 +106,28 @@ class RunSummary:
         self._edge = False
         self._held = {k: v[-2:] for k, v in cols.items()}
 
+    def _manual(self, rec: Mapping[str, np.ndarray]) -> None:
+        """Manual commands have no programmed path: note when the reference moved and how
+        far it went."""
+        t = np.asarray(rec["t"], dtype=float)
+        ref = np.asarray(rec["ref_position"], dtype=float)
+        moving = np.flatnonzero(np.any(np.asarray(rec["ref_velocity"]) != 0.0, axis=1))
+        if len(moving):
+            if not self._moved:
+                self._moved = [float(t[moving[0]]), float(t[moving[-1]])]
+            self._moved[1] = float(t[moving[-1]])
+        joined = ref if self._last_ref is None else np.vstack((self._last_ref, ref))
+        self._travel += float(np.sum(np.hypot(*np.diff(joined, axis=0).T)))
+        self._last_ref = ref[-1:].copy()
+
     def result(self) -> dict[str, Any]:
-        """The summary's metric keys."""
-        if self.samples < 2 or self._running is None:
+        """The summary's metric keys. Without a programmed path (manual commands: home,
+        jog) the cycle time is the time the reference moved and the path length how far
+        it went; the contour metrics need a path and are left out."""
+        if self._running is None:
+            return {"cycle_time_s": self._moved[1] - self._moved[0] if self._moved else 0.0,
+                    "path_length_mm": self._travel * 1e3}
+        if self.samples < 2:
             return {"cycle_time_s": 0.0, "path_length_mm": 0.0}
         if self._held is not None and not self._edge:       # the last sample: backward
             h = self._held
