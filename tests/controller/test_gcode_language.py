@@ -27,8 +27,8 @@ from twin.controller.gcode import (
     parse,
 )
 from twin.controller.gcode.expr import read_statement
-from twin.controller.gcode.flow import Tape
 from twin.controller.gcode.lexer import clean
+from twin.controller.gcode.tape import Tape
 from twin.errors import ConfigError, GCodeError
 from twin.units import INCH, MM
 

@@ -31,9 +31,11 @@ from pathlib import Path
 
 from twin.controller.gcode.expr import OWord, read_statement
 from twin.controller.gcode.lexer import clean, words
+from twin.controller.gcode.parameters import Parameters
+from twin.controller.gcode.tape import Tape
 from twin.errors import ConfigError, GCodeError
 
-__all__ = ["Limits", "Parameters", "Runner", "Tape"]
+__all__ = ["Limits", "Runner"]
 
 _OWORD_LINE = re.compile(r"[ \t]*(?:N[ \t]*[0-9.]+[ \t]*)?O[ \t]*(<[^>]*>|[0-9][0-9 \t]*)"
                          r"[ \t]*([A-Z]+)")
@@ -64,115 +66,6 @@ class Limits:
             if not isinstance(value, int) or value < 1:
                 raise ConfigError(f"gcode.{name}", f"must be a whole number >= 1, got "
                                                    f"{value!r}")
-
-
-class Tape:
-    """Lines of a program, read forward, that can go back to any line still ``mark``-ed.
-
-    Lines are kept from the oldest mark on, and only while a mark is held.
-    """
-
-    __slots__ = ("_base", "_buffer", "_last", "_lines", "_marks", "first_line", "pos")
-
-    def __init__(self, lines: Iterable[str], first_line: int = 1):
-        self._lines = iter(lines)
-        self._buffer: list[str] = []
-        self._base = 0
-        self._marks: list[int] = []
-        self._last = ""
-        self.pos = 0
-        """Index of the next line."""
-        self.first_line = first_line
-        """Line number of index 0."""
-
-    def next(self) -> str | None:
-        """The next line without its line break; None at the end."""
-        pos, base = self.pos, self._base
-        if pos < base + len(self._buffer):
-            text = self._buffer[pos - base]
-        else:
-            raw = next(self._lines, None)
-            if raw is None:
-                return None
-            text = raw.rstrip("\r\n")
-            if self._marks:
-                self._buffer.append(text)
-            else:
-                if self._buffer:
-                    self._buffer.clear()
-                self._base = pos + 1
-        self._last = text
-        self.pos = pos + 1
-        return text
-
-    def mark(self, pos: int) -> None:
-        """Hold line ``pos`` (the line read last, or a later one) for a later ``seek``."""
-        if not self._marks and not self._buffer:
-            self._base = self.pos
-        if pos == self._base - 1 == self.pos - 1:
-            self._buffer.insert(0, self._last)
-            self._base = pos
-        if pos < self._base:
-            raise RuntimeError("a tape can only mark lines it still holds")
-        self._marks.append(pos)
-
-    def release(self, pos: int) -> None:
-        self._marks.remove(pos)
-        keep = min(self._marks, default=self.pos)
-        if keep > self._base:
-            del self._buffer[:keep - self._base]
-            self._base = keep
-
-    def seek(self, pos: int) -> None:
-        if not self._base <= pos <= self._base + len(self._buffer):
-            raise RuntimeError("seek to a line the tape does not hold")
-        self.pos = pos
-
-    @property
-    def line(self) -> int:
-        """Line number of the line read last."""
-        return self.first_line + self.pos - 1
-
-
-class Parameters:
-    """Numbered and named parameters with LinuxCNC's scopes (see the module docstring)."""
-
-    LOCAL = 30
-    """``#1``–``#30`` are local to a call."""
-
-    def __init__(self, system: dict[str, Callable[[], float]] | None = None,
-                 numbered: dict[int, float] | None = None):
-        self.numbered: dict[int, float] = dict(numbered or {})
-        self.named: dict[str, float] = {}
-        self.scopes: list[tuple[dict[int, float], dict[str, float]]] = [({}, {})]
-        self.system = system or {}
-
-    def get(self, key: int | str) -> float | None:
-        if isinstance(key, int):
-            table = self.scopes[-1][0] if key <= self.LOCAL else self.numbered
-            return table.get(key, 0.0)
-        if key.startswith("_"):
-            if key in self.system:
-                return self.system[key]()
-            return self.named.get(key)
-        return self.scopes[-1][1].get(key)
-
-    def exists(self, name: str) -> bool:
-        return self.get(name) is not None
-
-    def set(self, key: int | str, value: float) -> None:
-        if isinstance(key, int):
-            (self.scopes[-1][0] if key <= self.LOCAL else self.numbered)[key] = value
-        elif key.startswith("_"):
-            self.named[key] = value
-        else:
-            self.scopes[-1][1][key] = value
-
-    def enter(self, arguments: tuple[float, ...]) -> None:
-        self.scopes.append(({i + 1: value for i, value in enumerate(arguments)}, {}))
-
-    def leave(self) -> None:
-        self.scopes.pop()
 
 
 @dataclass(slots=True)

@@ -29,7 +29,7 @@ from twin.controller.gcode.block import (
     read_block,
     whole_number,
 )
-from twin.controller.gcode.flow import Limits, Parameters
+from twin.controller.gcode.flow import Limits
 from twin.controller.gcode.items import (
     Dwell,
     Event,
@@ -42,6 +42,7 @@ from twin.controller.gcode.items import (
 from twin.controller.gcode.lexer import MAX_VALUE, Word, lex
 from twin.controller.gcode.modal import ModalState, code_name
 from twin.controller.gcode.motion import Motion
+from twin.controller.gcode.parameters import Parameters
 from twin.errors import ConfigError
 from twin.units import INCH, MM, RPM
 
@@ -83,6 +84,9 @@ _COOLANT = {"mist": "coolant_mist", "flood": "coolant_flood", "off": "coolant_of
 _Z_MODES = ("error", "ignore", "tool")
 _AXIS_GROUP = ("set_offsets", "home_g28", "home_g30", "g92")
 """Non-modal codes that take the block's axis words instead of a motion."""
+_BLOCK_STATE = ("_modal", "_position", "_z", "_offsets", "_g92", "_g92_on", "_homes",
+                "_tool", "_spindle_known", "_cycle_p", "_last_control")
+"""What a block may change: restored when it fails (a bad block changes nothing)."""
 
 
 @dataclass(frozen=True, slots=True)
@@ -187,7 +191,8 @@ class Interpreter(Motion):
 
     # -- parameters the machine keeps -----------------------------------------------------
     def _system_parameters(self) -> dict:
-        unit = self._unit
+        def unit() -> float:
+            return self._modal.unit
         table: dict[int | str, object] = {
             "_x": lambda: self._program(0) / unit(),
             "_y": lambda: self._program(1) / unit(),
@@ -216,17 +221,18 @@ class Interpreter(Motion):
                 table[base + axis] = lambda k=key, a=axis: self._homes[k][a] / unit()
         return table
 
-    def _unit(self) -> float:
-        return INCH if self._modal.units == "inch" else MM
-
-    def _offset(self, axis: int, system: int | None = None) -> float:
+    def _offset(self, axis: int) -> float:
         """Machine coordinate of the work zero along ``axis`` (m)."""
-        work = self._offsets.get(system or self._modal.coordinate_system, (0.0,) * 3)[axis]
+        work = self._offsets.get(self._modal.coordinate_system, (0.0,) * 3)[axis]
         return work + (self._g92[axis] if self._g92_on else 0.0)
+
+    def _machine(self, axis: int) -> float:
+        """The position along ``axis`` (0, 1, 2 = X, Y, Z) in machine coordinates (m)."""
+        return self._position[axis] if axis < 2 else (self._z or 0.0)
 
     def _program(self, axis: int) -> float:
         """The position in the program's coordinates (m)."""
-        machine = self._position[axis] if axis < 2 else (self._z or 0.0)
+        machine = self._machine(axis)
         return machine - self._offset(axis) if math.isfinite(machine) else 0.0
 
     @property
@@ -270,15 +276,13 @@ class Interpreter(Motion):
                       file: str | None = None) -> tuple[Item, ...]:
         """Run one block given as its words (values evaluated); all or nothing."""
         block = read_block(words, line, source, file, self.options.z)
-        saved = (self._modal, self._position, self._z, dict(self._offsets), self._g92,
-                 self._g92_on, dict(self._homes), self._tool, self._spindle_known,
-                 self._cycle_p, self._last_control)
+        saved = {name: getattr(self, name) for name in _BLOCK_STATE}
+        saved["_offsets"], saved["_homes"] = dict(self._offsets), dict(self._homes)
         try:
             items = self._run(block)
         except BaseException:
-            (self._modal, self._position, self._z, self._offsets, self._g92, self._g92_on,
-             self._homes, self._tool, self._spindle_known, self._cycle_p,
-             self._last_control) = saved
+            for name, value in saved.items():
+                setattr(self, name, value)
             raise
         self.blocks += 1
         self.ended = self.ended or "stopping" in block.codes
@@ -303,7 +307,7 @@ class Interpreter(Motion):
         motion = modal.motion if g is None else ("rapid" if g == "0" else "line")
         if (motion != "line" and motion != "rapid") or modal.plane != "xy":
             return None
-        unit = INCH if modal.units == "inch" else MM
+        unit = modal.unit
         feed = modal.feed
         if f is not None:
             value = float(f)
@@ -512,7 +516,7 @@ class Interpreter(Motion):
                 if kind == 2:
                     offsets[axis] = value
                 else:   # L20: the current position becomes ``value`` in that system
-                    machine = self._position[axis] if axis < 2 else (self._z or 0.0)
+                    machine = self._machine(axis)
                     g92 = self._g92[axis] if self._g92_on else 0.0
                     offsets[axis] = machine - g92 - value
             self._offsets[system] = tuple(offsets)
@@ -522,7 +526,7 @@ class Interpreter(Motion):
                                   "missing-word")
             g92 = list(self._g92 if self._g92_on else (0.0, 0.0, 0.0))
             for axis, value in given.items():
-                machine = self._position[axis] if axis < 2 else (self._z or 0.0)
+                machine = self._machine(axis)
                 work = self._offsets.get(modal.coordinate_system, (0.0,) * 3)[axis]
                 g92[axis] = machine - work - value
             self._g92, self._g92_on = tuple(g92), True
