@@ -20,9 +20,6 @@ def _interrupted_while_starting(signum: int, frame: object) -> None:
 if signal.getsignal(signal.SIGINT) is signal.default_int_handler:
     signal.signal(signal.SIGINT, _interrupted_while_starting)
 
-import os  # noqa: E402
-import shutil  # noqa: E402
-import subprocess  # noqa: E402
 import sys  # noqa: E402
 from pathlib import Path  # noqa: E402
 from typing import Any  # noqa: E402
@@ -93,7 +90,7 @@ def _run(program: Path | None, machine: str, profile: str | None, planner: str |
          dcu_order: int | None, period: float | None, sets: list[str], rerun: str,
          out: Path, as_json: bool, dry_run: bool = False, builtin: str = "default",
          driver: str = "sim", rt_priority: int = 0, set_file: Path | None = None,
-         controller_model: str | None = None) -> None:
+         controller_model: str | None = None, rerun_port: int = 9876) -> None:
     from twin.overrides import parse_sets, set_file_overrides
     from twin.run import RunSpec, run
     from twin.run_end import RunInterrupted
@@ -113,11 +110,12 @@ def _run(program: Path | None, machine: str, profile: str | None, planner: str |
                 bar.update(task, description=f"{t:.1f} s")
 
             def warn(message: str) -> None:
-                bar.console.print(f"[yellow]warning:[/] {message}", highlight=False)
+                bar.console.print(f"[yellow]warning:[/] {message}", highlight=False,
+                                  soft_wrap=True)
 
             # the record goes to the file as it grows: memory does not grow with the run
             result = run(spec, out_dir=out, rerun=rerun, progress=progress, warn=warn,
-                         keep_record=False)
+                         keep_record=False, rerun_port=rerun_port)
     except RunInterrupted as exc:   # the record was complete: report it, then stop
         _report(exc.result.summary, out, as_json)
         raise typer.Exit(128 + exc.signum) from None
@@ -127,7 +125,7 @@ def _run(program: Path | None, machine: str, profile: str | None, planner: str |
     for note in summary.get("input_warnings", ()):
         err.print(f"[yellow]warning:[/] {note}", highlight=False, soft_wrap=True)
     if rerun == "serve":
-        _keep_serving()
+        _keep_serving(rerun_port)
     _report(summary, out, as_json)
     if "summary_error" in summary:   # not saved: printed, so that nothing is lost
         err.print(f"[bold red]error:[/] {escape(summary['summary_error'])}", highlight=False,
@@ -157,18 +155,22 @@ def _report(summary: dict, out: Path, as_json: bool) -> None:
         console.print(f"record: {out / (summary['run_id'] + '.json')}", highlight=False)
 
 
-def _keep_serving() -> None:
-    """After a ``--rerun serve`` run: serve the recording until Ctrl-C."""
-    from twin.telemetry.rerun_sink import running_rerun, stop_rerun
+def _keep_serving(port: int) -> None:
+    """After a ``--rerun serve`` run: serve the recording until Ctrl-C, SIGTERM or SIGHUP,
+    then stop the server's whole process group (nothing is left listening)."""
+    from twin.run_end import stop_signals
+    from twin.telemetry.viewer import running_rerun, stop_rerun
 
     servers = running_rerun()
     if not servers:
         return
-    err.print("serving the run at rerun+http://127.0.0.1:9876/proxy (connect: rerun "
-              "--connect rerun+http://127.0.0.1:9876/proxy); Ctrl-C to stop", highlight=False)
+    url = f"rerun+http://127.0.0.1:{port}/proxy"
+    err.print(f"serving the run at {url} (connect: rerun --connect {url}); Ctrl-C to stop",
+              highlight=False, soft_wrap=True)
     try:
-        for proc in servers:
-            proc.wait()
+        with stop_signals([]):
+            for proc in servers:
+                proc.wait()
     except KeyboardInterrupt:
         pass
     finally:
@@ -189,7 +191,12 @@ def run_cmd(
     period: float | None = typer.Option(None, help="Controller period (s)."),
     sets: list[str] = typer.Option([], "--set", help="key=value: any regulator, DCU, "
                                     "limit or machine parameter (repeatable)."),
-    rerun: str = typer.Option("file", help="spawn, serve, none, file, or PATH.rrd."),
+    rerun: str = typer.Option("file", help="spawn (a native viewer; without a display: "
+                              "the file only), serve (a gRPC server for viewers, kept until "
+                              "Ctrl-C), none, file, or PATH.rrd. spawn and serve also write "
+                              "the file."),
+    rerun_port: int = typer.Option(9876, "--rerun-port", min=1, max=65535, help="Port of the "
+                                   "live viewer or server on 127.0.0.1 (spawn, serve)."),
     out: Path = OutOpt,
     as_json: bool = JsonOpt,
     dry_run: bool = typer.Option(False, "--dry-run",
@@ -210,7 +217,7 @@ def run_cmd(
     if profile is not None:
         profile = profile.replace("_", "-")
     _run(program, machine, profile, planner, dcu_order, period, sets, rerun, out, as_json,
-         dry_run, builtin, driver, rt_priority, set_file, controller_model)
+         dry_run, builtin, driver, rt_priority, set_file, controller_model, rerun_port)
 
 
 @app.command()
@@ -246,15 +253,22 @@ def view(
     web: bool = typer.Option(False, "--web", help="Serve the bundled web viewer on "
                              "localhost instead of opening the native viewer."),
     port: int = typer.Option(9090, help="Web viewer port (with --web)."),
+    grpc_port: int = typer.Option(9876, "--grpc-port", help="Port of the gRPC server that "
+                                  "serves the recording to the viewer."),
 ) -> None:
-    """Open a recording in the rerun viewer."""
-    exe = shutil.which("rerun") or str(Path(sys.executable).with_name("rerun"))
-    cmd = [exe, str(recording)]
-    if web:
-        cmd += ["--web-viewer", "--bind", "127.0.0.1", "--web-viewer-port", str(port)]
-        err.print(f"web viewer on http://127.0.0.1:{port} (Ctrl-C to stop)")
-    env = {**os.environ, "RERUN_ANALYTICS": "0"}
-    raise typer.Exit(subprocess.call(cmd, env=env))
+    """Open a recording in the rerun viewer (native, or --web in a browser); every listener
+    binds 127.0.0.1."""
+    from twin.run_end import stop_signals
+    from twin.telemetry.viewer import open_recording
+
+    try:
+        with stop_signals([]):
+                code = open_recording(recording, web=web, web_port=port, grpc_port=grpc_port,
+                                  announce=lambda text: err.print(text, highlight=False,
+                                                                  soft_wrap=True))
+    except TwinError as exc:
+        fail(exc)
+    raise typer.Exit(code)
 
 
 @app.command()

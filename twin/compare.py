@@ -208,7 +208,9 @@ class _LawSink:
     def scalars(self, t: np.ndarray, columns: Mapping[str, np.ndarray]) -> None:
         self.shared.scalars(t, {self.prefix + k: v for k, v in columns.items()})
 
-    def points(self, t: np.ndarray, columns: Mapping[str, np.ndarray]) -> None:
+    def points(self, t: np.ndarray, columns: Mapping[str, np.ndarray], *,
+               colors: Mapping[str, np.ndarray] | None = None) -> None:
+        """The law's points, in its colour (the overlay's, not the error's)."""
         self.shared.points(t, {self.prefix + k: v for k, v in columns.items()})
 
     def event(self, t: float, text: str, *, level: str = "INFO") -> None:

@@ -13,6 +13,7 @@ __all__ = [
     "PlanningError",
     "SimulationError",
     "TwinError",
+    "ViewerError",
     "byte_place",
 ]
 
@@ -74,6 +75,11 @@ class GCodeError(TwinError, ValueError):
 
 class PlanningError(TwinError, ValueError):
     """A motion cannot be planned within the given limits."""
+
+
+class ViewerError(TwinError, RuntimeError):
+    """A live rerun viewer or server cannot be started or reached (a port taken by another
+    process, no display)."""
 
 
 class SimulationError(TwinError, RuntimeError):

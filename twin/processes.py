@@ -48,6 +48,9 @@ def stop_process(proc: subprocess.Popen, timeout: float = 10.0) -> None:
             time.sleep(0.02)
         if _group_alive(group):
             os.killpg(group, signal.SIGKILL)
+            settle = time.monotonic() + 5.0     # SIGKILL is not refused, only delivered late
+            while _group_alive(group) and time.monotonic() < settle:
+                time.sleep(0.01)
     elif proc.poll() is None:
         proc.terminate()
         try:

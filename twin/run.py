@@ -23,8 +23,10 @@ from typing import Any
 
 import numpy as np
 
-from twin.config import machine_identity
+from twin.config import AXES, machine_identity
+from twin.controller.blocks import MotionBlock
 from twin.controller.controller import Controller, ControllerStatus
+from twin.controller.gcode import Move
 from twin.controller.metrics import OscillationMeter
 from twin.controller.record import Record
 from twin.errors import DeadlineFault, DriverError
@@ -66,7 +68,7 @@ def run(spec: RunSpec, *, out_dir: str | Path = "runs", rerun: str = "file",
         prepared: Prepared | None = None,
         commands: Sequence[Callable[[Controller], None]] = (),
         keep_fine: bool = False, warn: Callable[[str], None] | None = None,
-        keep_record: bool = True) -> RunResult:
+        keep_record: bool = True, rerun_port: int = 9876) -> RunResult:
     """Run ``spec`` and write ``<run_id>.rrd`` and ``<run_id>.json`` into ``out_dir``.
 
     On the twin (``driver="sim"``) the loop runs in lock-step, as fast as the machine allows;
@@ -90,6 +92,8 @@ def run(spec: RunSpec, *, out_dir: str | Path = "runs", rerun: str = "file",
         Default: time stamp + random suffix.
     sink : Sink, optional
         Use this sink instead of the one ``rerun`` describes (it is closed at the end).
+    rerun_port : int
+        Port of the live viewer or server (spawn, serve), on 127.0.0.1.
     progress : callable(sim_time, max_time), optional
         Called about every simulated second.
     prepared : Prepared, optional
@@ -118,7 +122,7 @@ def run(spec: RunSpec, *, out_dir: str | Path = "runs", rerun: str = "file",
     try:
         pending = [*(parse_command(c) for c in spec.commands), *commands]
         if sink is None:
-            sink, recording = make_sink(rerun, out, run_id)
+            sink, recording = make_sink(rerun, out, run_id, notice=warn, port=rerun_port)
     except BaseException:
         p.driver.close()        # whatever fails once the driver is open closes it
         raise
@@ -174,8 +178,12 @@ class _Loop:
                       else None)
         self.keep_record = keep_record
         self.summary = RunSummary(p.path)   # fed as the telemetry goes out
-        self.writer = TelemetryWriter(sink, p.path, truth_record=self.truth,
-                                      fine_fields=FINE_FIELDS)
+        self.writer = TelemetryWriter(
+            sink, p.path, truth_record=self.truth, fine_fields=FINE_FIELDS,
+            feeds={item.line: item.feed for item in p.items or ()
+                   if isinstance(item, Move | MotionBlock)},
+            motor_ratio=[p.cfg.axes[ax].transmission.ratio for ax in AXES],
+            contour_tolerance=p.cfg.controller.contour_tolerance)
         self.names = {int(s): s.name for s in ControllerStatus}
         self.ticks = 0
         self.stats: TickStats | None = None
@@ -376,8 +384,9 @@ class _Loop:
             summary["error"] = str(ctrl.error)
         if fault is not None:
             summary["error"] = fault[1]
-        if self.deadline_warnings:
-            summary["warnings"] = list(self.deadline_warnings)
+        warnings = [*getattr(self.sink, "notices", ()), *self.deadline_warnings]
+        if warnings:
+            summary["warnings"] = warnings
         if p.notes:
             summary["input_warnings"] = list(p.notes)
         if lost is not None:

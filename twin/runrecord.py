@@ -20,9 +20,13 @@ from twin.telemetry.sink import NullSink, Sink
 __all__ = ["RunSummary", "make_sink", "parse_command", "run_summary", "ticks_dict"]
 
 
-def make_sink(rerun: str, out: Path, run_id: str) -> tuple[Sink, str | None]:
+def make_sink(rerun: str, out: Path, run_id: str,
+              notice: Callable[[str], None] | None = None,
+              port: int = 9876) -> tuple[Sink, str | None]:
     """The sink ``--rerun`` names: spawn, serve, none, file (``out/<run_id>.rrd``) or a path
-    ending in ``.rrd``; spawn and serve also write the file. Returns (sink, .rrd path)."""
+    ending in ``.rrd``; spawn and serve also write the file. Returns (sink, .rrd path).
+    ``notice`` is told when the live view is given up (``RerunSink``); ``port`` is the live
+    viewer's or server's."""
     if rerun == "none":
         return NullSink(), None
     from twin.telemetry.rerun_sink import RerunSink
@@ -34,7 +38,8 @@ def make_sink(rerun: str, out: Path, run_id: str) -> tuple[Sink, str | None]:
     else:
         raise ConfigError("rerun", f"must be spawn, serve, none, file or a path ending in "
                           f".rrd, got {rerun!r}")
-    return RerunSink(path, live=live, recording_id=run_id, recording_name=run_id), str(path)
+    return RerunSink(path, live=live, recording_id=run_id, recording_name=run_id,
+                     notice=notice, port=port), str(path)
 
 
 def ticks_dict(stats: TickStats) -> dict[str, Any]:

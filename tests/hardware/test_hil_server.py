@@ -25,6 +25,7 @@ from twin.run import RunSpec, prepare, run
 UNIT = 1
 TRUTH_ONLY = {f"/axes/{a}/{n}" for a in "xy" for n in
               ("drive/armature_current", "drive/converter_voltage", "drive/conduction",
+               "drive/motor_speed",
                "screw_deflection_um")}
 
 

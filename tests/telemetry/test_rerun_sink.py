@@ -5,7 +5,8 @@ import socket
 import numpy as np
 import rerun.chunk as rc
 
-from twin.telemetry.rerun_sink import RerunSink, running_rerun, stop_rerun
+from twin.telemetry.rerun_sink import RerunSink
+from twin.telemetry.viewer import running_rerun, stop_rerun
 
 
 def _free_port() -> int:

@@ -18,7 +18,7 @@ import pytest
 from tuning.evaluator import Evaluator
 
 ENV = {**os.environ, "RERUN_ANALYTICS": "0"}
-RUNS = 33                            # three generations of 11
+RUNS = 22                            # two generations of 11: killed inside the second
 
 
 def _job(out: Path, *more: str, runs: int = RUNS) -> list[str]:

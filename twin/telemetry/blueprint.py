@@ -1,42 +1,103 @@
-"""The default rerun layout: the path view beside the error plots, per-axis tabs below."""
+"""The default rerun layout, built for feed-drive engineers: the analogues of LinuxCNC's Axis
+preview (the path) and halscope (the loop's signals, one unit per plot).
+
+The first tab, "Run", is what a run is judged by:
+- the path in machine orientation (X right, Y up, mm): the programmed path whole, and the
+  actual path up to the time cursor coloured by its contour error (``error_colors``: green
+  at 0, yellow at the contour tolerance, red from twice it);
+- the contour error (µm) and the feed (mm/min: programmed F, commanded, actual);
+- per axis, the following error (µm) above the regulator's terms (V: p, i, d, FF, DCU);
+- the event log (blocks, status changes, tool on/off).
+
+Then one drive tab per axis, split by unit (control voltages ±10 V, converter voltage V,
+armature current A, motor speed rad/s, conduction), and one motion tab per axis (position
+m, velocity m/s, screw deflection µm).
+"""
 
 from __future__ import annotations
 
+import rerun as rr
 import rerun.blueprint as rrb
+import rerun.encodings as rrd
 
-__all__ = ["default_blueprint"]
+__all__ = ["PATH_TRANSFORM", "default_blueprint"]
+
+PATH_TRANSFORM = rr.Transform3D(mat3x3=[[1e3, 0.0, 0.0], [0.0, -1e3, 0.0], [0.0, 0.0, 1.0]])
+"""Logged on ``/path``: metres to millimetres, and Y up (rerun's 2-D views draw Y down). The
+data stay in metres; only the view is in machine orientation."""
+
+_WHOLE_RUN = [rrb.VisibleTimeRange("sim_time", start=rrb.TimeRangeBoundary.infinite(),
+                                   end=rrb.TimeRangeBoundary.cursor_relative())]
+"""Everything from the start up to the time cursor (the path drawn whole, not a dot)."""
 
 
-def _axis_tab(axis: str) -> rrb.Container:
+_ALL_TIME = rrb.TimeAxis(view_range=rrd.TimeRange(start=rrb.TimeRangeBoundary.infinite(),
+                                                   end=rrb.TimeRangeBoundary.infinite()))
+"""The plots' time axis: the whole run (rerun's default follows the last minute)."""
+
+
+def _series(name: str, *entities: str) -> rrb.TimeSeriesView:
+    return rrb.TimeSeriesView(name=name, origin="/", contents=list(entities), axis_x=_ALL_TIME)
+
+
+def _errors(axis: str) -> rrb.Container:
     base = f"/axes/{axis}"
     return rrb.Vertical(
-        rrb.TimeSeriesView(name=f"{axis.upper()} position (m)", origin=f"{base}/position"),
-        rrb.TimeSeriesView(name=f"{axis.upper()} velocity (m/s)", origin=f"{base}/velocity"),
-        rrb.TimeSeriesView(name=f"{axis.upper()} drive", origin=f"{base}/drive"),
-        rrb.TimeSeriesView(name=f"{axis.upper()} screw deflection (µm)",
-                           origin=f"{base}/screw_deflection_um"),
-        name=f"Axis {axis.upper()}",
+        _series(f"{axis.upper()} following error (µm)", f"{base}/following_error_um"),
+        _series(f"{axis.upper()} regulator terms: p, i, d, FF, DCU (V)", f"{base}/regulator"),
     )
 
 
+def _drive(axis: str) -> rrb.Container:
+    base = f"/axes/{axis}/drive"
+    return rrb.Vertical(
+        _series(f"{axis.upper()} DAC and tacho (V)", f"{base}/dac_volts", f"{base}/tacho_volts"),
+        _series(f"{axis.upper()} converter voltage (V)", f"{base}/converter_voltage"),
+        _series(f"{axis.upper()} armature current (A)", f"{base}/armature_current"),
+        _series(f"{axis.upper()} motor speed (rad/s)", f"{base}/motor_speed"),
+        _series(f"{axis.upper()} conduction (share of each drive interval)",
+                f"{base}/conduction"),
+        name=f"{axis.upper()} drive",
+    )
+
+
+def _motion(axis: str) -> rrb.Container:
+    base = f"/axes/{axis}"
+    return rrb.Vertical(
+        _series(f"{axis.upper()} position (m)", f"{base}/position/**"),
+        _series(f"{axis.upper()} velocity (m/s)", f"{base}/velocity/**"),
+        _series(f"{axis.upper()} screw deflection (µm)", f"{base}/screw_deflection_um"),
+        name=f"{axis.upper()} motion",
+    )
+
+
+def path_view() -> rrb.Spatial2DView:
+    """The path in machine orientation (mm, Y up), actual path coloured by contour error."""
+    return rrb.Spatial2DView(
+        name="Path (mm, Y up): programmed grey; actual green → yellow at the contour "
+             "tolerance → red at twice it",
+        origin="/", contents=["/path/programmed", "/path/actual"], time_ranges=_WHOLE_RUN)
+
+
 def default_blueprint() -> rrb.Blueprint:
-    """Path view (programmed vs actual) and the error plots first; axis details in tabs."""
-    return rrb.Blueprint(
-        rrb.Vertical(
-            rrb.Horizontal(
-                rrb.Spatial2DView(name="Path (m)", origin="/path"),
-                rrb.Vertical(
-                    rrb.TimeSeriesView(name="Contour error (µm)", origin="/errors"),
-                    rrb.TimeSeriesView(
-                        name="Following error (µm)",
-                        contents=["/axes/x/following_error_um", "/axes/y/following_error_um"],
-                    ),
-                    rrb.TextLogView(name="Events", origin="/events"),
-                ),
-                column_shares=[3, 2],
+    """The "Run" tab (path, contour error, feed, following errors with the regulator's
+    terms, events), then the drive and motion tabs per axis."""
+    run = rrb.Vertical(
+        rrb.Horizontal(
+            path_view(),
+            rrb.Vertical(
+                _series("Contour error (µm)", "/errors/contour_um"),
+                _series("Feed (mm/min): programmed F, commanded, actual", "/feed/**"),
+                rrb.TextLogView(name="Events", origin="/events"),
+                row_shares=[2, 2, 1],
             ),
-            rrb.Tabs(_axis_tab("x"), _axis_tab("y")),
-            row_shares=[3, 2],
+            column_shares=[3, 2],
         ),
+        rrb.Horizontal(_errors("x"), _errors("y")),
+        row_shares=[3, 2],
+        name="Run",
+    )
+    return rrb.Blueprint(
+        rrb.Tabs(run, _drive("x"), _drive("y"), _motion("x"), _motion("y"), active_tab=0),
         collapse_panels=True,
     )

@@ -23,8 +23,26 @@ from twin.config import AXES
 from twin.controller.record import Record
 from twin.controller.regulator import TERMS
 from twin.telemetry.sink import Sink
+from twin.units import MM_PER_MIN
 
-__all__ = ["PathDistance", "TelemetryWriter", "programmed_polyline"]
+__all__ = ["FEED_STYLE", "PathDistance", "TelemetryWriter", "error_colors",
+           "programmed_polyline"]
+
+FEED_STYLE = {"programmed": (120, 120, 120), "commanded": (40, 120, 220),
+              "actual": (230, 80, 30)}
+"""The feed view's series (``feed/<name>``, mm/min) and their colours."""
+
+_GREEN, _YELLOW, _RED = (np.array(c, dtype=np.float64) for c in
+                         ((40, 180, 60), (240, 200, 30), (220, 40, 40)))
+
+
+def error_colors(ratio: np.ndarray) -> np.ndarray:
+    """RGB (uint8, shape (n, 3)) of contour errors as multiples of the tolerance: green at
+    0, yellow at 1, red from 2 on (linear between)."""
+    r = np.clip(np.asarray(ratio, dtype=np.float64), 0.0, 2.0)[:, None]
+    low = _GREEN + (_YELLOW - _GREEN) * np.minimum(r, 1.0)
+    rgb = np.where(r <= 1.0, low, _YELLOW + (_RED - _YELLOW) * (r - 1.0))
+    return np.rint(rgb).astype(np.uint8)
 
 _LEVEL = {"LIMIT_TRIP": "ERROR", "FOLLOWING_ERROR": "ERROR", "INVALID_INPUT": "ERROR",
           "DRIVE_FAULT": "ERROR", "PROGRAM_ERROR": "ERROR", "HOMING_FAILED": "WARN"}
@@ -123,11 +141,26 @@ class TelemetryWriter:
     fine_fields : sequence of (str, int)
         Layout of the twin's drive-rate sample rows (``twin.plant.FINE_FIELDS``) that
         :meth:`add_fine` receives.
+    feeds : mapping of int to float or None
+        Programmed feed (m/s; None for a rapid) by source line, for the feed view's
+        programmed F (a line run several times with different feeds shows its last).
+    motor_ratio : sequence of float, optional
+        Table metres per motor radian, per axis (``TransmissionConfig.ratio``): the motor
+        speed (rad/s) in the drive view is the twin's table velocity over it.
+    contour_tolerance : float
+        Contour tolerance (m): the colour scale of the actual path (green at 0, yellow at
+        the tolerance, red from twice it).
     """
 
     def __init__(self, sink: Sink, path: Sequence, *, truth_record: Record | None = None,
-                 fine_fields: Sequence[tuple[str, int]] = ()):
+                 fine_fields: Sequence[tuple[str, int]] = (),
+                 feeds: Mapping[int, float | None] | None = None,
+                 motor_ratio: Sequence[float] | None = None,
+                 contour_tolerance: float = 20e-6):
         self.sink = sink
+        self.feeds = dict(feeds or {})
+        self.motor_ratio = None if motor_ratio is None else np.asarray(motor_ratio, float)
+        self.contour_tolerance = contour_tolerance
         self.path = list(path)
         self.truth_record = truth_record
         self.wall = 0.0
@@ -154,6 +187,10 @@ class TelemetryWriter:
                     style(f"axes/{ax}/{q}/actual", name=f"{ax} {q} actual",
                           color=(230, 80, 30))
                 style(f"axes/{ax}/regulator", name=[f"{ax} {t}" for t in TERMS])
+                style(f"axes/{ax}/following_error_um", name=f"{ax} following error",
+                      color=(230, 80, 30))
+            for name, color in FEED_STYLE.items():
+                style(f"feed/{name}", name=f"{name} feed", color=color)
         self.wall += time.perf_counter() - t0
 
     def add_fine(self, rows: np.ndarray) -> None:
@@ -203,14 +240,39 @@ class TelemetryWriter:
             cols[f"{base}/regulator"] = c["terms"][:, k, :]   # one series per term
             if tr:
                 cols[f"{base}/velocity/actual"] = tr["table_velocity"][:, k]
+                if self.motor_ratio is not None:
+                    cols[f"{base}/drive/motor_speed"] = (tr["table_velocity"][:, k]
+                                                         / self.motor_ratio[k])
+        cols.update(self._feed_columns(c, tr))
+        colors = None
         if self.path:
-            cols["errors/contour_um"] = self._distance(c["position"]) * 1e6
+            contour = self._distance(c["position"])
+            cols["errors/contour_um"] = contour * 1e6
+            colors = error_colors(contour / self.contour_tolerance)
         self.sink.scalars(t, cols)
-        self.sink.points(t, {"path/actual": c["position"], "path/reference": c["ref_position"]})
+        self.sink.points(t, {"path/actual": c["position"], "path/reference": c["ref_position"]},
+                         colors={"path/actual": colors} if colors is not None else None)
         self._events(t, c, status_names or {})
         self._sent = n
         self.wall += time.perf_counter() - t0
         return c, (tr or None)
+
+    def _feed_columns(self, c: Mapping[str, np.ndarray], tr: Mapping[str, np.ndarray]
+                      ) -> dict[str, np.ndarray]:
+        """Feed (mm/min): programmed F of the tick's source line (NaN for a rapid or no
+        motion), commanded |v_ref| and, on the twin, the table's actual |v|."""
+        cols = {"feed/commanded": np.hypot(*c["ref_velocity"].T) / MM_PER_MIN}
+        if tr:
+            cols["feed/actual"] = np.hypot(*tr["table_velocity"].T) / MM_PER_MIN
+        if self.feeds:
+            lines = c["line"].ravel()
+            programmed = np.full(len(lines), np.nan)
+            for line in np.unique(lines):
+                feed = self.feeds.get(int(line))
+                if feed is not None:
+                    programmed[lines == line] = feed / MM_PER_MIN
+            cols["feed/programmed"] = programmed
+        return cols
 
     def _events(self, t: np.ndarray, c: Mapping[str, np.ndarray],
                 names: Mapping[int, str]) -> None:

@@ -7,26 +7,21 @@ logged row by row in the cyclic path, so telemetry stays a small share of a run.
 
 from __future__ import annotations
 
-import atexit
 import contextlib
 import os
-import shutil
-import socket
-import subprocess
 import sys
 import time
-from collections.abc import Mapping
+from collections.abc import Callable, Mapping
 from pathlib import Path
 
 import numpy as np
 import rerun as rr
 import rerun.blueprint as rrb
 
-from twin.processes import stop_process
-from twin.telemetry.blueprint import default_blueprint
+from twin.telemetry.blueprint import PATH_TRANSFORM, default_blueprint
+from twin.telemetry.viewer import ViewerUnavailable, start_rerun
 
-__all__ = ["APPLICATION_ID", "TIMELINE", "RerunSink", "running_rerun", "start_rerun",
-           "stop_rerun"]
+__all__ = ["APPLICATION_ID", "TIMELINE", "RerunSink"]
 
 APPLICATION_ID = "xy_twin"
 TIMELINE = "sim_time"
@@ -36,6 +31,13 @@ GATHER_WALL = 2.0
 
 FLUSH_WALL = 1.0
 """Wall seconds between waits for the recording's writer (``RerunSink._backpressure``)."""
+
+POINT_RADIUS = -1.5
+"""Radius of the path's points: 1.5 UI points (negative: screen, not scene, units), so the
+path stays visible at any zoom."""
+
+LIVE_FLUSH_TIMEOUT = 5.0
+"""Seconds a live viewer may take to accept what was sent before it counts as gone."""
 
 _LEVELS = {"INFO": "INFO", "WARN": "WARN", "ERROR": "ERROR", "DEBUG": "DEBUG"}
 
@@ -50,10 +52,14 @@ class RerunSink:
         on ``close()``, so a reader never sees a half-written recording under the final name.
     live : {"spawn", "serve", None}
         Also stream to a spawned native viewer, or to a gRPC server for viewers to connect
-        to (``rerun --connect URL``, or the web viewer). Either is a ``rerun`` process bound
-        to ``host`` (loopback by default) and ``port``. A spawned viewer stays open; a
-        server outlives the run, so a viewer can still connect, and ends with this process
-        (or earlier: ``stop_rerun``).
+        to (``rerun --connect URL``, or the web viewer). Either is a ``rerun`` process of
+        its own process group, bound to ``host`` (loopback by default) and ``port``; a port
+        something already listens on is refused (``ViewerError``: a stale server would take
+        the stream silently). A spawned viewer stays open; a server outlives the run, so a
+        viewer can still connect, and ends with this process (or earlier: ``stop_rerun``).
+        The live stream is a recording stream of its own beside the file's: a viewer that
+        cannot start (no display) or goes away mid-run costs the live view only, with a
+        one-line notice, never the file.
     recording_id : str
         Identifies the run; several runs (e.g. one per acceleration law) with distinct ids
         can share one file and are overlaid by the viewer.
@@ -62,37 +68,43 @@ class RerunSink:
     blueprint : bool or rerun.blueprint.Blueprint
         True: the default layout (path view + error plots); a Blueprint: that layout;
         False: none.
+    notice : callable(str), optional
+        Told, in one line, when the live view is given up (no display, the viewer exited);
+        default: printed on stderr. The notices are kept in ``notices`` as well.
     """
 
     def __init__(self, path: str | Path | None = None, *, live: str | None = None,
                  recording_id: str = "run", recording_name: str | None = None,
                  blueprint: bool | rrb.Blueprint = True, host: str = "127.0.0.1",
-                 port: int = 9876):
+                 port: int = 9876, notice: Callable[[str], None] | None = None):
         if live not in (None, "spawn", "serve"):
             raise ValueError(f"live must be 'spawn', 'serve' or None, got {live!r}")
         if path is None and live is None:
             raise ValueError("RerunSink needs a path, a live viewer, or both")
         self.path = Path(path) if path is not None else None
         self.url: str | None = None
+        self.notices: list[str] = []
+        self._notice = notice or (lambda text: print(f"warning: {text}", file=sys.stderr))
         self._partial = self.path.with_name(self.path.name + ".partial") if self.path else None
-        self._rec = rr.RecordingStream(APPLICATION_ID, recording_id=recording_id)
-        sinks: list = []
+        self._rec: rr.RecordingStream | None = None
+        self._live: rr.RecordingStream | None = None
         if self._partial is not None:
             self._partial.parent.mkdir(parents=True, exist_ok=True)
-            sinks.append(rr.FileSink(str(self._partial)))
+            self._rec = rr.RecordingStream(APPLICATION_ID, recording_id=recording_id)
+            self._rec.set_sinks(rr.FileSink(str(self._partial)))
         if live is not None:
-            # A rerun process of our own, bound to loopback: the SDK's serve_grpc and spawn
-            # listen on every interface.
-            self.url = start_rerun(live, host=host, port=port)
-            sinks.append(rr.GrpcSink(self.url))
-        if sinks:
-            self._rec.set_sinks(*sinks)
-        if recording_name:
-            self._rec.send_recording_name(recording_name)
-        if blueprint is True:
-            self._rec.send_blueprint(default_blueprint())
-        elif blueprint:
-            self._rec.send_blueprint(blueprint)
+            self.url = self._start_live(live, host, port)
+            if self.url is not None:
+                self._live = rr.RecordingStream(APPLICATION_ID, recording_id=recording_id)
+                self._live.set_sinks(rr.GrpcSink(self.url))
+        for rec in self._streams():
+            if recording_name:
+                rec.send_recording_name(recording_name)
+            if blueprint is True:
+                rec.send_blueprint(default_blueprint())
+                rec.log("path", PATH_TRANSFORM, static=True)
+            elif blueprint:
+                rec.send_blueprint(blueprint)
         self._closed = self._finished = False
         self.failed: str | None = None
         """Why the recording could not be written (set by ``finish``), or None."""
@@ -100,15 +112,45 @@ class RerunSink:
         # A file alone gathers the batches into fewer, larger chunks: rerun keeps an index
         # entry per chunk for the file's footer (a few kB each); a live viewer gets each
         # batch at once.
-        self._gather = live is None
-        self._held: dict[str, list[tuple[str, np.ndarray, np.ndarray]]] = {}
+        self._gather = self._live is None
+        self._held: dict[str, list[tuple[str, np.ndarray, np.ndarray, np.ndarray | None]]] = {}
+
+    def _start_live(self, live: str, host: str, port: int) -> str | None:
+        """Start the live viewer or server; a viewer that cannot start is given up with a
+        notice when there is a file to write (``spawn``: no display, the viewer exited),
+        and is an error otherwise (a server, or nothing else to keep)."""
+        try:
+            return start_rerun(live, host=host, port=port)
+        except ViewerUnavailable as exc:
+            if live != "spawn" or self.path is None:
+                raise
+            self._tell(f"{exc}; recording to {self.path} only (open it with: twin view "
+                       f"{self.path})")
+            return None
+
+    def _tell(self, text: str) -> None:
+        self.notices.append(text)
+        self._notice(text)
+
+    def _streams(self) -> list[rr.RecordingStream]:
+        return [rec for rec in (self._rec, self._live) if rec is not None]
+
+    def _lose_live(self, exc: BaseException) -> None:
+        """The live viewer went away: the run goes on, recording to the file."""
+        live, self._live = self._live, None
+        self._gather = True
+        with contextlib.suppress(Exception):
+            live.disconnect()
+        self._tell(f"the live viewer at {self.url} went away ({exc or type(exc).__name__}); "
+                   f"recording to {self.path} only")
 
     # -- Sink protocol ------------------------------------------------------------------
     def static_path(self, entity: str, points: np.ndarray, *,
                     color: tuple[int, int, int] = (160, 160, 160)) -> None:
         """Log a polyline (m) that does not change with time."""
         pts = np.asarray(points, dtype=np.float64).reshape(-1, 2)
-        self._rec.log(entity, rr.LineStrips2D([pts], colors=[color]), static=True)
+        for rec in self._streams():
+            rec.log(entity, rr.LineStrips2D([pts], colors=[color]), static=True)
 
     def scalars(self, t: np.ndarray, columns: Mapping[str, np.ndarray]) -> None:
         """Send scalar columns (float64, exact) for samples at times ``t`` (s); a value
@@ -123,21 +165,28 @@ class RerunSink:
 
     def _send_scalars(self, t: np.ndarray, columns: Mapping[str, np.ndarray]) -> None:
         index = [rr.TimeColumn(TIMELINE, duration=t)]
-        for entity, values in columns.items():
-            self._rec.send_columns(entity, indexes=index,
-                                   columns=rr.Scalars.columns(scalars=np.asarray(values)))
+        for rec in self._streams():
+            for entity, values in columns.items():
+                rec.send_columns(entity, indexes=index,
+                                 columns=rr.Scalars.columns(scalars=np.asarray(values)))
 
-    def _send_points(self, t: np.ndarray, columns: Mapping[str, np.ndarray]) -> None:
+    def _send_points(self, t: np.ndarray, columns: Mapping[str, np.ndarray],
+                     colors: Mapping[str, np.ndarray] | None = None) -> None:
         index = [rr.TimeColumn(TIMELINE, duration=t)]
         ones = np.ones(len(t), dtype=np.int64)
         for entity, values in columns.items():
-            cols = rr.Points2D.columns(positions=np.asarray(values).reshape(-1, 2))
-            self._rec.send_columns(entity, indexes=index, columns=cols.partition(ones))
+            rgb = (colors or {}).get(entity)
+            cols = rr.Points2D.columns(positions=np.asarray(values).reshape(-1, 2),
+                                       colors=rgb, radii=np.full(len(t), POINT_RADIUS))
+            for rec in self._streams():
+                rec.send_columns(entity, indexes=index, columns=cols.partition(ones))
 
-    def _hold(self, kind: str, t: np.ndarray, columns: Mapping[str, np.ndarray]) -> None:
+    def _hold(self, kind: str, t: np.ndarray, columns: Mapping[str, np.ndarray],
+              colors: Mapping[str, np.ndarray] | None = None) -> None:
         t = np.asarray(t, dtype=np.float64)
         for entity, values in columns.items():
-            self._held.setdefault(entity, []).append((kind, t, np.asarray(values)))
+            rgb = (colors or {}).get(entity)
+            self._held.setdefault(entity, []).append((kind, t, np.asarray(values), rgb))
         if time.perf_counter() - self._sent >= GATHER_WALL:
             self._send_held()
 
@@ -148,8 +197,12 @@ class RerunSink:
         for entity, parts in held.items():
             t = np.concatenate([p[1] for p in parts])
             values = np.concatenate([p[2] for p in parts])
-            send = self._send_scalars if parts[0][0] == "scalars" else self._send_points
-            send(t, {entity: values})
+            if parts[0][0] == "scalars":
+                self._send_scalars(t, {entity: values})
+            else:
+                rgb = (None if any(p[3] is None for p in parts)
+                       else np.concatenate([p[3] for p in parts]))
+                self._send_points(t, {entity: values}, {entity: rgb})
         self._backpressure()
 
     def _backpressure(self) -> None:
@@ -165,26 +218,40 @@ class RerunSink:
         if now - self._flushed < FLUSH_WALL:
             return
         self._flushed = now
-        try:
-            self._rec.flush()
-        except (RuntimeError, OSError) as exc:
-            self._fail(exc)
+        self._flush()
 
-    def points(self, t: np.ndarray, columns: Mapping[str, np.ndarray]) -> None:
-        """Send one 2-D point per sample (m) for each entity."""
+    def _flush(self) -> None:
+        """Wait for the file's writer (a failure fails the recording) and the live stream's
+        (a failure loses the live view only)."""
+        if self._rec is not None and self.failed is None:
+            try:
+                self._rec.flush()
+            except (RuntimeError, OSError) as exc:
+                self._fail(exc)
+        if self._live is not None:
+            try:
+                self._live.flush(timeout_sec=LIVE_FLUSH_TIMEOUT)
+            except Exception as exc:
+                self._lose_live(exc)
+
+    def points(self, t: np.ndarray, columns: Mapping[str, np.ndarray], *,
+               colors: Mapping[str, np.ndarray] | None = None) -> None:
+        """Send one 2-D point per sample (m) for each entity; ``colors``: RGB per point
+        (uint8, (n, 3)) for some of them."""
         if self.failed is not None:
             return
         if self._gather:
-            self._hold("points", t, columns)
+            self._hold("points", t, columns, colors)
             return
-        self._send_points(np.asarray(t, dtype=np.float64), columns)
+        self._send_points(np.asarray(t, dtype=np.float64), columns, colors)
 
     def event(self, t: float, text: str, *, level: str = "INFO") -> None:
         """Log a text event on the ``events`` entity at time ``t`` (s)."""
         if self.failed is not None:
             return
-        self._rec.set_time(TIMELINE, duration=float(t))
-        self._rec.log("events", rr.TextLog(text, level=_LEVELS.get(level.upper(), "INFO")))
+        for rec in self._streams():
+            rec.set_time(TIMELINE, duration=float(t))
+            rec.log("events", rr.TextLog(text, level=_LEVELS.get(level.upper(), "INFO")))
 
     def style(self, entity: str, *, name: str | list[str],
               color: tuple[int, int, int] | None = None) -> None:
@@ -193,7 +260,8 @@ class RerunSink:
         kwargs = {"names": [name] if isinstance(name, str) else list(name)}
         if color is not None:
             kwargs["colors"] = [color]
-        self._rec.log(entity, rr.SeriesLines(**kwargs), static=True)
+        for rec in self._streams():
+            rec.log(entity, rr.SeriesLines(**kwargs), static=True)
 
     def finish(self) -> None:
         """Flush and complete the file, still under its ``.partial`` name (a run writes its
@@ -208,12 +276,10 @@ class RerunSink:
         self._finished = True
         if self.failed is None:
             self._send_held()
-            try:
-                self._rec.flush()
-            except (RuntimeError, OSError) as exc:
-                self._fail(exc)
-        with contextlib.suppress(RuntimeError, OSError):
-            self._rec.disconnect()
+            self._flush()
+        for rec in self._streams():
+            with contextlib.suppress(RuntimeError, OSError):
+                rec.disconnect()
         if self.failed is not None and self._partial is not None:
             self._partial.unlink(missing_ok=True)
 
@@ -241,47 +307,3 @@ class RerunSink:
 
     def __exit__(self, *exc: object) -> None:
         self.close()
-
-
-_PROCESSES: list[subprocess.Popen] = []
-
-
-def start_rerun(kind: str, *, host: str = "127.0.0.1", port: int = 9876,
-                timeout: float = 20.0) -> str:
-    """Start ``rerun`` as a viewer (``kind="spawn"``) or a headless gRPC server
-    (``"serve"``) listening on ``host:port`` only; return its ``rerun+http`` URL once it
-    accepts connections."""
-    exe = shutil.which("rerun") or str(Path(sys.executable).with_name("rerun"))
-    args = [exe, "--bind", host, "--port", str(port)]
-    if kind == "serve":
-        args.append("--serve-grpc")
-    proc = subprocess.Popen(args, env={**os.environ, "RERUN_ANALYTICS": "0"},
-                            stdin=subprocess.DEVNULL, stdout=subprocess.DEVNULL,
-                            stderr=subprocess.DEVNULL, start_new_session=True)
-    if kind == "serve":  # a spawned viewer is the user's window: it stays open
-        _PROCESSES.append(proc)
-    deadline = time.monotonic() + timeout
-    while time.monotonic() < deadline:
-        if proc.poll() is not None:
-            raise RuntimeError(f"rerun exited with code {proc.returncode} (is port {port} "
-                               "in use?)")
-        try:
-            with socket.create_connection((host, port), timeout=0.2):
-                return f"rerun+http://{host}:{port}/proxy"
-        except OSError:
-            time.sleep(0.05)
-    stop_rerun()
-    raise RuntimeError(f"rerun did not listen on {host}:{port} within {timeout} s")
-
-
-def running_rerun() -> list[subprocess.Popen]:
-    """The rerun servers this process started that are still running."""
-    return [p for p in _PROCESSES if p.poll() is None]
-
-
-@atexit.register
-def stop_rerun() -> None:
-    """Stop the rerun servers this process started."""
-    for proc in _PROCESSES:
-        stop_process(proc, timeout=5.0)
-    _PROCESSES.clear()

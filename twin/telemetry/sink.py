@@ -30,8 +30,10 @@ class Sink(Protocol):
         """Scalar series: each value array has shape (n,), or (n, k) for k series."""
         ...
 
-    def points(self, t: np.ndarray, columns: Mapping[str, np.ndarray]) -> None:
-        """One 2-D point per sample: each value array has shape (n, 2) (m)."""
+    def points(self, t: np.ndarray, columns: Mapping[str, np.ndarray], *,
+               colors: Mapping[str, np.ndarray] | None = None) -> None:
+        """One 2-D point per sample: each value array has shape (n, 2) (m); ``colors``
+        optionally gives some entities one RGB colour (uint8, (n, 3)) per point."""
         ...
 
     def event(self, t: float, text: str, *, level: str = "INFO") -> None:
@@ -57,7 +59,8 @@ class NullSink:
     def scalars(self, t: np.ndarray, columns: Mapping[str, np.ndarray]) -> None:
         """Drop it."""
 
-    def points(self, t: np.ndarray, columns: Mapping[str, np.ndarray]) -> None:
+    def points(self, t: np.ndarray, columns: Mapping[str, np.ndarray], *,
+               colors: Mapping[str, np.ndarray] | None = None) -> None:
         """Drop it."""
 
     def event(self, t: float, text: str, *, level: str = "INFO") -> None:

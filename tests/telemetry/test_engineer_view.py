@@ -1,0 +1,95 @@
+"""What the default layout shows, read back from a real run's ``.rrd``: the feed against the
+programmed F, the motor speed, the actual path coloured by its contour error, and the path
+view's transform to machine orientation (mm, Y up)."""
+
+import numpy as np
+import pytest
+import rerun.chunk as rc
+
+from tests.test_run import _rrd_scalars
+from twin.run import RunSpec, run
+from twin.run_setup import shipped_program
+from twin.telemetry.channels import error_colors
+from twin.units import MM_PER_MIN
+
+
+def test_error_colors_run_green_yellow_red():
+    rgb = error_colors(np.array([-1.0, 0.0, 0.5, 1.0, 1.5, 2.0, 9.0]))
+    assert rgb.dtype == np.uint8
+    np.testing.assert_array_equal(rgb, [[40, 180, 60], [40, 180, 60], [140, 190, 45],
+                                        [240, 200, 30], [230, 120, 35], [220, 40, 40],
+                                        [220, 40, 40]])
+
+
+@pytest.fixture(scope="module")
+def square(tmp_path_factory):
+    out = tmp_path_factory.mktemp("view")
+    return run(RunSpec(machine="tomsk_xy", program=str(shipped_program("square_circle.ngc")),
+                       overrides={"controller.contour_tolerance": 2e-6}),
+               out_dir=out, run_id="square", keep_fine=True)
+
+
+def _chunks(path, entity):
+    return [c.to_record_batch() for c in rc.RrdReader(path).stream().to_chunks()
+            if c.entity_path == entity]
+
+
+def test_feed_is_shown_in_mm_per_min_against_the_programmed_f(square):
+    rec = square.record
+    scalars = _rrd_scalars(square.summary["recording"])
+    t, commanded = scalars["feed/commanded"]
+    order = np.argsort(t, kind="stable")
+    np.testing.assert_allclose(commanded[order], np.hypot(*rec["ref_velocity"].T) / MM_PER_MIN,
+                               rtol=1e-12)
+    _, programmed = scalars["feed/programmed"]
+    programmed = programmed[order]
+    text = shipped_program("square_circle.ngc").read_text().splitlines()
+    line_of = {row.split()[0]: k + 1 for k, row in enumerate(text) if row.startswith("N")}
+    line = rec["line"].ravel()
+    for n, f in (("N30", 600.0), ("N40", 600.0), ("N70", 450.0)):   # F600 ... F450
+        ticks = line == line_of[n]
+        assert ticks.sum() > 50, n
+        np.testing.assert_allclose(programmed[ticks], f, rtol=1e-12, err_msg=n)
+    g0 = line == line_of["N20"]
+    assert g0.sum() > 50 and np.all(np.isnan(programmed[g0]))        # G0: no programmed F
+    _, actual = scalars["feed/actual"]
+    on_n30 = actual[order][line == line_of["N30"]]
+    assert np.median(np.abs(on_n30 - 600.0)) < 6.0                      # within 1 %
+
+
+def test_motor_speed_is_the_table_speed_through_the_transmission(square):
+    from twin.config import load_machine
+
+    scalars = _rrd_scalars(square.summary["recording"])
+    ratio = load_machine("tomsk_xy").axes["x"].transmission.ratio
+    _, table = scalars["axes/x/velocity/actual"]
+    _, motor = scalars["axes/x/drive/motor_speed"]
+    np.testing.assert_allclose(motor, table / ratio, rtol=1e-12)
+    assert np.abs(motor).max() > 10.0                          # rad/s, not m/s
+
+
+def test_actual_path_is_coloured_by_its_contour_error(square):
+    path = square.summary["recording"]
+    scalars = _rrd_scalars(path)
+    t, contour_um = scalars["errors/contour_um"]
+    colors, times = [], []
+    for rb in _chunks(path, "/path/actual"):
+        colors.extend(row[0] for row in rb.column("Points2D:colors").to_pylist())
+        times.append(rb.column("sim_time").cast("int64").to_numpy())
+    packed = np.asarray(colors, dtype=np.uint32)            # rerun packs RGBA as 0xRRGGBBAA
+    rgb = np.stack([(packed >> 24) & 255, (packed >> 16) & 255, (packed >> 8) & 255], axis=1)
+    order_c = np.argsort(np.concatenate(times), kind="stable")
+    order_e = np.argsort(t, kind="stable")
+    expected = error_colors(contour_um[order_e] * 1e-6 / 2e-6)
+    np.testing.assert_array_equal(rgb[order_c], expected)
+    # a 2 µm tolerance on this machine: green, yellow and red all appear
+    assert {(40, 180, 60), (220, 40, 40)} <= {tuple(c) for c in expected}
+
+
+def test_path_view_is_in_millimetres_with_y_up(square):
+    reader = rc.RrdReader(square.summary["recording"])
+    assert reader.blueprints()
+    (rb,) = _chunks(square.summary["recording"], "/path")
+    mat = np.asarray(rb.column("Transform3D:mat3x3").to_pylist()[0][0]).reshape(3, 3)
+    # column-major in rerun: the same matrix either way, it is diagonal
+    np.testing.assert_array_equal(mat, np.diag([1e3, -1e3, 1.0]))
