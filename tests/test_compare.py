@@ -6,8 +6,10 @@ from __future__ import annotations
 import json
 import math
 import os
+import re
 import subprocess
 import sys
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -127,6 +129,67 @@ def test_compare_json_has_one_summary_per_law_and_the_report(compared):
     assert 5.0 * 0.9 <= para <= math.sqrt(2.0) * 5.0 * 1.01
 
 
+def test_the_verdict_names_the_winner_of_every_figure_and_its_margin(compared):
+    from twin.compare import FIGURES, figure_value
+
+    verdict = {e["label"]: e for e in compared["verdict"]}
+    assert set(verdict) == {label for label, _, _ in FIGURES}
+    for label, key, _ in FIGURES:
+        e = verdict[label]
+        values = {law: figure_value(s, key) for law, s in compared["profiles"].items()}
+        assert e["values"] == values
+        best, second = sorted(values, key=values.__getitem__)
+        if e["winner"] is None:                      # a tie: within 0.1 %
+            assert values[second] - values[best] <= 1e-3 * values[second]
+        else:
+            assert e["winner"] == best and e["runner_up"] == second
+            assert e["margin"] == pytest.approx(values[second] - values[best], rel=1e-12)
+    # the trapezoid is the fastest; the parabolic law asks for less jerk
+    assert verdict["cycle time"]["winner"] in ("trapezoid", None)
+    assert verdict["peak reference jerk |Δa|/T"]["winner"] == "parabolic"
+    # every output in the call's own folder
+    folder = Path(compared["folder"])
+    assert Path(compared["report"]).parent == folder == Path(compared["recording"]).parent
+    assert {p.name for p in folder.glob("*.json")} == {f"compare-{law}.json"
+                                                       for law in compared["profiles"]}
+
+
+def test_verdict_ties_and_margins():
+    from twin.compare import verdict
+
+    rows = [("a", "a_s", "s"), ("b", ("b_um", "x"), "µm")]
+    out = verdict({"fast": {"a_s": 1.0, "b_um": {"x": 5.0}},
+                   "slow": {"a_s": 1.0005, "b_um": {"x": 4.0}}}, rows)
+    assert out[0]["winner"] is None and out[0]["runner_up"] == "slow"          # 0.05 %: tie
+    assert out[1]["winner"] == "slow" and out[1]["margin"] == pytest.approx(1.0)
+    assert out[1]["margin_ratio"] == pytest.approx(1.25)
+    assert verdict({"only": {"a_s": 2.0}}, rows[:1])[0]["winner"] == "only"
+    assert verdict({"x": {}}, rows) == []                    # a figure a law lacks: left out
+
+
+def test_every_call_writes_into_a_folder_of_its_own(tmp_path):
+    prog = tmp_path / "two_lines.ngc"
+    prog.write_text(PROGRAM)
+    folders = []
+    for _ in range(2):
+        r = _twin("compare", str(prog), "--profiles", "parabolic", "--no-rerun", "--out",
+                  str(tmp_path / "out"), "--json")
+        assert r.returncode == 0, r.stderr
+        folders.append(Path(json.loads(r.stdout)["folder"]))
+    assert folders[0] != folders[1] and all(f.parent == tmp_path / "out" for f in folders)
+    assert all((f / "compare.png").exists() for f in folders)
+
+
+def test_the_terminal_table_names_the_winners(tmp_path):
+    prog = tmp_path / "two_lines.ngc"
+    prog.write_text(PROGRAM)
+    r = _twin("compare", str(prog), "--profiles", "trapezoid,parabolic", "--no-rerun",
+              "--out", str(tmp_path / "out"))
+    assert r.returncode == 0, r.stderr
+    assert "winner" in r.stdout and "margin" in r.stdout
+    assert re.search(r"parabolic wins \d+ of 11 figures", r.stdout)
+
+
 def test_rrd_holds_one_subtree_per_law_with_every_tick(compared):
     reader = rc.RrdReader(compared["recording"])
     assert len(reader.recordings()) == 1
@@ -153,6 +216,9 @@ def test_sweep_plots_a_figure_against_the_parameter(tmp_path):
     # the law keeps its jerk limit on each axis (the vector: within √2·J, see above)
     assert low <= math.sqrt(2.0) * 1.0 * 1.01 and 1.0 < high <= math.sqrt(2.0) * 5.0 * 1.01
     assert os.path.getsize(d["report"]) > 1000
+    # the cycle time each law pays for the figure, beside it
+    assert [len(v) for v in d["sweep"]["cycle_time_s"].values()] == [2]
+    assert Path(d["report"]).parent == Path(d["folder"])
 
 
 def test_unknown_law_exits_2_naming_it(tmp_path):

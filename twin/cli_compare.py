@@ -10,26 +10,52 @@ import typer
 from rich.console import Console
 from rich.table import Table
 
-from twin.cli_common import CONTROLLER_MODEL_HELP, METRIC_ROWS, err, fail, summary_table
+from twin.cli_common import CONTROLLER_MODEL_HELP, err, fail
 from twin.errors import ConfigError, TwinError
 from twin.jsonio import json_text, output_dir
 
-__all__ = ["ROWS", "register"]
+__all__ = ["register"]
 
 
-ROWS = (
-    ("cycle time", "cycle_time_s", "s"),
-    *METRIC_ROWS,
-    ("peak reference jerk |Δa|/T", "peak_reference_jerk_m_per_s3", "m/s³"),
-    ("speed jump at junctions", "junction_speed_jump_mm_per_s", "mm/s"),
-    ("elastic oscillation", "elastic_oscillation_um", "µm"),
-    ("settling travel (loop lag)", "settling_travel_um", "µm"),
-)
-"""Rows of the comparison table: label, summary key (or (key, axis)), unit."""
+def _table(verdicts: list[dict[str, Any]], laws: list[str], title: str) -> Table:
+    """Every figure per law, the winner (bold) and its margin."""
+    from twin.compare_report import margin_text
+
+    table = Table(title=title)
+    table.add_column("figure (smaller is better)")
+    for law in laws:
+        table.add_column(law, justify="right")
+    table.add_column("unit")
+    table.add_column("winner")
+    table.add_column("margin", justify="right")
+    for e in verdicts:
+        cells = [f"[bold]{e['values'][law]:.4g}[/]" if law == e["winner"]
+                 else f"{e['values'][law]:.4g}" for law in laws]
+        table.add_row(e["label"], *cells, e["unit"], e["winner"] or "tie", margin_text(e))
+    return table
 
 
-def _table(summaries: dict[str, dict[str, Any]], title: str) -> Table:
-    return summary_table(summaries, ROWS, title=title)
+def _wins(verdicts: list[dict[str, Any]]) -> str:
+    """One line: how many figures each law wins, and which ("parabolic wins 8 of 11 ...")."""
+    by_law: dict[str, list[str]] = {}
+    for e in verdicts:
+        by_law.setdefault(e["winner"] or "tie", []).append(e["label"])
+    parts = [f"[bold]{law}[/] wins {len(labels)} of {len(verdicts)} figures"
+             + (f" ({', '.join(labels)})" if len(labels) <= 3 else "")
+             for law, labels in sorted(by_law.items(), key=lambda kv: -len(kv[1]))
+             if law != "tie"]
+    if "tie" in by_law:
+        parts.append(f"tied: {', '.join(by_law['tie'])}")
+    return "; ".join(parts)
+
+
+def _call_folder(out: Path) -> Path:
+    """A folder of its own for this call under ``out`` (time stamp + random suffix): a
+    second comparison never overwrites the first's outputs."""
+    import time
+    import uuid
+
+    return output_dir(out / (time.strftime("%Y%m%d-%H%M%S-") + uuid.uuid4().hex[:4]))
 
 
 def _parse_sweep(text: str) -> tuple[str, list[Any]]:
@@ -57,7 +83,8 @@ def compare_cmd(
     dcu_order: int | None = typer.Option(None, "--dcu-order", min=0, max=3),
     builtin: str = typer.Option("default", "--builtin",
                                 help="Built-in program when no PROGRAM is given."),
-    out: Path = typer.Option(Path("runs/compare"), "--out", help="Output directory."),
+    out: Path = typer.Option(Path("runs/compare"), "--out", help="Output directory: each "
+                             "call writes into a new folder of its own inside it."),
     sweep: str | None = typer.Option(None, "--sweep", help="key=v1,v2,...: run every law "
                                      "at each value and plot --figure against it."),
     figure: str = typer.Option("max_contour_error_um", "--figure",
@@ -66,7 +93,7 @@ def compare_cmd(
     as_json: bool = typer.Option(False, "--json", help="Print exactly one JSON object."),
 ) -> None:
     """Run one program once per acceleration law; table, PNG report and one overlaid .rrd."""
-    from twin.compare import compare
+    from twin.compare import compare, verdict
     from twin.compare_report import write_report, write_sweep_report
     from twin.controller.profiles.laws import check_law
     from twin.overrides import parse_sets
@@ -81,24 +108,28 @@ def compare_cmd(
                        builtin=builtin, planner=planner, dcu_order=dcu_order,
                        overrides=parse_sets(sets))
         base.belief(base.machine_config())
-        output_dir(out)
+        folder = _call_folder(out)
         if sweep is not None:
-            result = _sweep(base, laws, sweep, figure, out, write_sweep_report)
+            result = _sweep(base, laws, sweep, figure, folder, write_sweep_report)
         else:
             with err.status(f"running {len(laws)} laws …"):
-                comparison = compare(base, laws, out_dir=out, recording=rerun)
-            report = write_report(comparison, out / "compare.png",
+                comparison = compare(base, laws, out_dir=folder, recording=rerun)
+            report = write_report(comparison, folder / "compare.png",
                                   title=f"{program or builtin} on {machine}")
-            result = {"profiles": comparison.summaries(), "report": str(report),
+            result = {"profiles": comparison.summaries(),
+                      "verdict": verdict(comparison.summaries()), "report": str(report),
                       "recording": comparison.recording}
+        result["folder"] = str(folder)
     except TwinError as exc:
         fail(exc)
     if as_json:
         sys.stdout.write(json_text(result) + "\n")
         return
-    console = Console()
+    # a log (not a terminal) gets the table whole rather than folded to 80 columns
+    console = Console(width=None if sys.stdout.isatty() else 160)
     if sweep is None:
-        console.print(_table(result["profiles"], f"{program or builtin} on {machine}"))
+        console.print(_table(result["verdict"], laws, f"{program or builtin} on {machine}"))
+        console.print(_wins(result["verdict"]), highlight=False)
     else:
         table = Table(title=f"{figure} against {result['sweep']['key']}")
         table.add_column("value")
@@ -117,11 +148,13 @@ def _sweep(base, laws: list[str], text: str, figure: str, out: Path, plot) -> di
     import dataclasses
 
     from twin.compare import compare
+    from twin.config import field_unit
     from twin.overrides import resolve_key
 
     key, values = _parse_sweep(text)
     path = resolve_key(key)
     table: dict[str, list[float]] = {law: [] for law in laws}
+    cycle: dict[str, list[float]] = {law: [] for law in laws}
     runs: dict[str, list[dict[str, Any]]] = {law: [] for law in laws}
     for i, value in enumerate(values):
         spec = dataclasses.replace(base, overrides={**base.overrides, path: value})
@@ -134,9 +167,12 @@ def _sweep(base, laws: list[str], text: str, figure: str, out: Path, plot) -> di
                                   + ", ".join(k for k, v in summary.items()
                                               if isinstance(v, float))[:400])
             table[law].append(float(summary[figure]))
+            cycle[law].append(float(summary["cycle_time_s"]))
             runs[law].append(summary)
-    report = plot(key, values, figure, table, out / "sweep.png")
-    return {"sweep": {"key": path, "values": values, "figure": figure, "table": table},
+    report = plot(key, values, figure, table, out / "sweep.png", cycle_times=cycle,
+                  key_unit=field_unit(path))
+    return {"sweep": {"key": path, "values": values, "figure": figure, "table": table,
+                      "cycle_time_s": cycle},
             "profiles": runs, "report": str(report)}
 
 

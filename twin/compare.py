@@ -36,6 +36,7 @@ blueprint that overlays the laws in each plot, one colour per law.
 from __future__ import annotations
 
 import dataclasses
+import math
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 from pathlib import Path
@@ -49,9 +50,29 @@ from twin.model import mode_periods
 from twin.run import RunResult, RunSpec, run
 from twin.telemetry.sink import Sink
 
-__all__ = ["LAW_COLOURS", "Comparison", "LawRun", "compare", "elastic_oscillation",
+__all__ = ["FIGURES", "LAW_COLOURS", "Comparison", "LawRun", "compare", "elastic_oscillation",
+           "figure_value",
            "junction_speed_jump", "junctions", "law_figures", "mode_periods",
-           "true_contour_error"]
+           "true_contour_error", "verdict", "widest_difference"]
+
+FIGURES = (
+    ("cycle time", "cycle_time_s", "s"),
+    ("max contour error", "max_contour_error_um", "µm"),
+    ("RMS contour error", "rms_contour_error_um", "µm"),
+    ("max coordinate error X", ("max_coordinate_error_um", "x"), "µm"),
+    ("max coordinate error Y", ("max_coordinate_error_um", "y"), "µm"),
+    ("max velocity error X", ("max_velocity_error_um_s", "x"), "µm/s"),
+    ("max velocity error Y", ("max_velocity_error_um_s", "y"), "µm/s"),
+    ("peak reference jerk |Δa|/T", "peak_reference_jerk_m_per_s3", "m/s³"),
+    ("speed jump at junctions", "junction_speed_jump_mm_per_s", "mm/s"),
+    ("elastic oscillation", "elastic_oscillation_um", "µm"),
+    ("settling travel (loop lag)", "settling_travel_um", "µm"),
+)
+"""The figures laws are compared by: label, summary key (or (key, axis)), unit. Smaller is
+better for every one of them."""
+
+TIE = 1e-3
+"""Relative difference below which two laws tie on a figure (0.1 %)."""
 
 LAW_COLOURS = {"trapezoid": (214, 39, 40), "parabolic": (31, 119, 180),
                "cosine": (44, 160, 44), "cubic": (148, 103, 189),
@@ -122,10 +143,11 @@ def junction_speed_jump(rec: Mapping[str, np.ndarray], period: float, *,
     return peak
 
 
-def law_figures(result: RunResult) -> dict[str, float]:
+def law_figures(result: RunResult, contour: np.ndarray | None = None) -> dict[str, float]:
     """The figures ``compare`` adds to a run's summary (units in the key names); the elastic
     oscillation from the run's drive-rate samples when it kept them (``keep_fine``), else
-    from its per-tick truth record."""
+    from its per-tick truth record. ``contour``: the run's ``true_contour_error`` when the
+    caller has it already."""
     rec, cfg = result.record, result.config
     period = cfg.controller.period
     step = np.diff(rec["ref_acceleration"], axis=0) / period
@@ -137,7 +159,7 @@ def law_figures(result: RunResult) -> dict[str, float]:
     else:
         t, d = rec["t"], rec["screw_deflection"]
     out["elastic_oscillation_um"] = elastic_oscillation(t, d, mode_periods(cfg)) * 1e6
-    contour = true_contour_error(result)
+    contour = true_contour_error(result) if contour is None else contour
     out["max_contour_error_um"] = float(contour.max()) * 1e6
     out["rms_contour_error_um"] = float(np.sqrt(np.mean(contour**2))) * 1e6
     return out
@@ -151,6 +173,75 @@ def true_contour_error(result: RunResult) -> np.ndarray:
     chords at 50 mm/s with 1 mm of servo lag) that window misses the nearest segment.
     """
     return contour_error(result.path, result.record["table_position"])
+
+
+def figure_value(summary: Mapping[str, Any], key: str | tuple[str, str]) -> float | None:
+    """The value of ``key`` (a summary key, or (key, axis)) in ``summary``; None if absent."""
+    value = summary.get(key[0], {}).get(key[1]) if isinstance(key, tuple) else summary.get(key)
+    return None if value is None else float(value)
+
+
+def verdict(summaries: Mapping[str, Mapping[str, Any]],
+            figures: Sequence[tuple[str, Any, str]] = FIGURES) -> list[dict[str, Any]]:
+    """Which law wins each figure (the smallest value), and by how much.
+
+    Returns one entry per figure that every law has: ``label``, ``unit``, ``values``
+    ({law: value}), ``winner`` (the law, or None when the best two tie within ``TIE``),
+    ``runner_up``, ``margin`` (runner-up minus winner, in the figure's unit) and
+    ``margin_ratio`` (runner-up / winner, inf when the winner is 0)."""
+    out = []
+    for label, key, unit in figures:
+        values = {law: figure_value(s, key) for law, s in summaries.items()}
+        if not values or any(v is None for v in values.values()):
+            continue
+        ranked = sorted(values, key=values.__getitem__)
+        best = values[ranked[0]]
+        entry = {"label": label, "key": key if isinstance(key, str) else ".".join(key),
+                 "unit": unit, "values": values, "winner": ranked[0], "runner_up": None,
+                 "margin": 0.0, "margin_ratio": 1.0}
+        if len(ranked) > 1:
+            second = values[ranked[1]]
+            tie = abs(second - best) <= TIE * max(abs(second), abs(best))
+            entry.update(winner=None if tie else ranked[0], runner_up=ranked[1],
+                         margin=second - best,
+                         margin_ratio=second / best if best > 0 else math.inf)
+        out.append(entry)
+    return out
+
+
+def widest_difference(comparison: Comparison, *, pad: float = 0.3
+                      ) -> tuple[float, float, str] | None:
+    """The time window (s) around the place where the laws' contour errors differ most, and
+    a label for it. Per block, each law's largest true contour error; in the block whose
+    spread across the laws is largest, the window spans every law's peak there, padded by
+    ``pad`` s each side (at most the block). None with fewer than two laws or when the
+    laws' blocks do not correspond (different block counts)."""
+    runs = list(comparison.runs.values())
+    if len(runs) < 2:
+        return None
+    blocks = [r.record["block"].ravel() for r in runs]
+    count = {int(b.max()) for b in blocks}
+    if len(count) != 1 or next(iter(count)) < 0:
+        return None
+    n = next(iter(count)) + 1
+    peaks = np.zeros((len(runs), n))
+    at = np.full((len(runs), n), np.nan)          # when each law peaks in each block (s)
+    spans = np.full((len(runs), n, 2), np.nan)
+    for i, (r, b) in enumerate(zip(runs, blocks, strict=True)):
+        t = r.record["t"]
+        for k in np.unique(b[b >= 0]):
+            ticks = np.flatnonzero(b == k)
+            j = ticks[np.argmax(r.contour[ticks])]
+            peaks[i, k], at[i, k] = r.contour[j], t[j]
+            spans[i, k] = t[ticks[[0, -1]]]
+    spread = peaks.max(axis=0) - peaks.min(axis=0)
+    k = int(np.argmax(spread))
+    t0 = max(float(np.nanmin(at[:, k])) - pad, float(np.nanmin(spans[:, k, 0])))
+    t1 = min(float(np.nanmax(at[:, k])) + pad, float(np.nanmax(spans[:, k, 1])))
+    line = runs[0].record["line"].ravel()[blocks[0] == k]
+    where = f"block {k}" + (f" (line {int(line[0])})" if line.size and line[0] > 0 else "")
+    return t0, t1, (f"{where}, where the laws' contour errors differ most "
+                    f"({spread[k] * 1e6:.3g} µm)")
 
 
 # --------------------------------------------------------------------------- runs
@@ -169,6 +260,9 @@ class LawRun:
         The programmed path.
     fine_t, fine_deflection : ndarray
         Screw deflection per drive interval (s, m), shape (n,) and (n, 2).
+    contour : ndarray
+        The table's true contour error per tick (m), shape (n,): ``true_contour_error``,
+        computed once (the summary's max and RMS, the report's plot and zoom).
     """
 
     law: str
@@ -177,6 +271,7 @@ class LawRun:
     path: list
     fine_t: np.ndarray
     fine_deflection: np.ndarray
+    contour: np.ndarray
 
 
 @dataclass(frozen=True)
@@ -267,11 +362,13 @@ def compare(spec: RunSpec, laws: Sequence[str], *, out_dir: str | Path = "runs",
             result = run(law_spec, out_dir=out, rerun="none", run_id=f"{run_id}-{law}",
                          sink=sink, keep_fine=True)
             summary = {k: v for k, v in result.summary.items() if k not in ("config", "spec")}
-            summary.update(law_figures(result))
+            contour = true_contour_error(result)
+            summary.update(law_figures(result, contour))
             fine_t, fine_d = (result.fine["t"], result.fine["screw_deflection"]) \
                 if result.fine is not None else (result.record["t"],
                                                  result.record["screw_deflection"])
-            runs[law] = LawRun(law, summary, result.record, result.path, fine_t, fine_d)
+            runs[law] = LawRun(law, summary, result.record, result.path, fine_t, fine_d,
+                               contour)
     finally:
         if shared is not None:
             shared.close()
