@@ -31,7 +31,9 @@ def test_a_start_outside_the_travel_is_refused_naming_it(args):
 def test_a_bracketed_value_in_a_message_is_printed_as_it_is():
     # rich took "[nan, nan]" for markup and printed "got array()"
     done = _twin("home", "--axes", "x", "--from", "nan,nan")
-    assert "got [nan, nan] m" in " ".join(done.stderr.split())
+    assert "got nan, nan mm" in " ".join(done.stderr.split())
+    done = _twin("run", "--set", "axes.x.mechanics.travel=[0, 0.3]", "--rerun", "none")
+    assert "a bare [0, 0.3] would be read in m" in " ".join(done.stderr.split())
 
 
 def test_a_host_that_does_not_exist_is_refused_naming_it():

@@ -112,7 +112,9 @@ def run_cma(evaluator: Evaluator, *, budget_s: float, max_evals: int | None = No
     es = cma.CMAEvolutionStrategy(np.zeros(n), sigma0, opts)
     book = None if log is None else TrialLog(log, resume=resume)
     start = time.perf_counter()
-    last = 0.0
+    # a generation starts only if one as long as the last fits in what is left of the
+    # budget; before the first, one as long as the baseline run for each round of workers
+    last = evaluator.baseline.wall_time * math.ceil(popsize / evaluator.workers)
     evals = generation = 0
     try:
         while not es.stop():

@@ -1,11 +1,16 @@
 """``tune(spec)``: one tuning job end to end — search, best settings, report files.
 
-Every method leaves the same files in ``spec.out_dir``:
+A job writes into a folder of its own: ``spec.out_dir`` when given, else
+``runs/tune/<machine>-<program>-<method>-<time>`` (``job_folder``), so that two jobs, or two
+machines, never mix their files, and ``--resume`` continues the newest folder of the same
+machine, program and method, never another machine's checkpoints. Every method leaves the
+same files there:
 
 * ``best.toml`` — the best settings as a machine-override file (``tuning.report``);
 * ``convergence.png`` — cost and max coordinate error per run against the analytic design;
 * ``report.md`` — the table best vs analytic;
-* ``result.json`` — the summary (also what ``twin tune --json`` prints) with every trial.
+* ``result.json`` — the summary (also what ``twin tune --json`` prints) with every trial
+  and the cost weights the job used.
 """
 
 from __future__ import annotations
@@ -22,14 +27,23 @@ from envs.evaluation import Weights
 from envs.programs import PROGRAMS
 from tuning.cma_job import run_cma
 from tuning.evaluator import Evaluator, Trial
-from tuning.report import comparison, plot_convergence, table_markdown, write_overrides
+from tuning.report import (
+    comparison,
+    plot_convergence,
+    table_markdown,
+    weights_markdown,
+    write_overrides,
+)
 from twin.config import MachineConfig, load_machine
 from twin.errors import ConfigError
 from twin.jsonio import folder_lock, output_dir, write_json_atomic, write_text_atomic
 
-__all__ = ["METHODS", "TuneResult", "TuneSpec", "tune"]
+__all__ = ["JOBS_ROOT", "METHODS", "TuneResult", "TuneSpec", "job_folder", "tune"]
 
 METHODS = ("analytic", "cma", "optuna", "ppo", "sac")
+
+JOBS_ROOT = Path("runs/tune")
+"""Where jobs without an ``out_dir`` get their folders."""
 
 
 @dataclass(frozen=True)
@@ -49,8 +63,9 @@ class TuneSpec:
         Tuning program (``envs.programs.PROGRAMS``).
     budget_s : float
         Wall-time budget of the search or training (s).
-    out_dir : Path
-        Where the files go.
+    out_dir : Path or None
+        Where the files go; None: a new folder under ``JOBS_ROOT`` (``job_folder``), or with
+        ``resume`` the newest one of the same machine, program and method.
     storage : str or None
         Optuna storage URL; None: ``sqlite:///<out_dir>/optuna.db``.
     study : str or None
@@ -88,7 +103,7 @@ class TuneSpec:
     controller_model: str | None = None
     program: str = "default"
     budget_s: float = 600.0
-    out_dir: Path = Path("runs/tune")
+    out_dir: Path | None = None
     storage: str | None = None
     study: str | None = None
     workers: int = 2
@@ -130,6 +145,10 @@ class TuneSpec:
         if self.policy is not None and not Path(self.policy).is_file():
             raise ConfigError("policy", f"no such file: {self.policy}")
 
+    def machine_name(self) -> str:
+        """The machine as a folder name: a preset's name, a TOML file's stem."""
+        return Path(self.machine).stem if self.machine.endswith(".toml") else self.machine
+
     def study_name(self, cfg: MachineConfig) -> str:
         """The Optuna study: ``study``, or ``<machine>-<program>``."""
         return self.study or f"{cfg.name}-{self.program}"
@@ -158,6 +177,8 @@ class TuneResult:
     trials: list[Trial]
     files: dict[str, Path]
     wall_time: float
+    weights: dict[str, float] = field(default_factory=dict)
+    """The cost weights of the job (``envs.evaluation.Weights``, every metric's)."""
 
     def summary(self) -> dict[str, Any]:
         """JSON-ready summary (µm, s in the comparison; SI in the trials)."""
@@ -171,18 +192,46 @@ class TuneResult:
                 1.0 - self.best.metrics["max_coordinate_error"]
                 / self.baseline.metrics["max_coordinate_error"]),
             "files": {k: str(v) for k, v in self.files.items()},
+            "weights": dict(self.weights),
             "spec": {k: (str(v) if isinstance(v, Path) else v)
                      for k, v in dataclasses.asdict(self.spec).items()},
         }
 
 
+def job_folder(spec: TuneSpec, root: Path = JOBS_ROOT) -> Path:
+    """The folder of a job without an ``out_dir``: a new
+    ``<root>/<machine>-<program>-<method>-<YYYYmmdd-HHMMSS>``, or with ``resume`` the newest
+    existing one of that machine, program and method.
+
+    Raises
+    ------
+    ConfigError
+        ``resume`` with no earlier job of that machine, program and method.
+    """
+    stem = f"{spec.machine_name()}-{spec.program}-{spec.method}"
+    if spec.resume:
+        earlier = sorted(p for p in root.glob(f"{stem}-*") if p.is_dir())
+        if not earlier:
+            raise ConfigError("resume", f"no earlier {spec.method} job of {spec.machine_name()} "
+                              f"on {spec.program} in {root} (give its folder with --out)")
+        return earlier[-1]
+    return root / f"{stem}-{time.strftime('%Y%m%d-%H%M%S')}"
+
+
+FINISH_S = 2.0
+"""Seconds of a job's budget kept for its files (best settings, JSON, report, plot)."""
+
+
 def _search(spec: TuneSpec, ev: Evaluator, files: dict[str, Path],
-            progress: Callable[[int], None] | None) -> list[Trial]:
-    """Run the method; returns its trials."""
-    if spec.method == "analytic":
+            progress: Callable[[int], None] | None, budget_s: float,
+            training: list[float]) -> list[Trial]:
+    """Run the method within ``budget_s`` (what is left of the job's budget once the
+    machine is loaded and the baseline has run); returns its trials. PPO/SAC append the
+    cost of every training run to ``training``."""
+    if spec.method == "analytic" or budget_s <= 0.0:
         return []
     if spec.method == "cma":
-        run_cma(ev, budget_s=spec.budget_s, max_evals=spec.max_runs, seed=spec.seed,
+        run_cma(ev, budget_s=budget_s, max_evals=spec.max_runs, seed=spec.seed,
                 log=spec.out_dir / "cma_trials.jsonl", resume=spec.resume)
         files["log"] = spec.out_dir / "cma_trials.jsonl"
         return ev.trials
@@ -192,18 +241,23 @@ def _search(spec: TuneSpec, ev: Evaluator, files: dict[str, Path],
 
         job = run_worker if spec.worker else run_optuna
         return job(ev, storage=spec.storage or default_storage(spec.out_dir),
-                   study_name=spec.study_name(ev.tuning.cfg), budget_s=spec.budget_s,
+                   study_name=spec.study_name(ev.tuning.cfg), budget_s=budget_s,
                    max_trials=spec.max_runs, seed=spec.seed, heartbeat_s=spec.heartbeat_s,
                    grace_s=spec.grace_s)
     from tuning.sb3_job import apply_policy, train
 
     policy = spec.policy
     if policy is None:
+        # the policy's runs on the machine come after the training, inside the budget
+        applying = spec.policy_runs * ev.baseline.wall_time
         policy = train(spec.method, machine=ev.tuning.cfg, program=spec.program,
                        out_dir=spec.out_dir / "checkpoints", total_steps=spec.train_steps,
-                       budget_s=spec.budget_s, n_envs=spec.workers, seed=spec.seed,
-                       weights=ev.tuning.weights, progress=progress, resume=spec.resume)
+                       budget_s=max(budget_s - applying, 1e-3), n_envs=spec.workers,
+                       seed=spec.seed, weights=ev.tuning.weights, progress=progress,
+                       resume=spec.resume, on_cost=training.append,
+                       tensorboard=spec.out_dir / "tensorboard")
         files["policy"] = policy
+        files["tensorboard"] = spec.out_dir / "tensorboard"
     trials, _ = apply_policy(policy, ev.tuning.cfg, program=spec.program,
                              runs=spec.policy_runs, weights=ev.tuning.weights,
                              on_trial=ev.on_trial)
@@ -211,7 +265,8 @@ def _search(spec: TuneSpec, ev: Evaluator, files: dict[str, Path],
 
 
 def tune(spec: TuneSpec, *, on_trial: Callable[[Trial], None] | None = None,
-         progress: Callable[[int], None] | None = None) -> TuneResult:
+         progress: Callable[[int], None] | None = None,
+         on_start: Callable[[Path, dict[str, float]], None] | None = None) -> TuneResult:
     """Run the job ``spec``; write the override TOML, plot, table and JSON.
 
     Parameters
@@ -221,8 +276,12 @@ def tune(spec: TuneSpec, *, on_trial: Callable[[Trial], None] | None = None,
         Called after every tuning run of this process.
     progress : callable(int), optional
         PPO/SAC: called with the number of training steps done.
+    on_start : callable(Path, dict), optional
+        Called once the job has its folder, with the folder and the cost weights.
     """
     start = time.perf_counter()
+    if spec.out_dir is None:
+        spec = dataclasses.replace(spec, out_dir=job_folder(spec))
     cfg: MachineConfig = load_machine(spec.machine)
     if spec.method == "optuna" and spec.storage:   # a shared study: checked before writing
         from tuning.study_storage import check_study, study_identity
@@ -232,6 +291,8 @@ def tune(spec: TuneSpec, *, on_trial: Callable[[Trial], None] | None = None,
             cfg, belief, spec.program, Weights.from_mapping(spec.weights)))
     out = output_dir(spec.out_dir)
     with folder_lock(out):
+        if on_start is not None:
+            on_start(out, dataclasses.asdict(Weights.from_mapping(spec.weights)))
         return _tune_in(spec, cfg, out, start, on_trial, progress)
 
 
@@ -243,7 +304,9 @@ def _tune_in(spec: TuneSpec, cfg: MachineConfig, out: Path, start: float,
     with Evaluator.create(cfg, spec.program, weights=Weights.from_mapping(spec.weights),
                           workers=spec.workers if spec.method in ("cma", "optuna") else 1,
                           on_trial=on_trial, belief=spec.controller_model) as ev:
-        trials = _search(spec, ev, files, progress)
+        left = spec.budget_s - (time.perf_counter() - start) - FINISH_S
+        training: list[float] = []
+        trials = _search(spec, ev, files, progress, left, training)
         baseline = ev.baseline
     best = min([baseline, *trials], key=lambda t: t.cost)
     header = (f"twin tune --method {spec.method}: best settings for {cfg.name}, program "
@@ -258,15 +321,18 @@ def _tune_in(spec: TuneSpec, cfg: MachineConfig, out: Path, start: float,
     files["result"] = out / "result.json"
     files["report"] = out / "report.md"
     files["plot"] = out / "convergence.png"
+    weights = dataclasses.asdict(Weights.from_mapping(spec.weights))
     result = TuneResult(spec, baseline, best, list(trials), files,
-                        time.perf_counter() - start)
-    doc = {**result.summary(), "trials": [t.to_dict() for t in trials]}
+                        time.perf_counter() - start, weights)
+    doc = {**result.summary(), "trials": [t.to_dict() for t in trials],
+           "training_costs": training}
     write_json_atomic(files["result"], doc, indent=1)
     rows = comparison(baseline, best)
     write_text_atomic(files["report"],
                       f"# {spec.method} tuning of {cfg.name} ({spec.program})\n\n"
                       f"{len(trials)} tuning runs, {result.wall_time:.0f} s.\n\n"
-                      + table_markdown(rows))
+                      + table_markdown(rows) + "\n" + weights_markdown(weights))
     plot_convergence(files["plot"], trials, baseline,
-                     title=f"{spec.method} on {cfg.name} ({spec.program})")
+                     title=f"{spec.method} on {cfg.name} ({spec.program})",
+                     training=training)
     return result

@@ -55,8 +55,8 @@ from tuning.study_storage import (
 )
 from twin.errors import ConfigError
 
-__all__ = ["fail_trials_without_heartbeat", "open_study", "run_optuna", "run_worker",
-           "study_trials"]
+__all__ = ["fail_trials_without_heartbeat", "open_study", "physical_values", "run_optuna",
+           "run_worker", "study_trials"]
 
 WORKER = f"{socket.gethostname()}:{os.getpid()}"
 """This process, as a trial's ``worker`` attribute names it (host and pid)."""
@@ -164,26 +164,50 @@ def _seed_baseline(study: optuna.Study, baseline: Trial, names: tuple[str, ...])
     study.add_trial(trial)
 
 
+def physical_values(settings: dict[str, Any]) -> dict[str, float]:
+    """A trial's settings as flat, named values in their units (``kp_x [V/m]``,
+    ``max_jerk [m/s³]``): the study's parameters are the normalised coordinates the search
+    moves in, so optuna-dashboard shows these user attributes for the gains themselves."""
+    out = {}
+    for k, ax in enumerate("xy"):
+        out[f"kp_{ax} [V/m]"] = float(settings["kp"][k])
+        out[f"ki_{ax} [V/(m·s)]"] = float(settings["ki"][k])
+        for j, alpha in enumerate(settings["dcu_alpha"][k], start=1):
+            out[f"dcu_alpha{j}_{ax} [V/m]"] = float(alpha)
+    out["max_jerk [m/s³]"] = float(settings["max_jerk"])
+    return out
+
+
 def _attrs(trial: Trial) -> dict[str, Any]:
     d = trial.to_dict()
     return {"terms": d["terms"], "metrics": d["metrics"], "status": d["status"],
             "settings": d["settings"], "wall_time_s": d["wall_time_s"],
-            "sim_time_s": d["sim_time_s"]}
+            "sim_time_s": d["sim_time_s"], **physical_values(d["settings"])}
 
 
-def _objective(evaluator: Evaluator, names: tuple[str, ...], end: int | None = None
-               ) -> Callable[[optuna.Trial], float]:
+def _objective(evaluator: Evaluator, names: tuple[str, ...], end: int | None = None,
+               deadline: float | None = None) -> Callable[[optuna.Trial], float]:
     """The objective (each trial notes the host and process that runs it, user attribute
     ``worker``); with ``end``, a trial numbered ``end`` or above is not run (pruned,
     and this process stops): the storage numbers trials atomically, so every process of a
-    job sees the same bound and the job runs at most ``end`` − its first number trials."""
+    job sees the same bound and the job runs at most ``end`` − its first number trials.
+    With ``deadline`` (``time.time()`` seconds), a trial starts only if one as long as this
+    process's last (at first: the baseline run) ends before it; otherwise this process
+    stops: Optuna's own timeout lets the trial in flight overrun the budget."""
+    last = [evaluator.baseline.wall_time]
+
     def objective(trial: optuna.Trial) -> float:
         if end is not None and trial.number >= end:
             trial.study.stop()
             raise optuna.TrialPruned(f"the job's --max-runs is spent (trial {trial.number})")
+        if deadline is not None and time.time() + last[0] > deadline:
+            trial.study.stop()
+            raise optuna.TrialPruned("the job's time budget is spent")
         trial.set_user_attr("worker", WORKER)
         x = [trial.suggest_float(n, -1.0, 1.0) for n in names]
+        t0 = time.perf_counter()
         result = evaluator.evaluate([x])[0]
+        last[0] = time.perf_counter() - t0
         for key, value in _attrs(result).items():
             trial.set_user_attr(key, value)
         return result.cost
@@ -206,11 +230,11 @@ def study_trials(study: optuna.Study) -> list[Trial]:
 
 
 def _worker(url: str, name: str, tuning: Tuning, budget_s: float, seed: int,
-            end: int | None = None) -> None:
+            end: int | None = None, deadline: float | None = None) -> None:
     names = tuning.space.names
     storage = open_storage(url)
     study = open_study(storage, name, names, seed=seed, identity=_identity(tuning))
-    study.optimize(_objective(Evaluator(tuning), names, end), timeout=budget_s,
+    study.optimize(_objective(Evaluator(tuning), names, end, deadline), timeout=budget_s,
                    callbacks=[_check_after_each_trial(storage)])
 
 
@@ -233,16 +257,17 @@ def run_optuna(evaluator: Evaluator, *, storage: str, study_name: str, budget_s:
     # --max-runs bounds the job, all its processes together: trial numbers from here on
     end = None if max_trials is None else len(study.trials) + max_trials
     t = evaluator.tuning
+    deadline = time.time() + budget_s
     ctx = multiprocessing.get_context("spawn")
     extra = [ctx.Process(target=_worker, daemon=True,
-                         args=(storage, study_name, t, budget_s, seed + 1 + i, end))
+                         args=(storage, study_name, t, budget_s, seed + 1 + i, end, deadline))
              for i in range(evaluator.workers - 1)]
     for p in extra:
         p.start()
     local = Evaluator(t, 1, evaluator.on_trial)
     start = time.perf_counter()
     try:
-        study.optimize(_objective(local, names, end), timeout=budget_s,
+        study.optimize(_objective(local, names, end, deadline), timeout=budget_s,
                        n_trials=max_trials, callbacks=[_check_after_each_trial(db)])
     finally:
         for p in extra:

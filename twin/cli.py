@@ -40,6 +40,7 @@ from twin.cli_common import (  # noqa: E402
 from twin.config import available_machines, diff_machines, field_unit, load_machine  # noqa: E402
 from twin.errors import TwinError  # noqa: E402
 from twin.jsonio import json_text  # noqa: E402
+from twin.overrides import SET_HELP  # noqa: E402
 
 __all__ = ["app"]
 
@@ -189,8 +190,7 @@ def run_cmd(
     dcu_order: int | None = typer.Option(None, "--dcu-order", min=0, max=3,
                                          help="Order of the digital correcting device."),
     period: float | None = typer.Option(None, help="Controller period (s)."),
-    sets: list[str] = typer.Option([], "--set", help="key=value: any regulator, DCU, "
-                                    "limit or machine parameter (repeatable)."),
+    sets: list[str] = typer.Option([], "--set", help=SET_HELP),
     rerun: str = typer.Option("file", help="spawn (a native viewer; without a display: "
                               "the file only), serve (a gRPC server for viewers, kept until "
                               "Ctrl-C), none, file, or PATH.rrd. spawn and serve also write "
@@ -320,6 +320,7 @@ def machines(
 def _machine_fields(machine: str, as_json: bool) -> None:
     """``twin machines --fields M``: every leaf with its value, unit, range and meaning."""
     from twin.config.loader import flatten
+    from twin.config.quantities import display_unit
     from twin.config.schema import field_meta, range_text
 
     try:
@@ -329,8 +330,9 @@ def _machine_fields(machine: str, as_json: bool) -> None:
     rows = []
     for path, value in flatten(cfg).items():
         meta = field_meta(path)
+        shown = display_unit(meta) if meta.get("unit") else None
         rows.append({"field": path, "value": value, "unit": meta.get("unit", ""),
-                     "range": range_text(meta),
+                     "display_unit": shown, "range": range_text(meta),
                      "meaning": meta.get("doc", "")})
     if as_json:
         _emit({"machine": cfg.name, "fields": rows}, True)
@@ -340,7 +342,10 @@ def _machine_fields(machine: str, as_json: bool) -> None:
         table.add_column(key, overflow="fold")
     for r in rows:
         value = f"{r['value']:g}" if isinstance(r["value"], float) else str(r["value"])
-        table.add_row(r["field"], value, r["range"] or r["unit"], r["meaning"])
+        rng = r["range"] or r["unit"]
+        if r["display_unit"]:
+            rng += f"; --set in {r['display_unit']}, with the unit"
+        table.add_row(r["field"], value, rng, r["meaning"])
     Console().print(table)
 
 

@@ -13,6 +13,7 @@ from rich.table import Table
 from twin.cli_common import CONTROLLER_MODEL_HELP, err, fail
 from twin.errors import ConfigError, TwinError
 from twin.jsonio import json_text, output_dir
+from twin.overrides import SET_HELP
 
 __all__ = ["register"]
 
@@ -55,16 +56,25 @@ def _call_folder(out: Path) -> Path:
     import time
     import uuid
 
-    return output_dir(out / (time.strftime("%Y%m%d-%H%M%S-") + uuid.uuid4().hex[:4]))
+    return output_dir(output_dir(out) / (time.strftime("%Y%m%d-%H%M%S-")
+                                         + uuid.uuid4().hex[:4]))
 
 
 def _parse_sweep(text: str) -> tuple[str, list[Any]]:
-    from twin.overrides import parse_sets
+    """``key=v1,v2,...`` → (key, values); a value with a unit (``600mm/min``) in SI."""
+    from twin.config.quantities import to_si
+    from twin.config.schema import field_meta
+    from twin.overrides import parse_sets, resolve_key
 
     key, sep, values = text.partition("=")
     if not sep or not values.strip():
         raise ConfigError("--sweep", f"expected key=v1,v2,..., got {text!r}")
-    parsed = [next(iter(parse_sets([f"{key}={v}"]).values())) for v in values.split(",")]
+    unit = str(field_meta(resolve_key(key)).get("unit", ""))
+    parsed = []
+    for v in values.split(","):
+        value = next(iter(parse_sets([f"{key}={v}"]).values()))
+        parsed.append(to_si(value, unit, key.strip()) if isinstance(value, str) and unit
+                      else value)
     return key.strip(), parsed
 
 
@@ -78,7 +88,7 @@ def compare_cmd(
                                 help="Machine preset name or TOML file (the plant)."),
     controller_model: str | None = typer.Option(None, "--controller-model",
                                                 help=CONTROLLER_MODEL_HELP),
-    sets: list[str] = typer.Option([], "--set", help="key=value overrides (repeatable)."),
+    sets: list[str] = typer.Option([], "--set", help=SET_HELP),
     planner: str | None = typer.Option(None, help="lookahead or stop."),
     dcu_order: int | None = typer.Option(None, "--dcu-order", min=0, max=3),
     builtin: str = typer.Option("default", "--builtin",

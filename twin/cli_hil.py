@@ -28,6 +28,7 @@ from twin.cli_common import err, fail
 from twin.errors import ConfigError, TwinError
 from twin.hardware.realtime import fifo_priority, set_fifo_priority
 from twin.jsonio import json_text
+from twin.overrides import SET_HELP
 from twin.processes import stop_process
 
 __all__ = ["HilProcess", "fifo_priority", "hil_server", "register", "set_fifo_priority",
@@ -47,8 +48,7 @@ def hil_server(
                                       "arrives for this long (ms)."),
     register_map: Path | None = typer.Option(None, "--map", help="Register map TOML "
                                              "(default: the documented default map)."),
-    sets: list[str] = typer.Option([], "--set", help="key=value machine overrides "
-                                   "(repeatable)."),
+    sets: list[str] = typer.Option([], "--set", help=SET_HELP),
     start: tuple[float, float] | None = typer.Option(None, "--from", help="Table position "
                                                      "at the start, X Y in mm (default: "
                                                      "the home keyframe)."),

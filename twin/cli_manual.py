@@ -13,6 +13,7 @@ from rich.table import Table
 from twin.cli_common import CONTROLLER_MODEL_HELP, RUN_ROWS, err, fail, summary_table
 from twin.errors import ConfigError, TwinError
 from twin.jsonio import json_text
+from twin.overrides import SET_HELP
 
 __all__ = ["register"]
 
@@ -30,7 +31,7 @@ def experiment(
                                 help="Machine preset name or TOML file (the plant)."),
     controller_model: str | None = typer.Option(None, "--controller-model",
                                                 help=CONTROLLER_MODEL_HELP),
-    sets: list[str] = typer.Option([], "--set", help="key=value overrides."),
+    sets: list[str] = typer.Option([], "--set", help=SET_HELP),
     rerun: Path | None = typer.Option(None, "--rerun", help="Write the response to this "
                                       ".rrd file."),
     as_json: bool = typer.Option(False, "--json"),
@@ -78,7 +79,7 @@ def experiment(
 
 def _manual(commands: list[str], machine: str, out: Path, as_json: bool,
             start: tuple[float, float] | None, dry_run: bool,
-            ignore_soft_limits: bool) -> None:
+            ignore_soft_limits: bool, title: str) -> None:
     from twin.run import RunSpec, run
 
     sets = {"controller.soft_limits": False} if ignore_soft_limits else {}
@@ -95,8 +96,7 @@ def _manual(commands: list[str], machine: str, out: Path, as_json: bool,
         sys.stdout.write(json_text({k: v for k, v in s.items()
                                     if k not in ("config", "spec")}) + "\n")
     else:
-        Console().print(summary_table({"value": s}, RUN_ROWS, title=' ; '.join(commands),
-                                      skip_missing=True))
+        Console().print(summary_table({"value": s}, RUN_ROWS, title=title, skip_missing=True))
         Console().print(f"final position: X {pos[0] * 1e3:.4f} mm, Y {pos[1] * 1e3:.4f} mm")
     if s["status"] != "FINISHED":
         why = s.get("fault") or s.get("aborted") or s.get("timeout") or ""
@@ -135,7 +135,8 @@ def home(
             raise ConfigError("--axes", f"must be x, y or xy, got {axes!r}")
     except TwinError as exc:
         fail(exc)
-    _manual([f"home {a}" for a in axes], machine, out, as_json, pos, False, False)
+    _manual([f"home {a}" for a in axes], machine, out, as_json, pos, False, False,
+            title=f"home {', '.join(a.upper() for a in axes)}")
 
 
 def jog(
@@ -159,7 +160,7 @@ def jog(
     except TwinError as exc:
         fail(exc)
     _manual([f"jog {axis} {distance * 1e-3!r}"], machine, out, as_json, pos, dry_run,
-            ignore_soft_limits)
+            ignore_soft_limits, title=f"jog {axis.upper()} {distance:+g} mm")
 
 
 def register(app: typer.Typer) -> None:

@@ -64,7 +64,9 @@ def tune(
                                 "the newest checkpoint this job wrote in OUT/checkpoints "
                                 "(checked against its SHA-256 manifest; any other file "
                                 "there is refused, never loaded)."),
-    out: Path = typer.Option(Path("runs/tune"), "--out", help="Output directory."),
+    out: Path | None = typer.Option(None, "--out", help="The job's folder; default: a new "
+                                    "runs/tune/MACHINE-PROGRAM-METHOD-TIME (with --resume: "
+                                    "the newest one of this machine, program and method)."),
     as_json: bool = typer.Option(False, "--json", help="Print exactly one JSON object."),
 ) -> None:
     """Tune the regulator gains, DCU coefficients and jerk limit of a machine."""
@@ -82,25 +84,10 @@ def tune(
                         resume=resume, worker=worker, heartbeat_s=heartbeat_s,
                         grace_s=grace_s)
         training = method in ("ppo", "sac") and policy is None
-        with Progress(TextColumn(f"[bold]{method}"), BarColumn(),
-                      TextColumn("{task.description}"), TimeElapsedColumn(), console=err,
-                      transient=True) as bar:
-            task = bar.add_task("starting", total=train_steps if training else budget_s)
-            start = time.perf_counter()
-            state = {"runs": 0, "best": float("inf")}
-
-            def on_trial(trial: Any) -> None:
-                state["runs"] += 1
-                state["best"] = min(state["best"], trial.cost)
-                if not training:
-                    bar.update(task, completed=min(time.perf_counter() - start, budget_s))
-                bar.update(task, description=f"{state['runs']} runs, best cost "
-                                             f"{state['best']:.4g}")
-
-            def on_steps(steps: int) -> None:
-                bar.update(task, completed=steps, description=f"training: {steps} runs")
-
-            result = run_job(spec, on_trial=on_trial, progress=on_steps)
+        watch = _Watch(method, budget_s, train_steps if training else None)
+        with watch:
+            result = run_job(spec, on_trial=watch.on_trial, progress=watch.on_steps,
+                             on_start=watch.on_start)
     except TwinError as exc:
         fail(exc)
     summary = result.summary()
@@ -121,6 +108,71 @@ def tune(
     console.print(table)
     for key, path in summary["files"].items():
         console.print(f"{key}: {path}", highlight=False)
+
+
+class _Watch:
+    """What a running job shows: a progress bar on a terminal; elsewhere (a log, a cluster
+    scheduler) one plain line on stderr at the first run and then every ``EVERY`` seconds,
+    and the last. The job's folder and cost weights are said when it starts."""
+
+    EVERY = 10.0
+
+    def __init__(self, method: str, budget_s: float, train_steps: int | None):
+        self.method, self.budget_s, self.train_steps = method, budget_s, train_steps
+        self.tty = err.is_terminal
+        self.runs, self.best, self.steps = 0, float("inf"), 0
+        self.start = time.perf_counter()
+        self.said = -float("inf")
+        self.bar: Progress | None = None
+
+    def __enter__(self) -> _Watch:
+        if self.tty:
+            self.bar = Progress(TextColumn(f"[bold]{self.method}"), BarColumn(),
+                                TextColumn("{task.description}"), TimeElapsedColumn(),
+                                console=err, transient=True)
+            self.bar.__enter__()
+            self.task = self.bar.add_task("starting", total=self.train_steps or self.budget_s)
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        if self.bar is not None:
+            self.bar.__exit__(*exc)
+        elif self.runs or self.steps:
+            self._line()
+
+    def on_start(self, folder: Any, weights: dict[str, float]) -> None:
+        from tuning.report import weights_text
+
+        err.print(f"{self.method}: job folder {folder}; {weights_text(weights)} (each term "
+                  "relative to the analytic design)", highlight=False, soft_wrap=True)
+
+    def on_trial(self, trial: Any) -> None:
+        self.runs += 1
+        self.best = min(self.best, trial.cost)
+        self._show()
+
+    def on_steps(self, steps: int) -> None:
+        self.steps = steps
+        self._show()
+
+    def _text(self) -> str:
+        if self.train_steps is not None:
+            return f"training: {self.steps} of {self.train_steps} runs"
+        return f"{self.runs} runs, best cost {self.best:.4g}"
+
+    def _show(self) -> None:
+        elapsed = time.perf_counter() - self.start
+        if self.bar is not None:
+            done = self.steps if self.train_steps is not None else min(elapsed, self.budget_s)
+            self.bar.update(self.task, completed=done, description=self._text())
+        elif elapsed - self.said >= self.EVERY:
+            self._line()
+
+    def _line(self) -> None:
+        elapsed = time.perf_counter() - self.start
+        self.said = elapsed
+        err.print(f"{self.method}: {self._text()}; {elapsed:.0f} s of {self.budget_s:g} s",
+                  highlight=False, soft_wrap=True)
 
 
 def register(app: typer.Typer) -> None:

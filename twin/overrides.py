@@ -2,9 +2,14 @@
 
 A key is a dotted path of the machine configuration (``axes.x.mechanics.carriage_mass``,
 ``axes.*.transmission.damping_ratio`` for both axes) or one of the short names below.
-Values are TOML literals (``2.5e3``, ``true``, ``"cosine"``); anything else is a string.
-``--set-file FILE.toml`` gives the same overrides as TOML tables (what ``twin tune`` writes);
-``--set`` values win over the file's.
+Values are TOML literals (``2.5e3``, ``true``, ``"cosine"``) or numbers with a unit
+(``900mm/min``, ``5um``, ``2 V/mm``: converted to the field's SI unit,
+``twin.config.quantities``); anything else is a string. A field shown in another unit than
+its SI one (a feed in mm/min, a tolerance in µm, the period in ms) takes no bare number here:
+``max_velocity=900`` is refused, naming the unit to give. ``--set-file FILE.toml`` gives the
+same overrides as TOML tables (what ``twin tune`` writes), values with units as strings
+(``max_velocity = "900 mm/min"``) and bare numbers in SI; ``--set`` values win over the
+file's.
 """
 
 from __future__ import annotations
@@ -15,9 +20,12 @@ from pathlib import Path
 from typing import Any
 
 from twin.config import read_toml
+from twin.config.quantities import display_unit, example, is_bare_number
+from twin.config.schema import field_meta
 from twin.errors import ConfigError
 
-__all__ = ["SHORT_KEYS", "parse_sets", "resolve_key", "set_file_overrides"]
+__all__ = ["SET_HELP", "SHORT_KEYS", "key_units", "parse_sets", "resolve_key",
+           "set_file_overrides"]
 
 SHORT_KEYS = {
     **{k: f"controller.regulator.{k}" for k in
@@ -58,15 +66,55 @@ def _value(text: str) -> Any:
         return text
 
 
+def _bare(value: Any) -> bool:
+    if isinstance(value, list):
+        return any(_bare(v) for v in value)
+    return is_bare_number(value)
+
+
+def _checked(key: str, path: str, value: Any) -> Any:
+    """``value`` for ``path``, refused when it is a bare number for a field shown in
+    another unit than its SI one (the unit must be given)."""
+    meta = field_meta(path)
+    shown = display_unit(meta) if meta.get("unit") else None
+    if shown is not None and _bare(value):
+        raise ConfigError(key, f"give a unit: {key}={example(meta['unit'], shown)} (this "
+                          f"field is shown in {shown}; a bare {value!r} would be read in "
+                          f"{meta['unit']})")
+    return value
+
+
 def parse_sets(items: Iterable[str]) -> dict[str, Any]:
-    """``["kp=2000", "axes.x.mechanics.carriage_mass=90"]`` → ``{dotted path: value}``."""
+    """``["kp=2000", "max_velocity=900mm/min"]`` → ``{dotted path: value}``; a value with a
+    unit stays text until the machine's fields convert it (``MachineConfig.with_overrides``)
+    to SI."""
     out: dict[str, Any] = {}
     for item in items:
         key, sep, text = item.partition("=")
         if not sep or not key.strip():
             raise ConfigError(item, "--set needs key=value")
-        out[resolve_key(key)] = _value(text.strip())
+        path = resolve_key(key)
+        out[path] = _checked(key.strip(), path, _value(text.strip()))
     return out
+
+
+def key_units() -> dict[str, str]:
+    """Each short ``--set`` key and the unit it takes (``mm/min, with the unit`` for one
+    shown in another unit than SI)."""
+    out = {}
+    for key, path in SHORT_KEYS.items():
+        meta = field_meta(path)
+        unit = str(meta.get("unit", "")) or "-"
+        shown = display_unit(meta) if meta.get("unit") else None
+        out[key] = f"{shown}, with the unit" if shown else unit
+    return out
+
+
+SET_HELP = ("key=value, repeatable: any regulator, DCU, limit or machine parameter by its "
+            "dotted path (axes.x.mechanics.carriage_mass=95) or short key; a value may carry "
+            "a unit (900mm/min, 5um, 2 V/mm). Short keys and units: "
+            + ", ".join(f"{k} ({u})" for k, u in key_units().items()) + ".")
+"""The ``--set`` option's help: every short key with the unit it takes."""
 
 
 def set_file_overrides(path: str | Path) -> dict[str, Any]:

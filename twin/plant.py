@@ -208,8 +208,11 @@ class Plant:
             x = np.asarray(positions, dtype=float)
             if x.shape != (2,) or not all(lo <= xi <= hi for xi, (lo, hi)
                                           in zip(x.tolist(), self._travel, strict=True)):
-                raise ConfigError("start", f"must be 2 positions within the travel "
-                                  f"{self._travel} m, got {x.ravel().tolist()} m")
+                travel = ", ".join(f"{a} {lo * 1e3:g} … {hi * 1e3:g} mm" for a, (lo, hi)
+                                   in zip("XY", self._travel, strict=True))
+                got = ", ".join(f"{v * 1e3:g}" for v in x.ravel().tolist())
+                raise ConfigError("start", f"must be 2 positions within the travel ({travel}), "
+                                  f"got {got} mm")
             self._table_pos[:] = x
             self._rotor_pos[:] = x / self._ratio
             d.qvel[:] = 0.0

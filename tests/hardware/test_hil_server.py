@@ -198,7 +198,7 @@ def test_a_limit_switch_during_a_run_disables_the_drive_and_keeps_the_record(tmp
     program.write_text("G90 G21\nG1 X40 F600\nM2\n", encoding="utf-8")   # from X = 10 mm
     # The module's X end switch sits at 20 mm, inside the controller's work zone: a switch
     # that actuates during the run.
-    with hil_server("--set", "axes.x.switches.limit_max=0.02") as server:
+    with hil_server("--set", "axes.x.switches.limit_max=20mm") as server:
         with fifo_priority():
             result = run(RunSpec(program=str(program), driver=server.url), out_dir=tmp_path,
                          run_id="limit")

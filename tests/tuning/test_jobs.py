@@ -12,6 +12,7 @@ from tuning.cma_job import run_cma
 from tuning.evaluator import Evaluator
 from tuning.jobs import TuneSpec, tune
 from tuning.report import read_overrides, write_overrides
+from twin.config import load_machine
 from twin.controller.controller import Controller
 from twin.errors import ConfigError
 from twin.overrides import set_file_overrides
@@ -47,10 +48,16 @@ def test_cma_improves_on_the_analytic_design_and_is_seeded(tiny):
     assert [t.x for t in b.trials] == [t.x for t in a.trials[:12]]
 
 
-def test_cma_respects_the_time_budget(tiny):
+def test_cma_starts_a_generation_only_if_it_fits_in_the_budget(tiny):
+    """Before the first generation, one is expected to last as long as the baseline run
+    times the population (11 on one worker); a budget shorter than that runs none, a
+    longer one runs it."""
     ev = Evaluator(tiny.tuning)
-    run_cma(ev, budget_s=0.5, seed=0)
-    assert 1 <= len(ev.trials) <= 2 * 11   # one or two generations at most
+    generation = ev.baseline.wall_time * 11
+    run_cma(ev, budget_s=0.5 * generation, seed=0)
+    assert ev.trials == []
+    run_cma(ev, budget_s=20.0 * generation, seed=0, max_evals=11)
+    assert len(ev.trials) == 11
 
 
 @pytest.mark.parametrize("bad, field", [({"budget_s": 0.0}, "budget_s"),
@@ -77,7 +84,9 @@ def test_job_files_and_the_override_round_trip(tmp_path):
     flat = set_file_overrides(result.files["overrides"])
     assert set(flat) == {"controller.limits.max_jerk", "controller.regulator.kp",
                          "controller.regulator.ki", "controller.regulator.dcu_alpha"}
-    assert flat["controller.regulator.kp"] == list(result.best.settings["kp"])
+    # every value carries its unit, and reads back as the very float
+    assert flat["controller.regulator.kp"] == [f"{v!r} V/m" for v in result.best.settings["kp"]]
+    assert cfg_kp(ev_space.cfg.with_overrides(flat)) == tuple(result.best.settings["kp"])
     # ... and the machine accepts it: the controller runs with exactly the tuned settings
     cfg = ev_space.cfg.with_overrides(flat)
     ctrl = Controller.from_machine(cfg, None, axis_models=axis_models(cfg))
@@ -85,6 +94,10 @@ def test_job_files_and_the_override_round_trip(tmp_path):
     np.testing.assert_array_equal(np.broadcast_to(ctrl.gains.dcu_alpha, (2, 3)),
                                   np.broadcast_to(settings.gains.dcu_alpha, (2, 3)))
     assert cfg.controller.limits.max_jerk == settings.max_jerk
+
+
+def cfg_kp(cfg):
+    return cfg.controller.regulator.kp
 
 
 def test_analytic_job_is_the_baseline(tmp_path):
@@ -107,7 +120,11 @@ def test_override_file_errors(tmp_path):
     ok = write_overrides(tmp_path / "ok.toml", {"kp": [1.0, 2.0], "ki": [0.0, 0.0],
                                                 "dcu_alpha": [[1, 2, 3], [4, 5, 6]],
                                                 "max_jerk": 3.0})
-    assert set_file_overrides(ok)["controller.regulator.dcu_alpha"] == [[1, 2, 3], [4, 5, 6]]
+    assert set_file_overrides(ok)["controller.regulator.dcu_alpha"] == [
+        ["1.0 V/m", "2.0 V/m", "3.0 V/m"], ["4.0 V/m", "5.0 V/m", "6.0 V/m"]]
+    cfg = load_machine("tomsk_xy").with_overrides(set_file_overrides(ok))
+    assert cfg.controller.regulator.dcu_alpha == ((1.0, 2.0, 3.0), (4.0, 5.0, 6.0))
+    assert cfg.controller.limits.max_jerk == 3.0
 
 
 @pytest.mark.parametrize("bad, field", [({"method": "grid"}, "method"),

@@ -46,7 +46,8 @@ class MechanicsConfig(Validated):
         0.0, "N·m", ge=0, le=1e3, doc="break-away friction at the motor shaft, >= "
         "rotor_coulomb; 0 = none above Coulomb")
     stribeck_velocity: float = num(
-        1e-3, "m/s", ge=1e-6, le=1.0, doc="table speed over which the break-away excess "
+        1e-3, "m/s", display="mm/s", ge=1e-6, le=1.0,
+        doc="table speed over which the break-away excess "
         "decays (Stribeck: exp(-(v/v_s)²)); the rotor's is this over the transmission ratio")
 
     def _check(self) -> None:
@@ -84,7 +85,8 @@ class TransmissionConfig(Validated):
     damping_ratio: float = num(unit="1", ge=1e-4, le=2,
                                doc="damping of the first elastic mode")
     backlash: float = num(
-        0.0, "m", ge=0, le=1e-3, doc="lost motion of gear and nut together, referred to the "
+        0.0, "m", display="µm", ge=0, le=1e-3,
+        doc="lost motion of gear and nut together, referred to the "
         "table, in series with the screw spring (a dead band of this width); 0 = none")
 
     def _check(self) -> None:

@@ -16,17 +16,21 @@ __all__ = ["Validated", "choice", "flag", "num", "range_text", "spec"]
 
 
 def spec(unit: str, *, gt: float | None = None, ge: float | None = None,
-         le: float | None = None, doc: str = "") -> dict[str, Any]:
-    """The metadata of a numeric field: unit, bounds (``gt``/``ge`` below, ``le`` above) and
-    meaning."""
-    return {"unit": unit, "gt": gt, "ge": ge, "le": le, "doc": doc}
+         le: float | None = None, doc: str = "", display: str | None = None
+         ) -> dict[str, Any]:
+    """The metadata of a numeric field: unit, bounds (``gt``/``ge`` below, ``le`` above),
+    meaning and, for a field shown in another unit than its SI one, that ``display`` unit
+    (``twin.config.quantities.display_unit``)."""
+    return {"unit": unit, "gt": gt, "ge": ge, "le": le, "doc": doc, "display": display}
 
 
 def num(default: Any = dataclasses.MISSING, unit: str = "", *, gt: float | None = None,
-        ge: float | None = None, le: float | None = None, doc: str = "") -> Any:
+        ge: float | None = None, le: float | None = None, doc: str = "",
+        display: str | None = None) -> Any:
     """A numeric field with its unit and its physically meaningful range (checked on load;
-    :func:`range_text` states it)."""
-    return field(default=default, metadata=spec(unit, gt=gt, ge=ge, le=le, doc=doc))
+    :func:`range_text` states it); ``display``: the unit it is shown in, when not SI."""
+    return field(default=default, metadata=spec(unit, gt=gt, ge=ge, le=le, doc=doc,
+                                                display=display))
 
 
 def choice(default: Any, choices: tuple[Any, ...], doc: str) -> Any:

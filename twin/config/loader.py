@@ -12,13 +12,15 @@ import dataclasses
 import hashlib
 import json
 import math
+import re
 import tomllib
 import types
 import typing
 from pathlib import Path
 from typing import Any
 
-from twin.config.schema import AXES, MachineConfig
+from twin.config.quantities import is_bare_number, to_si
+from twin.config.schema import AXES, MachineConfig, field_meta
 from twin.errors import ConfigError, byte_place
 
 __all__ = ["MACHINES_DIR", "available_machines", "diff_machines", "flatten", "from_dict",
@@ -100,6 +102,9 @@ def _coerce(tp: Any, value: Any, path: str) -> Any:
         pairs = enumerate(zip(args, value, strict=True))
         return tuple(_coerce(a, v, f"{path}[{i}]") for i, (a, v) in pairs)
     if tp is float:
+        if isinstance(value, str) and not is_bare_number(value):   # "900 mm/min", "5 µm"
+            unit = str(field_meta(re.sub(r"\[\d+\]", "", path)).get("unit", ""))
+            value = to_si(value, unit, path)
         if isinstance(value, bool) or not isinstance(value, int | float):
             raise ConfigError(path, f"must be a number, got {value!r}")
         if not math.isfinite(value):

@@ -95,7 +95,7 @@ class RegulatorSettings(Validated):
     dcu_order: int = num(0, "1", ge=0, le=3, doc="order of the derived DCU; 0 = off")
     dcu_alpha: tuple[tuple[float, float, float], tuple[float, float, float]] | None = num(
         None, "V/m", ge=-1e9, le=1e9, doc="the DCU's coefficients, x then y")
-    following_error_limit: float = num(2e-3, "m", ge=1e-7, le=1.0,
+    following_error_limit: float = num(2e-3, "m", display="µm", ge=1e-7, le=1.0,
                                        doc="a larger following error trips the axis")
 
 
@@ -202,12 +202,12 @@ class GcodeSettings(Validated):
 class ControllerSettings(Validated):
     """The CNC: period, contour limits, planner and regulator settings."""
 
-    period: float = num(5e-3, "s", ge=1e-4, le=0.1, doc="the position loop's period")
+    period: float = num(5e-3, "s", display="ms", ge=1e-4, le=0.1, doc="the position loop's period")
     limits: LimitsConfig = field(
         default_factory=lambda: LimitsConfig(max_velocity=0.015, max_acceleration=0.2,
                                              max_jerk=5.0))
     rapid_velocity: float = num(0.015, "m/s", ge=1e-4, le=100.0, doc="speed of G0 moves")
-    contour_tolerance: float = num(20e-6, "m", ge=1e-9, le=1.0,
+    contour_tolerance: float = num(20e-6, "m", display="µm", ge=1e-9, le=1.0,
                                    doc="largest deviation from the path at a corner (a "
                                    "study of corners without this limit sets 1 m)")
     profile: str = choice("parabolic", PROFILES, "the acceleration law")
@@ -223,7 +223,8 @@ class ControllerSettings(Validated):
     soft_limits: bool = flag(True, "refuse motion outside the work zone")
     """Refuse motion outside the work zone (the travel between the end switches)."""
     in_position_tolerance: float = num(
-        1e-6, "m", ge=1e-9, le=1e-3, doc="after the motion the loop stays closed until every "
+        1e-6, "m", display="µm", ge=1e-9, le=1e-3,
+        doc="after the motion the loop stays closed until every "
         "axis' following error is within this (seed 000: 1 µm positioning accuracy)")
     settle_timeout: float = num(2.0, "s", ge=1e-3, le=60.0,
                                 doc="longest wait for the in-position tolerance")

@@ -58,8 +58,10 @@ class WorkZone:
             inside = self.contains(lo) and self.contains(hi)
         if not inside:
             box_lo, box_hi = segment.bounding_box()
+            where = f"line {line}: the move" if line > 0 else "the move"   # a jog: no line
+            mm = 1e3      # a message for people: millimetres, as the program and the DRO
             raise PlanningError(
-                f"line {line}: the move leaves the work zone x {self.lower[0]:.6g} … "
-                f"{self.upper[0]:.6g} m, y {self.lower[1]:.6g} … {self.upper[1]:.6g} m "
-                f"(it spans x {box_lo[0]:.6g} … {box_hi[0]:.6g}, "
-                f"y {box_lo[1]:.6g} … {box_hi[1]:.6g} m)")
+                f"{where} leaves the work zone X {self.lower[0] * mm:.6g} … "
+                f"{self.upper[0] * mm:.6g} mm, Y {self.lower[1] * mm:.6g} … "
+                f"{self.upper[1] * mm:.6g} mm (it spans X {box_lo[0] * mm:.6g} … "
+                f"{box_hi[0] * mm:.6g}, Y {box_lo[1] * mm:.6g} … {box_hi[1] * mm:.6g} mm)")
