@@ -138,7 +138,8 @@ def latest_checkpoint(directory: Path) -> Path | None:
 
 
 def _callbacks(directory: Path, every: int, n_envs: int, budget_s: float,
-               progress: Callable[[int], None] | None) -> list[Any]:
+               progress: Callable[[int], None] | None,
+               on_cost: Callable[[float], None] | None = None) -> list[Any]:
     from stable_baselines3.common.callbacks import BaseCallback, CheckpointCallback
 
     class Budget(BaseCallback):
@@ -148,6 +149,10 @@ def _callbacks(directory: Path, every: int, n_envs: int, budget_s: float,
             self.start = time.perf_counter()
 
         def _on_step(self) -> bool:
+            if on_cost is not None:
+                for info in self.locals.get("infos", ()):
+                    if "cost" in info:
+                        on_cost(float(info["cost"]))
             if progress is not None:
                 progress(int(self.num_timesteps))
             return time.perf_counter() - self.start < budget_s
@@ -172,7 +177,8 @@ def train(method: str, *, machine: str | MachineConfig, program: str = "compact"
           out_dir: Path, total_steps: int, budget_s: float = math.inf, n_envs: int = 2,
           seed: int = 0, checkpoint_steps: int = 200, rollout: int = 64,
           weights: Weights | None = None, progress: Callable[[int], None] | None = None,
-          resume: bool = False) -> Path:
+          resume: bool = False, on_cost: Callable[[float], None] | None = None,
+          tensorboard: Path | None = None) -> Path:
     """Train (or resume training) a tuning policy; returns the saved ``policy.zip``.
 
     Parameters
@@ -199,6 +205,11 @@ def train(method: str, *, machine: str | MachineConfig, program: str = "compact"
         Continue from the newest checkpoint this job wrote in ``out_dir`` (checked against
         its manifest, ``latest_checkpoint``); without it training starts afresh whatever
         the folder holds.
+    on_cost : callable(float), optional
+        Called with the cost of every training run (the convergence plot's training panel).
+    tensorboard : path, optional
+        SB3's TensorBoard log folder (``tensorboard --logdir PATH``): losses, episode
+        rewards, learning rate, one run per call (``<method>_<n>``).
 
     Raises
     ------
@@ -210,6 +221,7 @@ def train(method: str, *, machine: str | MachineConfig, program: str = "compact"
     algo = _algorithm(method)
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
+    tb = None if tensorboard is None else str(tensorboard)
     kwargs = {"machine": machine, "program": program, "randomize": True, "weights": weights}
     factories = [functools.partial(_make_env, kwargs, seed + i) for i in range(n_envs)]
     vec = SubprocVecEnv(factories, start_method="spawn") if n_envs > 1 \
@@ -217,18 +229,18 @@ def train(method: str, *, machine: str | MachineConfig, program: str = "compact"
     try:
         start = latest_checkpoint(out) if resume else None
         if start is not None:   # our own checkpoint, as written: trusted
-            model = algo.load(start, env=vec)
+            model = algo.load(start, env=vec, tensorboard_log=tb)
             buffer = _buffer_of(start)
             if method == "sac" and buffer.is_file():
                 model.load_replay_buffer(buffer)
         else:
-            model = algo("MlpPolicy", vec, seed=seed, verbose=0,
+            model = algo("MlpPolicy", vec, seed=seed, verbose=0, tensorboard_log=tb,
                          **_hyper(method, n_envs, rollout))
         left = total_steps - int(model.num_timesteps)
         if left > 0:
             model.learn(left, callback=_callbacks(out, checkpoint_steps, n_envs, budget_s,
-                                                  progress),
-                        reset_num_timesteps=False)
+                                                  progress, on_cost),
+                        reset_num_timesteps=False, tb_log_name=method)
         path = out / "policy.zip"
         model.save(path)
         _record(out, path)

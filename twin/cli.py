@@ -38,7 +38,7 @@ from twin.cli_common import (  # noqa: E402
     summary_table,
 )
 from twin.config import available_machines, diff_machines, field_unit, load_machine  # noqa: E402
-from twin.errors import TwinError  # noqa: E402
+from twin.errors import ConfigError, TwinError  # noqa: E402
 from twin.jsonio import json_text  # noqa: E402
 from twin.overrides import SET_HELP  # noqa: E402
 
@@ -103,7 +103,18 @@ def _run(program: Path | None, machine: str, profile: str | None, planner: str |
                        dcu_order=dcu_order, period=period, overrides={
                            **(set_file_overrides(set_file) if set_file else {}),
                            **parse_sets(sets)},
-                       dry_run=dry_run, driver=driver, rt_priority=rt_priority)
+                       driver=driver, rt_priority=rt_priority)
+        if dry_run:
+            from twin.dry_run import dry_run as plan_only
+
+            if driver != "sim":
+                raise ConfigError("--dry-run", "plans on the machine file; it drives no "
+                                  f"I/O (drop --driver {driver})")
+            planned = plan_only(spec, out_dir=out, rerun=rerun)
+            report_dry_run(planned, out, as_json)
+            if planned["status"] != "FINISHED":
+                raise typer.Exit(1)
+            return
         with _progress() as bar:
             task = bar.add_task("0.0 s", total=None)
 
@@ -136,6 +147,37 @@ def _run(program: Path | None, machine: str, profile: str | None, planner: str |
                                         if k not in ("config", "spec")}) + "\n")
     if summary["status"] != "FINISHED":
         raise typer.Exit(1)
+
+
+def report_dry_run(s: dict, out: Path, as_json: bool) -> None:
+    """Print a dry run's summary (``twin.dry_run``): one JSON object, or its table."""
+    if as_json:
+        _emit({k: v for k, v in s.items() if k != "spec"}, True)
+        return
+    what = s["program"] or ", ".join(s["commands"])
+    table = Table(title=f"dry run {s['run_id']}: {what} on {s['machine']} (planned, "
+                        "nothing driven)")
+    for col in ("quantity", "value", "limit", "share of limit"):
+        table.add_column(col, justify="left" if col == "quantity" else "right")
+    table.add_row("status", s["status"], "", "")
+    table.add_row("cycle time (s)", f"{s['cycle_time_s']:.3f}", "", "")
+    table.add_row("path length (mm)", f"{s['path_length_mm']:.4g}", "", "")
+    table.add_row("peak feed (mm/min)", f"{s['peak_feed_mm_per_min']:.4g}",
+                  f"{s['feed_limit_mm_per_min']:.4g}",
+                  f"{s['peak_feed_mm_per_min'] / s['feed_limit_mm_per_min']:.0%}")
+    for ax, d in s["axes"].items():
+        for q, f in d.items():
+            table.add_row(f"{ax.upper()} peak {q} ({f['unit']})", f"{f['peak']:.4g}",
+                          f"{f['limit']:.4g}", f"{f['ratio']:.0%}")
+    for ax, (lo, hi) in s["extent_mm"].items():
+        zone = (s["work_zone_mm"] or {}).get(ax)
+        table.add_row(f"{ax.upper()} extent (mm)", f"{lo:.4g} … {hi:.4g}",
+                      "" if zone is None else f"{zone[0]:.4g} … {zone[1]:.4g}", "")
+    Console().print(table)
+    if s["over_limits"]:
+        err.print(f"[yellow]warning:[/] the planned reference exceeds the axis limits: "
+                  f"{', '.join(s['over_limits'])}", highlight=False)
+    Console().print(f"record: {out / (s['run_id'] + '.json')}", highlight=False)
 
 
 def _report(summary: dict, out: Path, as_json: bool) -> None:
@@ -199,8 +241,10 @@ def run_cmd(
                                    "live viewer or server on 127.0.0.1 (spawn, serve)."),
     out: Path = OutOpt,
     as_json: bool = JsonOpt,
-    dry_run: bool = typer.Option(False, "--dry-run",
-                                 help="Run the controller without driving the motors."),
+    dry_run: bool = typer.Option(False, "--dry-run", help="Plan and interpolate the "
+                                 "program against the machine's limits without the drives "
+                                 "or the physics: cycle time, path, peaks against the axis "
+                                 "limits, extent against the work zone. Never trips."),
     builtin: str = typer.Option("default", "--builtin",
                                 help="Built-in program when no PROGRAM is given."),
     driver: str = typer.Option("sim", "--driver", help="sim (the twin, lock-step) or "

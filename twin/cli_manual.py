@@ -85,7 +85,16 @@ def _manual(commands: list[str], machine: str, out: Path, as_json: bool,
     sets = {"controller.soft_limits": False} if ignore_soft_limits else {}
     try:
         spec = RunSpec(machine=machine, builtin="none", commands=tuple(commands),
-                       start=start, dry_run=dry_run, overrides=sets)
+                       start=start, overrides=sets)
+        if dry_run:
+            from twin.cli import report_dry_run
+            from twin.dry_run import dry_run as plan_only
+
+            planned = plan_only(spec, out_dir=out)
+            report_dry_run(planned, out, as_json)
+            if planned["status"] != "FINISHED":
+                raise typer.Exit(1)
+            return
         result = run(spec, out_dir=out)
     except TwinError as exc:
         fail(exc)
@@ -145,8 +154,9 @@ def jog(
     machine: str = typer.Option("tomsk_xy", "--machine", "-m"),
     start: str | None = typer.Option(None, "--from", help="Start position X,Y in mm "
                                      "(default: the home position)."),
-    dry_run: bool = typer.Option(False, "--dry-run", help="Run the controller without "
-                                 "driving the motors."),
+    dry_run: bool = typer.Option(False, "--dry-run", help="Plan the move against the "
+                                 "machine's limits without the drives or the physics (it "
+                                 "never trips)."),
     ignore_soft_limits: bool = typer.Option(False, "--ignore-soft-limits", help="Let the "
                                             "move run into the end switches (testing)."),
     out: Path = typer.Option(Path("runs"), "--out"),

@@ -21,19 +21,31 @@ from twin.errors import ConfigError
 @pytest.fixture(scope="module")
 def ppo(tmp_path_factory):
     out = tmp_path_factory.mktemp("ppo")
+    costs: list[float] = []
     path = train("ppo", machine="tomsk_xy", program="tiny", out_dir=out, total_steps=32,
-                 n_envs=2, checkpoint_steps=16, rollout=16)
-    return out, path
+                 n_envs=2, checkpoint_steps=16, rollout=16, on_cost=costs.append,
+                 tensorboard=out.parent / "tb")
+    return out, path, costs
 
 
-def test_training_writes_checkpoints_and_a_policy(ppo):
-    out, path = ppo
+def test_training_writes_checkpoints_a_policy_and_tensorboard_logs(ppo):
+    from tensorboard.backend.event_processing.event_accumulator import EventAccumulator
+
+    out, path, costs = ppo
     assert path.is_file() and path.name == "policy.zip"
     assert latest_checkpoint(out).name == "policy_32_steps.zip"
+    # every training run's cost reached the job (the convergence plot's training panel)
+    assert len(costs) == 32 and all(c > 0 for c in costs)
+    (run,) = (out.parent / "tb").iterdir()
+    assert run.name.startswith("ppo_")
+    events = EventAccumulator(str(run))
+    events.Reload()
+    tags = set(events.Tags()["scalars"])
+    assert {"train/loss", "train/learning_rate"} <= tags, tags
 
 
 def test_training_resumes_from_the_newest_checkpoint(ppo, tmp_path):
-    out, _ = ppo
+    out, _, _ = ppo
     from stable_baselines3 import PPO
 
     resumed = tmp_path / "resume"
@@ -71,7 +83,7 @@ class _Touch:
 
 
 def test_a_planted_checkpoint_is_never_loaded(ppo, tmp_path):
-    out, _ = ppo
+    out, _, _ = ppo
     folder, marker = tmp_path / "job", tmp_path / "code-ran"
     shutil.copytree(out, folder)
     _planted(out / "policy_32_steps.zip", folder / "policy_64_steps.zip", marker)
@@ -92,7 +104,7 @@ def test_a_planted_checkpoint_is_never_loaded(ppo, tmp_path):
 
 
 def test_a_checkpoint_changed_since_it_was_written_is_refused(ppo, tmp_path):
-    out, _ = ppo
+    out, _, _ = ppo
     folder, marker = tmp_path / "job", tmp_path / "code-ran"
     shutil.copytree(out, folder)
     _planted(out / "policy_32_steps.zip", folder / "policy_32_steps.zip", marker)  # replaced
@@ -103,7 +115,7 @@ def test_a_checkpoint_changed_since_it_was_written_is_refused(ppo, tmp_path):
 
 
 def test_policy_tunes_an_unseen_machine_in_five_runs(ppo):
-    _, path = ppo
+    _, path, _ = ppo
     machine = held_out_machines("tomsk_xy", 1)[0]
     trials, baseline = apply_policy(path, machine, program="tiny", runs=5)
     assert 1 <= len(trials) <= 5
@@ -113,7 +125,7 @@ def test_policy_tunes_an_unseen_machine_in_five_runs(ppo):
 
 
 def test_compare_plumbing(ppo):
-    _, path = ppo
+    _, path, _ = ppo
     rows = compare_policy_to_cma(path, held_out_machines("tomsk_xy", 1), program="tiny",
                                  cma_max_runs=8, workers=1)
     (row,) = rows
@@ -131,7 +143,7 @@ def test_sac_trains_and_applies(tmp_path):
 
 
 def test_ppo_job_with_a_given_policy(ppo, tmp_path):
-    _, path = ppo
+    _, path, _ = ppo
     result = tune(TuneSpec(method="ppo", program="tiny", policy=path, out_dir=tmp_path,
                            policy_runs=3))
     assert len(result.trials) == 3 and result.files["overrides"].is_file()
