@@ -50,12 +50,12 @@ def test_a_port_in_use_is_refused_naming_it():
     assert f"--port: cannot listen on 127.0.0.1:{port}" in done.stderr
 
 
-@pytest.mark.parametrize("name", ["nope", "compact"])
-def test_an_unknown_builtin_program_is_refused_naming_the_valid_ones(name, tmp_path):
-    done = _twin("run", "--builtin", name, "--rerun", "none", "--out", str(tmp_path))
+def test_an_unknown_builtin_program_is_refused_naming_the_valid_ones(tmp_path):
+    done = _twin("run", "--builtin", "nope", "--rerun", "none", "--out", str(tmp_path))
     assert done.returncode == 2 and "Traceback" not in done.stderr
     text = " ".join(done.stderr.split())
-    assert f"builtin: unknown built-in program '{name}'" in text and "spline_line" in text
+    assert "Invalid value for '--builtin'" in text and "'nope' is not one of" in text
+    assert "'compact', 'tiny', 'spline_line'" in text
 
 
 def test_version():

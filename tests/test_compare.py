@@ -172,7 +172,7 @@ def test_every_call_writes_into_a_folder_of_its_own(tmp_path):
     prog.write_text(PROGRAM)
     folders = []
     for _ in range(2):
-        r = _twin("compare", str(prog), "--profiles", "parabolic", "--no-rerun", "--out",
+        r = _twin("compare", str(prog), "--profiles", "parabolic", "--rerun", "none", "--out",
                   str(tmp_path / "out"), "--json")
         assert r.returncode == 0, r.stderr
         folders.append(Path(json.loads(r.stdout)["folder"]))
@@ -183,7 +183,7 @@ def test_every_call_writes_into_a_folder_of_its_own(tmp_path):
 def test_the_terminal_table_names_the_winners(tmp_path):
     prog = tmp_path / "two_lines.ngc"
     prog.write_text(PROGRAM)
-    r = _twin("compare", str(prog), "--profiles", "trapezoid,parabolic", "--no-rerun",
+    r = _twin("compare", str(prog), "--profiles", "trapezoid,parabolic", "--rerun", "none",
               "--out", str(tmp_path / "out"))
     assert r.returncode == 0, r.stderr
     assert "winner" in r.stdout and "margin" in r.stdout

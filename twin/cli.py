@@ -32,9 +32,14 @@ from rich.table import Table  # noqa: E402
 
 from twin.cli_common import (  # noqa: E402
     CONTROLLER_MODEL_HELP,
+    RERUN_HELP,
     RUN_ROWS,
+    Builtin,
+    Law,
+    PlannerMode,
     err,
     fail,
+    rerun_target,
     summary_table,
 )
 from twin.config import available_machines, diff_machines, field_unit, load_machine  # noqa: E402
@@ -226,17 +231,19 @@ def run_cmd(
                                            "default program."),
     machine: str = MachineOpt,
     controller_model: str | None = ModelOpt,
-    profile: str | None = typer.Option(
-        None, help="Acceleration law: trapezoid, parabolic, cosine, cubic, jerk-limited."),
-    planner: str | None = typer.Option(None, help="lookahead or stop."),
+    profile: Law | None = typer.Option(None, help="Acceleration law (default: the "
+                                       "machine's)."),
+    planner: PlannerMode | None = typer.Option(None, help="Look ahead over the blocks, or "
+                                               "stop at every node (default: the "
+                                               "machine's)."),
     dcu_order: int | None = typer.Option(None, "--dcu-order", min=0, max=3,
                                          help="Order of the digital correcting device."),
     period: float | None = typer.Option(None, help="Controller period (s)."),
     sets: list[str] = typer.Option([], "--set", help=SET_HELP),
-    rerun: str = typer.Option("file", help="spawn (a native viewer; without a display: "
-                              "the file only), serve (a gRPC server for viewers, kept until "
-                              "Ctrl-C), none, file, or PATH.rrd. spawn and serve also write "
-                              "the file."),
+    rerun: str = typer.Option("file", help=RERUN_HELP + "; or spawn (a native viewer; "
+                              "without a display: the file only), serve (a gRPC server for "
+                              "viewers, kept until Ctrl-C). spawn and serve also write the "
+                              "file."),
     rerun_port: int = typer.Option(9876, "--rerun-port", min=1, max=65535, help="Port of the "
                                    "live viewer or server on 127.0.0.1 (spawn, serve)."),
     out: Path = OutOpt,
@@ -245,8 +252,8 @@ def run_cmd(
                                  "program against the machine's limits without the drives "
                                  "or the physics: cycle time, path, peaks against the axis "
                                  "limits, extent against the work zone. Never trips."),
-    builtin: str = typer.Option("default", "--builtin",
-                                help="Built-in program when no PROGRAM is given."),
+    builtin: Builtin = typer.Option("default", "--builtin",
+                                    help="Built-in program when no PROGRAM is given."),
     driver: str = typer.Option("sim", "--driver", help="sim (the twin, lock-step) or "
                                "modbus://HOST:PORT[?map=FILE&timeout=S] (real I/O, paced "
                                "in real time)."),
@@ -258,10 +265,14 @@ def run_cmd(
 ) -> None:
     """Run a program through the full controller on the twin (or real I/O); write .rrd and
     .json."""
-    if profile is not None:
-        profile = profile.replace("_", "-")
-    _run(program, machine, profile, planner, dcu_order, period, sets, rerun, out, as_json,
-         dry_run, builtin, driver, rt_priority, set_file, controller_model, rerun_port)
+    try:
+        rerun = rerun_target(rerun, live=True)
+    except TwinError as exc:
+        fail(exc)
+    _run(program, machine, None if profile is None else profile.value,
+         None if planner is None else planner.value, dcu_order, period, sets, rerun, out,
+         as_json, dry_run, builtin.value, driver, rt_priority, set_file, controller_model,
+         rerun_port)
 
 
 @app.command()
@@ -296,9 +307,10 @@ def view(
                                      help="A .rrd file written by twin run."),
     web: bool = typer.Option(False, "--web", help="Serve the bundled web viewer on "
                              "localhost instead of opening the native viewer."),
-    port: int = typer.Option(9090, help="Web viewer port (with --web)."),
-    grpc_port: int = typer.Option(9876, "--grpc-port", help="Port of the gRPC server that "
-                                  "serves the recording to the viewer."),
+    port: int = typer.Option(9090, min=1, max=65535, help="Web viewer port (with --web)."),
+    grpc_port: int = typer.Option(9876, "--grpc-port", min=1, max=65535,
+                                  help="Port of the gRPC server that serves the recording "
+                                  "to the viewer."),
 ) -> None:
     """Open a recording in the rerun viewer (native, or --web in a browser); every listener
     binds 127.0.0.1."""
@@ -437,5 +449,22 @@ _register_more()
 if signal.getsignal(signal.SIGINT) is _interrupted_while_starting:
     signal.signal(signal.SIGINT, signal.default_int_handler)
 
+def entry() -> None:
+    """The ``twin`` entry point. Click's usage errors (an unknown option, a value that is
+    not one of the choices, a missing argument) end like every other bad input: one line
+    ``error: ...`` naming the option, exit 2, no usage box."""
+    try:
+        code = app(standalone_mode=False)
+    except typer.Abort:
+        raise SystemExit(130) from None
+    except typer.TyperException as exc:    # typer's own click: a usage error
+        format_message = getattr(exc, "format_message", None)
+        message = format_message() if format_message is not None else str(exc)
+        message = " ".join(message.split())    # click lists choices on lines of their own
+        err.print(f"[bold red]error:[/] {escape(message)}", highlight=False, soft_wrap=True)
+        raise SystemExit(getattr(exc, "exit_code", 2)) from None
+    raise SystemExit(code if isinstance(code, int) else 0)
+
+
 if __name__ == "__main__":
-    app()
+    entry()

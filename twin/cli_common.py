@@ -7,6 +7,7 @@ message naming the place.
 
 from __future__ import annotations
 
+import enum
 from collections.abc import Mapping, Sequence
 from typing import Any
 
@@ -15,8 +16,17 @@ from rich.console import Console
 from rich.markup import escape
 from rich.table import Table
 
-__all__ = ["CONTROLLER_MODEL_HELP", "METRIC_ROWS", "RUN_ROWS", "err", "fail",
-           "summary_table"]
+from twin.errors import ConfigError
+
+__all__ = [
+    "CONTROLLER_MODEL_HELP",
+    "METRIC_ROWS",
+    "RUN_ROWS",
+    "err",
+    "fail",
+    "parse_position",
+    "summary_table",
+]
 
 CONTROLLER_MODEL_HELP = (
     "The machine as the controller believes it to be (preset or TOML file): its gains, "
@@ -26,6 +36,58 @@ CONTROLLER_MODEL_HELP = (
 
 err = Console(stderr=True)
 """Console on stderr for messages, progress and errors."""
+
+
+def choices(name: str, values: Sequence[str]) -> type[enum.Enum]:
+    """A str Enum of fixed choices: typer lists them in the help and refuses anything else
+    (exit 2, naming the option and the choices)."""
+    return enum.Enum(name, {v.replace("-", "_"): v for v in values}, type=str)  # type: ignore
+
+
+PROGRAM_NAMES = ("default", "compact", "tiny", "spline_line", "corner")
+"""The built-in programs, as ``twin.controller.library.PROGRAMS`` names them (a test keeps
+the two equal): written out so that ``twin --help`` does not import the planner."""
+LAW_NAMES = ("trapezoid", "parabolic", "cosine", "cubic", "jerk-limited")
+"""The acceleration laws, as ``twin.controller.profiles.laws.LAWS`` names them."""
+
+
+Builtin = choices("Builtin", PROGRAM_NAMES)
+"""The built-in programs (``twin.controller.library.PROGRAMS``): ``twin run --builtin``,
+``twin compare --builtin`` and ``twin tune --program`` take the same names."""
+Law = choices("Law", LAW_NAMES)
+"""The acceleration laws."""
+PlannerMode = choices("PlannerMode", ("lookahead", "stop"))
+Axis = choices("Axis", ("x", "y"))
+Axes = choices("Axes", ("x", "y", "xy", "yx"))
+
+RERUN_HELP = ("Where the telemetry goes: file (a .rrd beside the .json in --out), none, or "
+              "PATH.rrd")
+"""The one ``--rerun`` convention; ``twin run`` adds the live modes spawn and serve."""
+
+
+def rerun_target(value: str, *, live: bool = False) -> str:
+    """Check a ``--rerun`` value: ``file``, ``none``, a path ending in ``.rrd`` (and with
+    ``live``, ``spawn`` or ``serve``). Raises ``ConfigError`` naming ``--rerun``."""
+    modes = ("file", "none", *(("spawn", "serve") if live else ()))
+    if value in modes or value.endswith(".rrd"):
+        return value
+    raise ConfigError("--rerun", f"must be {', '.join(modes)} or a path ending in .rrd, got "
+                      f"{value!r}")
+
+
+def parse_position(text: str | None, option: str = "--from") -> tuple[float, float] | None:
+    """``"X,Y"`` in mm (the one convention of every command's coordinates) → (x, y) in m;
+    None for None. Raises ``ConfigError`` naming ``option``."""
+    if text is None:
+        return None
+    parts = text.split(",")
+    try:
+        if len(parts) != 2:
+            raise ValueError
+        x, y = (float(v) * 1e-3 for v in parts)
+    except ValueError:
+        raise ConfigError(option, f"expected X,Y in mm (e.g. 50,20), got {text!r}") from None
+    return (x, y)
 
 
 def fail(exc: BaseException) -> None:

@@ -10,7 +10,15 @@ import typer
 from rich.console import Console
 from rich.table import Table
 
-from twin.cli_common import CONTROLLER_MODEL_HELP, err, fail
+from twin.cli_common import (
+    CONTROLLER_MODEL_HELP,
+    RERUN_HELP,
+    Builtin,
+    PlannerMode,
+    err,
+    fail,
+    rerun_target,
+)
 from twin.errors import ConfigError, TwinError
 from twin.jsonio import json_text, output_dir
 from twin.overrides import SET_HELP
@@ -89,17 +97,20 @@ def compare_cmd(
     controller_model: str | None = typer.Option(None, "--controller-model",
                                                 help=CONTROLLER_MODEL_HELP),
     sets: list[str] = typer.Option([], "--set", help=SET_HELP),
-    planner: str | None = typer.Option(None, help="lookahead or stop."),
-    dcu_order: int | None = typer.Option(None, "--dcu-order", min=0, max=3),
-    builtin: str = typer.Option("default", "--builtin",
-                                help="Built-in program when no PROGRAM is given."),
+    planner: PlannerMode | None = typer.Option(None, help="Look ahead, or stop at every "
+                                               "node (default: the machine's)."),
+    dcu_order: int | None = typer.Option(None, "--dcu-order", min=0, max=3,
+                                         help="Order of the digital correcting device."),
+    builtin: Builtin = typer.Option("default", "--builtin",
+                                    help="Built-in program when no PROGRAM is given."),
     out: Path = typer.Option(Path("runs/compare"), "--out", help="Output directory: each "
                              "call writes into a new folder of its own inside it."),
     sweep: str | None = typer.Option(None, "--sweep", help="key=v1,v2,...: run every law "
                                      "at each value and plot --figure against it."),
     figure: str = typer.Option("max_contour_error_um", "--figure",
                                help="Summary figure plotted by --sweep."),
-    rerun: bool = typer.Option(True, "--rerun/--no-rerun", help="Write the overlaid .rrd."),
+    rerun: str = typer.Option("file", "--rerun", help=RERUN_HELP + " (the laws overlaid in "
+                              "one recording)."),
     as_json: bool = typer.Option(False, "--json", help="Print exactly one JSON object."),
 ) -> None:
     """Run one program once per acceleration law; table, PNG report and one overlaid .rrd."""
@@ -111,11 +122,13 @@ def compare_cmd(
 
     laws = [p.strip().replace("_", "-") for p in profiles.split(",") if p.strip()]
     try:
+        rerun = rerun_target(rerun)
         for law in laws:
             check_law(law)
         base = RunSpec(machine=machine, controller_model=controller_model,
                        program=str(program) if program else None,
-                       builtin=builtin, planner=planner, dcu_order=dcu_order,
+                       builtin=builtin.value, planner=None if planner is None
+                       else planner.value, dcu_order=dcu_order,
                        overrides=parse_sets(sets))
         base.belief(base.machine_config())
         folder = _call_folder(out)
@@ -123,9 +136,10 @@ def compare_cmd(
             result = _sweep(base, laws, sweep, figure, folder, write_sweep_report)
         else:
             with err.status(f"running {len(laws)} laws …"):
-                comparison = compare(base, laws, out_dir=folder, recording=rerun)
+                comparison = compare(base, laws, out_dir=folder,
+                                     recording={"file": True, "none": False}.get(rerun, rerun))
             report = write_report(comparison, folder / "compare.png",
-                                  title=f"{program or builtin} on {machine}")
+                                  title=f"{program or builtin.value} on {machine}")
             result = {"profiles": comparison.summaries(),
                       "verdict": verdict(comparison.summaries()), "report": str(report),
                       "recording": comparison.recording}
@@ -138,7 +152,7 @@ def compare_cmd(
     # a log (not a terminal) gets the table whole rather than folded to 80 columns
     console = Console(width=None if sys.stdout.isatty() else 160)
     if sweep is None:
-        console.print(_table(result["verdict"], laws, f"{program or builtin} on {machine}"))
+        console.print(_table(result["verdict"], laws, f"{program or builtin.value} on {machine}"))
         console.print(_wins(result["verdict"]), highlight=False)
     else:
         table = Table(title=f"{figure} against {result['sweep']['key']}")

@@ -24,7 +24,7 @@ from typing import IO, Any
 import typer
 from rich.table import Table
 
-from twin.cli_common import err, fail
+from twin.cli_common import err, fail, parse_position
 from twin.errors import ConfigError, TwinError
 from twin.hardware.realtime import fifo_priority, set_fifo_priority
 from twin.jsonio import json_text
@@ -49,9 +49,8 @@ def hil_server(
     register_map: Path | None = typer.Option(None, "--map", help="Register map TOML "
                                              "(default: the documented default map)."),
     sets: list[str] = typer.Option([], "--set", help=SET_HELP),
-    start: tuple[float, float] | None = typer.Option(None, "--from", help="Table position "
-                                                     "at the start, X Y in mm (default: "
-                                                     "the home keyframe)."),
+    start: str | None = typer.Option(None, "--from", help="Table position at the start, "
+                                     "X,Y in mm (default: the home keyframe)."),
     sync_phase: float = typer.Option(0.25, "--sync-phase", min=0.0, max=0.999,
                                      help="Steer the client's counter reads to this "
                                      "fraction of a drive interval (phase lock)."),
@@ -80,8 +79,9 @@ def hil_server(
     try:
         cfg = load_machine(machine).with_overrides(parse_sets(sets))
         rmap = load_register_map(register_map)
+        position = parse_position(start)
         try:
-            plant = hil_plant(cfg, start=None if start is None else np.asarray(start) * 1e-3,
+            plant = hil_plant(cfg, start=None if position is None else np.asarray(position),
                               noise=noise)
         except ConfigError as exc:
             raise ConfigError("--from", exc.message) from None

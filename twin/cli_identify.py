@@ -9,12 +9,14 @@ from pathlib import Path
 import typer
 from rich.table import Table
 
-from twin.cli_common import CONTROLLER_MODEL_HELP, err, fail
+from twin.cli_common import CONTROLLER_MODEL_HELP, choices, err, fail
 from twin.config import AXES
 from twin.errors import ExperimentAborted, FitError, TwinError
 from twin.jsonio import json_text
 
 __all__ = ["register"]
+
+IdentifyAxes = choices("IdentifyAxes", ("x", "y", "xy"))
 
 
 def identify(
@@ -30,8 +32,8 @@ def identify(
                                "or twin hil-server)."),
     controller_model: str | None = typer.Option(None, "--controller-model",
                                                 help=CONTROLLER_MODEL_HELP),
-    axes: str = typer.Option("xy", "--axes", help="The axes to identify: x, y or xy (the "
-                             "other is held in position and keeps BASE's values)."),
+    axes: IdentifyAxes = typer.Option("xy", "--axes", help="The axes to identify (the "
+                                      "other is held in position and keeps BASE's values)."),
     amplitude: float = typer.Option(1.0, "--amplitude", help="Scale of every experiment's "
                                     "speeds, (0, 1]: lower it on a machine with little room."),
     from_log: Path | None = typer.Option(None, "--from-log", help="Fit the experiments "
@@ -57,7 +59,7 @@ def identify(
         result = run_identify(machine, output, driver=driver,
                               controller_model=controller_model, amplitude=amplitude,
                               from_log=from_log, out_dir=out, noise=noise,
-                              rt_priority=rt_priority, axes=axes, progress=say)
+                              rt_priority=rt_priority, axes=axes.value, progress=say)
     except ExperimentAborted as exc:
         err.print(f"[bold red]experiments aborted, the machine was stopped:[/] {exc}",
                   highlight=False, soft_wrap=True)

@@ -10,18 +10,32 @@ import typer
 from rich.console import Console
 from rich.table import Table
 
-from twin.cli_common import CONTROLLER_MODEL_HELP, RUN_ROWS, err, fail, summary_table
-from twin.errors import ConfigError, TwinError
+from twin.cli_common import (
+    CONTROLLER_MODEL_HELP,
+    RERUN_HELP,
+    RUN_ROWS,
+    Axes,
+    Axis,
+    choices,
+    err,
+    fail,
+    parse_position,
+    rerun_target,
+    summary_table,
+)
+from twin.errors import TwinError
 from twin.jsonio import json_text
 from twin.overrides import SET_HELP
 
 __all__ = ["register"]
 
+Experiment = choices("Experiment", ("step", "ramp"))
+
 
 
 def experiment(
-    kind: str = typer.Argument(..., help="step or ramp"),
-    axis: str = typer.Option("x", "--axis", help="x or y"),
+    kind: Experiment = typer.Argument(..., help="The input: a step or a ramp."),
+    axis: Axis = typer.Option("x", "--axis", help="The axis."),
     amplitude: float = typer.Option(..., "--amplitude", help="Closed loop: step (mm) or "
                                     "ramp rate (mm/s). Open loop: volts or volts/s."),
     duration: float = typer.Option(1.0, help="Record length after the input (s)."),
@@ -32,9 +46,9 @@ def experiment(
     controller_model: str | None = typer.Option(None, "--controller-model",
                                                 help=CONTROLLER_MODEL_HELP),
     sets: list[str] = typer.Option([], "--set", help=SET_HELP),
-    rerun: Path | None = typer.Option(None, "--rerun", help="Write the response to this "
-                                      ".rrd file."),
-    as_json: bool = typer.Option(False, "--json"),
+    rerun: str = typer.Option("none", "--rerun", help=RERUN_HELP + "; default none."),
+    out: Path = typer.Option(Path("runs"), "--out", help="Folder of --rerun file."),
+    as_json: bool = typer.Option(False, "--json", help="Print exactly one JSON object."),
 ) -> None:
     """A typical experiment (seed 000): step or ramp response of one axis."""
     from twin.config import load_machine
@@ -42,13 +56,20 @@ def experiment(
     from twin.overrides import parse_sets
 
     sink = None
+    kind, axis = kind.value, axis.value
     try:
+        rerun = rerun_target(rerun)
         cfg = load_machine(machine).with_overrides(parse_sets(sets))
         belief = load_machine(controller_model) if controller_model else None
-        if rerun is not None:
+        if rerun != "none":
+            import time
+
+            from twin.jsonio import output_dir
             from twin.telemetry.rerun_sink import RerunSink
 
-            sink = RerunSink(rerun, recording_id=f"{kind}-{axis}")
+            path = Path(rerun) if rerun != "file" else output_dir(out) / (
+                f"{kind}-{axis}-{time.strftime('%Y%m%d-%H%M%S')}.rrd")
+            sink = RerunSink(path, recording_id=f"{kind}-{axis}")
         scale = 1.0 if open_loop else 1e-3
         result, _ = run_experiment(cfg, kind=kind, axis=axis, amplitude=amplitude * scale,
                                    duration=duration, open_loop=open_loop, sink=sink,
@@ -113,35 +134,25 @@ def _manual(commands: list[str], machine: str, out: Path, as_json: bool,
         raise typer.Exit(1)
 
 
-def _start(text: str | None) -> tuple[float, float] | None:
-    if text is None:
-        return None
-    try:
-        x, y = (float(v) * 1e-3 for v in text.split(","))
-    except ValueError:
-        raise ConfigError("--from", f"expected X,Y in mm, got {text!r}") from None
-    return (x, y)
-
-
 def home(
-    axes: str = typer.Option("xy", "--axes", help="Axes to home, in order: x, y or xy."),
-    machine: str = typer.Option("tomsk_xy", "--machine", "-m"),
+    axes: Axes = typer.Option("xy", "--axes", help="Axes to home, in this order."),
+    machine: str = typer.Option("tomsk_xy", "--machine", "-m", help="Machine preset name "
+                                "or TOML file."),
     start: str | None = typer.Option(None, "--from", help="Where the table stands at the "
                                      "start, X,Y in mm (default: mid travel)."),
-    out: Path = typer.Option(Path("runs"), "--out"),
-    as_json: bool = typer.Option(False, "--json"),
+    out: Path = typer.Option(Path("runs"), "--out", help="Directory for run records."),
+    as_json: bool = typer.Option(False, "--json", help="Print exactly one JSON object."),
 ) -> None:
     """Reference search: move each axis to its home switch and set the coordinates."""
+    axes = axes.value
     from twin.config import load_machine
 
     try:
-        pos = _start(start)
+        pos = parse_position(start)
         if pos is None:
             cfg = load_machine(machine)
             pos = tuple(0.5 * (a.switches.limit_min + a.switches.limit_max)
                         for a in cfg.axes.values())
-        if not axes or any(a not in "xy" for a in axes):
-            raise ConfigError("--axes", f"must be x, y or xy, got {axes!r}")
     except TwinError as exc:
         fail(exc)
     _manual([f"home {a}" for a in axes], machine, out, as_json, pos, False, False,
@@ -149,9 +160,10 @@ def home(
 
 
 def jog(
-    axis: str = typer.Option(..., "--axis", help="x or y"),
+    axis: Axis = typer.Option(..., "--axis", help="The axis."),
     distance: float = typer.Option(..., "--distance", help="Relative move (mm)."),
-    machine: str = typer.Option("tomsk_xy", "--machine", "-m"),
+    machine: str = typer.Option("tomsk_xy", "--machine", "-m", help="Machine preset name "
+                                "or TOML file."),
     start: str | None = typer.Option(None, "--from", help="Start position X,Y in mm "
                                      "(default: the home position)."),
     dry_run: bool = typer.Option(False, "--dry-run", help="Plan the move against the "
@@ -159,14 +171,13 @@ def jog(
                                  "never trips)."),
     ignore_soft_limits: bool = typer.Option(False, "--ignore-soft-limits", help="Let the "
                                             "move run into the end switches (testing)."),
-    out: Path = typer.Option(Path("runs"), "--out"),
-    as_json: bool = typer.Option(False, "--json"),
+    out: Path = typer.Option(Path("runs"), "--out", help="Directory for run records."),
+    as_json: bool = typer.Option(False, "--json", help="Print exactly one JSON object."),
 ) -> None:
     """Jog one axis by a distance, within the soft limits of the work zone."""
-    if axis not in ("x", "y"):
-        fail(ConfigError("--axis", f"must be x or y, got {axis!r}"))
+    axis = axis.value
     try:
-        pos = _start(start)
+        pos = parse_position(start)
     except TwinError as exc:
         fail(exc)
     _manual([f"jog {axis} {distance * 1e-3!r}"], machine, out, as_json, pos, dry_run,

@@ -13,23 +13,27 @@ import typer
 from rich.console import Console
 from rich.progress import BarColumn, Progress, TextColumn, TimeElapsedColumn
 
-from twin.cli_common import CONTROLLER_MODEL_HELP, err, fail
+from twin.cli_common import CONTROLLER_MODEL_HELP, Builtin, choices, err, fail
 from twin.errors import ConfigError, TwinError
 from twin.jsonio import json_text
 
 __all__ = ["register"]
 
+Method = choices("Method", ("analytic", "cma", "optuna", "ppo", "sac"))
+"""The tuning methods (``tuning.jobs.METHODS``, kept equal by a test)."""
+
 
 def tune(
-    method: str | None = typer.Option(None, "--method", help="analytic, cma, optuna, ppo or "
-                                      "sac (--worker: optuna)."),
+    method: Method | None = typer.Option(None, "--method", help="The search (--worker: "
+                                         "optuna)."),
     machine: str = typer.Option("tomsk_xy", "--machine", "-m",
                                 help="Machine preset name or TOML file (the plant the "
                                      "tuning runs are on)."),
     controller_model: str | None = typer.Option(None, "--controller-model",
                                                 help=CONTROLLER_MODEL_HELP),
-    program: str = typer.Option("default", "--program", help="Tuning program: default, "
-                                "compact (default shrunk to 5 %), tiny, corner, spline_line."),
+    program: Builtin = typer.Option("default", "--program", help="Tuning program (a "
+                                    "built-in: compact is default shrunk to 5 %, tiny to "
+                                    "1 %)."),
     budget_s: float = typer.Option(600.0, "--budget-s", help="Wall-time budget (s)."),
     storage: str | None = typer.Option(None, "--storage", envvar="TWIN_TUNE_STORAGE",
                                        help="Optuna storage URL (default "
@@ -50,7 +54,8 @@ def tune(
                                 "and run again (s)."),
     workers: int = typer.Option(2, "--workers", min=1, help="Worker processes (CMA, "
                                 "Optuna) or parallel environments (PPO, SAC)."),
-    seed: int = typer.Option(0, "--seed"),
+    seed: int = typer.Option(0, "--seed", help="Seed of the search (the same seed, the "
+                             "same trials)."),
     max_runs: int | None = typer.Option(None, "--max-runs", min=1,
                                         help="Stop after this many tuning runs as well."),
     policy: Path | None = typer.Option(None, "--policy", help="PPO/SAC: apply this trained "
@@ -74,8 +79,9 @@ def tune(
     from tuning.jobs import tune as run_job
 
     if method is None and not worker:
-        fail(ConfigError("method", "is required: analytic, cma, optuna, ppo or sac"))
-    method = method or "optuna"
+        fail(ConfigError("--method", "is required: " + ", ".join(m.value for m in Method)))
+    method = "optuna" if method is None else method.value
+    program = program.value
     try:
         spec = TuneSpec(method=method, machine=machine, controller_model=controller_model,
                         program=program, budget_s=budget_s,

@@ -331,7 +331,7 @@ def _shared_sink(path: Path, laws: Sequence[str], run_id: str) -> Sink:
 
 
 def compare(spec: RunSpec, laws: Sequence[str], *, out_dir: str | Path = "runs",
-            recording: bool = True, run_id: str = "compare") -> Comparison:
+            recording: bool | str | Path = True, run_id: str = "compare") -> Comparison:
     """Run ``spec`` once per law.
 
     Parameters
@@ -342,8 +342,9 @@ def compare(spec: RunSpec, laws: Sequence[str], *, out_dir: str | Path = "runs",
         Acceleration laws (``twin.controller.profiles.LAWS``).
     out_dir : path
         Each run's ``<run_id>-<law>.json`` and the shared ``<run_id>.rrd`` go here.
-    recording : bool
-        Write the shared ``.rrd``.
+    recording : bool or path
+        Write the shared ``.rrd``: True into ``out_dir`` as ``<run_id>.rrd``, or to this
+        path; False: none.
     run_id : str
         Name of the comparison.
 
@@ -352,8 +353,8 @@ def compare(spec: RunSpec, laws: Sequence[str], *, out_dir: str | Path = "runs",
     Comparison
     """
     out = output_dir(out_dir)
-    rrd = out / f"{run_id}.rrd"
-    shared = _shared_sink(rrd, laws, run_id) if recording else None
+    rrd = Path(recording) if isinstance(recording, str | Path) else out / f"{run_id}.rrd"
+    shared = _shared_sink(rrd, laws, run_id) if recording is not False else None
     runs: dict[str, LawRun] = {}
     try:
         for law in laws:
@@ -372,4 +373,4 @@ def compare(spec: RunSpec, laws: Sequence[str], *, out_dir: str | Path = "runs",
     finally:
         if shared is not None:
             shared.close()
-    return Comparison(runs, str(rrd) if recording else None)
+    return Comparison(runs, str(rrd) if recording is not False else None)

@@ -52,7 +52,7 @@ def _entities(path: str) -> set[str]:
 
 
 def test_an_independent_client_reads_the_documented_registers():
-    with hil_server("--from", "50", "20") as server, client(server.info["port"]) as c:
+    with hil_server("--from", "50,20") as server, client(server.info["port"]) as c:
         # Documented: counters at input registers 0-3, X then Y, high word first; 5 counts
         # per µm on the Tomsk rig; tachos at 4, 5.
         ir = c.read_input_registers(0, count=6, device_id=UNIT).registers
@@ -217,7 +217,7 @@ def test_a_limit_switch_during_a_run_disables_the_drive_and_keeps_the_record(tmp
 
 @pytest.mark.parametrize(("args", "words"), [
     (("--machine", "no_such_machine"), "machine: no machine file"),
-    (("--from", "999", "5"), "--from: must be 2 positions within the travel"),
+    (("--from", "999,5"), "--from: must be 2 positions within the travel"),
     (("--map", "missing.toml"), "register_map: no such file"),
     (("--set", "axes.x.mechanics.carriage_mass=-1"), "axes.x.mechanics.carriage_mass"),
 ])
@@ -278,7 +278,7 @@ def test_the_packed_map_status_and_control_registers_follow_the_coil_rules():
     """``--map packed``: input register 6 mirrors the discrete inputs bit for bit; holding
     register 3 is the enable, written with the references, under the coil's rules (refused
     before the watchdog is fed, dropped while a trip is latched, 0 acknowledges)."""
-    with hil_server("--map", "packed", "--from", "50", "20", watchdog_ms=100.0) as server, \
+    with hil_server("--map", "packed", "--from", "50,20", watchdog_ms=100.0) as server, \
             client(server.info["port"]) as c:
         ir = c.read_input_registers(0, count=7, device_id=UNIT).registers
         di = c.read_discrete_inputs(0, count=9, device_id=UNIT).bits[:9]

@@ -36,7 +36,7 @@ def test_stop_signals_at_random_instants_over_modbus(tmp_path):
     program = tmp_path / "long.ngc"
     program.write_text(PROGRAM)
     outcomes: dict[str, int] = {}
-    with hil_server("--from", "50", "20", watchdog_ms=5000.0) as server:
+    with hil_server("--from", "50,20", watchdog_ms=5000.0) as server:
         port = server.info["port"]
         for trial in range(trials):
             signum = rng.choice(SIGNALS)

@@ -22,8 +22,22 @@ from twin.controller.geometry import Arc, Line, Segment, SplinePath
 from twin.controller.planner import MotionBlock, segments_from_program
 from twin.errors import ConfigError
 
-__all__ = ["PROGRAMS", "TABLE2_FEED", "build_program", "default_program", "program_path",
-           "spline_line", "square_corner", "table2_move"]
+__all__ = [
+    "COMPACT_SCALE",
+    "PROGRAMS",
+    "TABLE2_FEED",
+    "TINY_SCALE",
+    "build_program",
+    "compact_program",
+    "default_program",
+    "program_path",
+    "scale_segment",
+    "scaled_program",
+    "spline_line",
+    "square_corner",
+    "table2_move",
+    "tiny_program",
+]
 
 # Shape of the default program in units of the program scale L, relative to its start O.
 _OA = ((0.0, 0.0), (0.25, 0.05), (0.5, 0.15), (0.75, 0.3))
@@ -109,7 +123,57 @@ def square_corner(cfg: MachineConfig, start: Sequence[float], *, angle: float = 
     return [MotionBlock(Line(a, b), v), MotionBlock(Line(b, c), v)]
 
 
-PROGRAMS = {"default": default_program, "spline_line": table2_move,
+COMPACT_SCALE = 0.05
+"""Length scale of the ``"compact"`` program relative to the default program (1)."""
+TINY_SCALE = 0.01
+"""Length scale of the ``"tiny"`` program (1)."""
+
+
+def scale_segment(segment: Segment, origin: np.ndarray, factor: float) -> Segment:
+    """``segment`` shrunk (``factor`` < 1) or grown about ``origin`` (m).
+
+    Raises
+    ------
+    ConfigError
+        For a segment type it cannot rebuild.
+    """
+
+    def s(p: Any) -> np.ndarray:
+        return origin + factor * (np.asarray(p, dtype=float) - origin)
+
+    if isinstance(segment, Line):
+        return Line(s(segment.start), s(segment.end))
+    if isinstance(segment, Arc):
+        return Arc(s(segment.start), s(segment.end), s(segment.center), ccw=segment.ccw,
+                   turns=segment.turns)
+    if isinstance(segment, SplinePath):
+        return SplinePath(s(segment.points))
+    raise ConfigError("program", f"cannot scale a {type(segment).__name__} segment")
+
+
+def scaled_program(items: Iterable[Any], origin: Sequence[float], factor: float) -> list[Any]:
+    """Motion items with every segment scaled about ``origin`` (m) by ``factor``; feeds,
+    dwells and other items unchanged."""
+    if not (np.isfinite(factor) and factor > 0.0):
+        raise ConfigError("factor", f"must be a finite number > 0, got {factor!r}")
+    o = np.asarray(origin, dtype=float)
+    return [MotionBlock(scale_segment(it.segment, o, factor), it.feed, it.line)
+            if isinstance(it, MotionBlock) else it for it in items]
+
+
+def compact_program(cfg: MachineConfig, start: Sequence[float]) -> list[Any]:
+    """The default program shrunk about its start by ``COMPACT_SCALE``: the same feeds,
+    accelerations and jerk phases on a twentieth of the path (the tuning runs' program)."""
+    return scaled_program(default_program(cfg, start), start, COMPACT_SCALE)
+
+
+def tiny_program(cfg: MachineConfig, start: Sequence[float]) -> list[Any]:
+    """The default program shrunk to ``TINY_SCALE`` (tests and smoke runs)."""
+    return scaled_program(default_program(cfg, start), start, TINY_SCALE)
+
+
+PROGRAMS = {"default": default_program, "compact": compact_program, "tiny": tiny_program,
+            "spline_line": table2_move,
             "corner": square_corner}
 """Built-in programs by name: ``twin run --builtin NAME``."""
 
@@ -119,8 +183,7 @@ def build_program(name: str, cfg: MachineConfig, start: Sequence[float],
     """A built-in program by name (see ``PROGRAMS``)."""
     if name not in PROGRAMS:
         raise ConfigError("builtin", f"unknown built-in program {name!r}; valid: "
-                          f"{', '.join(PROGRAMS)} (the tuning programs compact and tiny run "
-                          "only in twin tune)")
+                          f"{', '.join(PROGRAMS)}")
     return PROGRAMS[name](cfg, start, **options)
 
 

@@ -1,0 +1,120 @@
+"""The whole command line, as a user meets it: every command's ``--help`` works and every
+option has help; every bad input ends in exit 2 and ONE line ``error: ...`` naming the place,
+with no traceback and no usage box. Real subprocesses of ``twin``, run a few at a time."""
+
+from __future__ import annotations
+
+import os
+import subprocess
+import sys
+from concurrent.futures import ThreadPoolExecutor
+
+import pytest
+import typer.main
+
+from twin.cli import app
+
+ENV = {**os.environ, "RERUN_ANALYTICS": "0", "COLUMNS": "200"}
+COMMANDS = ("run", "demo", "view", "machines", "experiment", "home", "jog", "hil-server",
+            "compare", "tune", "identify", "runs")
+
+BAD = [
+    # (arguments, what the one line must contain)
+    (("bogus",), "No such command 'bogus'"),
+    (("--nope",), "No such option: --nope"),
+    (("run", "--builtin", "nope"), "Invalid value for '--builtin'"),
+    (("run", "--profile", "sinus"), "Invalid value for '--profile'"),
+    (("run", "--planner", "maybe"), "Invalid value for '--planner'"),
+    (("run", "--dcu-order", "7"), "Invalid value for '--dcu-order'"),
+    (("run", "--rerun", "foo"), "--rerun: must be file, none, spawn, serve"),
+    (("run", "--set", "max_velocity=900"), "max_velocity: give a unit"),
+    (("run", "--set", "kpp=3"), "kpp: unknown --set key"),
+    (("run", "--set", "max_velocity=900kg"), "is not in m/s"),
+    (("run", "no_such_program.ngc"), "no_such_program.ngc"),
+    (("run", "--period", "abc"), "Invalid value for '--period'"),
+    (("run", "--driver", "bogus://x"), "driver"),
+    (("demo", "--machine", "no_such_machine"), "no_such_machine"),
+    (("view", "no_such.rrd"), "does not exist"),
+    (("view", "--port", "0", "x.rrd"), "Invalid value for '--port'"),
+    (("machines", "--diff", "tomsk_xy"), "requires 2 arguments"),
+    (("machines", "--fields", "no_such_machine"), "no_such_machine"),
+    (("experiment", "wiggle", "--amplitude", "1"), "Invalid value for 'kind"),
+    (("experiment", "step", "--axis", "z", "--amplitude", "1"), "Invalid value for '--axis'"),
+    (("experiment", "step"), "Missing option '--amplitude'"),
+    (("experiment", "step", "--amplitude", "1", "--rerun", "foo"), "--rerun: must be"),
+    (("home", "--axes", "z"), "Invalid value for '--axes'"),
+    (("home", "--from", "1000,1000"), "start: must be 2 positions within the travel"),
+    (("home", "--from", "abc"), "--from: expected X,Y in mm"),
+    (("jog", "--distance", "1"), "Missing option '--axis'"),
+    (("jog", "--axis", "z", "--distance", "1"), "Invalid value for '--axis'"),
+    (("jog", "--axis", "x", "--distance", "abc"), "Invalid value for '--distance'"),
+    (("jog", "--axis", "x", "--distance", "1000"), "leaves the work zone"),
+    (("hil-server", "--port", "70000"), "Invalid value for '--port'"),
+    (("hil-server", "--from", "1,2,3"), "--from: expected X,Y in mm"),
+    (("hil-server", "--map", "no_such_map.toml"), "no_such_map"),
+    (("compare", "--profiles", "trapezoid,sinusoid"), "sinusoid"),
+    (("compare", "--builtin", "nope"), "Invalid value for '--builtin'"),
+    (("compare", "--rerun", "foo"), "--rerun: must be file, none"),
+    (("compare", "--sweep", "max_jerk"), "--sweep: expected key=v1,v2"),
+    (("tune",), "--method: is required"),
+    (("tune", "--method", "grid"), "Invalid value for '--method'"),
+    (("tune", "--method", "cma", "--program", "nope"), "Invalid value for '--program'"),
+    (("tune", "--method", "cma", "--budget-s", "-1"), "budget_s"),
+    (("identify",), "Missing option '--output'"),
+    (("identify", "-o", "x.toml", "--axes", "z"), "Invalid value for '--axes'"),
+]
+
+
+def _twin(args, cwd) -> subprocess.CompletedProcess:
+    return subprocess.run([sys.executable, "-m", "twin.cli", *args], capture_output=True,
+                          text=True, env=ENV, timeout=300, cwd=cwd)
+
+
+def test_the_choices_are_the_libraries_own():
+    from tuning.jobs import METHODS
+    from twin.cli_common import LAW_NAMES, PROGRAM_NAMES
+    from twin.cli_tune import Method
+    from twin.controller.library import PROGRAMS
+    from twin.controller.profiles.laws import LAWS
+
+    assert PROGRAM_NAMES == tuple(PROGRAMS) and LAW_NAMES == tuple(LAWS)
+    assert tuple(m.value for m in Method) == METHODS
+
+
+def test_every_option_of_every_command_has_help():
+    group = typer.main.get_command(app)
+    assert set(group.commands) == set(COMMANDS)
+    missing = [f"{name} {p.name}" for name, cmd in group.commands.items()
+               for p in cmd.params if not getattr(p, "help", None)]
+    assert missing == []
+
+
+def test_every_command_has_help_and_version(tmp_path):
+    runs = [(c, "--help") for c in COMMANDS] + [("--help",), ("--version",)]
+    with ThreadPoolExecutor(4) as pool:
+        done = list(pool.map(lambda a: _twin(a, tmp_path), runs))
+    for args, d in zip(runs, done, strict=True):
+        assert d.returncode == 0 and "Traceback" not in d.stderr, (args, d.stderr)
+        assert d.stdout.strip(), args
+
+
+def test_every_bad_input_is_exit_2_and_one_line(tmp_path):
+    with ThreadPoolExecutor(4) as pool:
+        done = list(pool.map(lambda case: _twin(case[0], tmp_path), BAD))
+    wrong = []
+    for (args, words), d in zip(BAD, done, strict=True):
+        lines = [ln for ln in d.stderr.splitlines() if ln.strip()]
+        ok = (d.returncode == 2 and len(lines) == 1 and lines[0].startswith("error: ")
+              and words in lines[0] and "Traceback" not in d.stderr)
+        if not ok:
+            wrong.append((" ".join(args), d.returncode, d.stderr[-500:]))
+    assert wrong == []
+    assert not list(tmp_path.iterdir()) or all(p.name == "runs" for p in tmp_path.iterdir())
+
+
+@pytest.mark.parametrize("name", ["compact", "tiny"])
+def test_the_tuning_programs_run_with_twin_run(name, tmp_path):
+    d = _twin(("run", "--builtin", name, "--rerun", "none", "--out", str(tmp_path), "--json"),
+              tmp_path)
+    assert d.returncode == 0, d.stderr
+    assert '"status": "FINISHED"' in d.stdout
