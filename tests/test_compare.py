@@ -225,3 +225,20 @@ def test_unknown_law_exits_2_naming_it(tmp_path):
     r = _twin("compare", "--profiles", "trapezoid,sinusoid", "--out", str(tmp_path))
     assert r.returncode == 2
     assert "sinusoid" in r.stderr
+
+
+def test_compare_on_the_default_program_names_the_winner_of_every_figure(tmp_path):
+    r = _twin("compare", "--profiles", "trapezoid,jerk-limited", "--rerun", "none", "--out",
+              str(tmp_path), "--json")
+    assert r.returncode == 0, r.stderr
+    verdict = json.loads(r.stdout)["verdict"]
+    assert len(verdict) == 11
+    for e in verdict:
+        values = e["values"]
+        if e["winner"] is not None:
+            assert values[e["winner"]] == min(values.values()), e["label"]
+        else:
+            assert max(values.values()) - min(values.values()) <= 1e-3 * max(values.values())
+    named = {e["label"]: e["winner"] for e in verdict}
+    assert named["cycle time"] == "trapezoid"
+    assert named["peak reference jerk |Δa|/T"] == "jerk-limited"

@@ -249,7 +249,7 @@ def _search(spec: TuneSpec, ev: Evaluator, files: dict[str, Path],
     policy = spec.policy
     if policy is None:
         # the policy's runs on the machine come after the training, inside the budget
-        applying = spec.policy_runs * ev.baseline.wall_time
+        applying = spec.policy_runs * ev.baseline.wall_time + 1.0   # + loading the policy
         policy = train(spec.method, machine=ev.tuning.cfg, program=spec.program,
                        out_dir=spec.out_dir / "checkpoints", total_steps=spec.train_steps,
                        budget_s=max(budget_s - applying, 1e-3), n_envs=spec.workers,

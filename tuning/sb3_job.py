@@ -137,16 +137,19 @@ def latest_checkpoint(directory: Path) -> Path | None:
     return best[1]
 
 
-def _callbacks(directory: Path, every: int, n_envs: int, budget_s: float,
+SAVE_S = 1.0
+"""Seconds a training keeps at the end of its budget to save the policy and stop the
+environments' processes."""
+
+
+def _callbacks(directory: Path, every: int, n_envs: int, deadline: float,
                progress: Callable[[int], None] | None,
                on_cost: Callable[[float], None] | None = None) -> list[Any]:
     from stable_baselines3.common.callbacks import BaseCallback, CheckpointCallback
 
     class Budget(BaseCallback):
-        """Stops training when the wall-time budget is spent; reports progress."""
-
-        def _on_training_start(self) -> None:
-            self.start = time.perf_counter()
+        """Stops training when the wall-time budget is spent (``deadline``, counted from
+        the call's start: starting the environments is part of it); reports progress."""
 
         def _on_step(self) -> bool:
             if on_cost is not None:
@@ -155,7 +158,7 @@ def _callbacks(directory: Path, every: int, n_envs: int, budget_s: float,
                         on_cost(float(info["cost"]))
             if progress is not None:
                 progress(int(self.num_timesteps))
-            return time.perf_counter() - self.start < budget_s
+            return time.perf_counter() < deadline
 
     class Checkpoint(CheckpointCallback):
         """SB3's checkpoints, each file entered in the folder's manifest as it is saved."""
@@ -193,7 +196,8 @@ def train(method: str, *, machine: str | MachineConfig, program: str = "compact"
     total_steps : int
         Tuning runs to train for, counting those of a resumed run.
     budget_s : float
-        Wall-time budget of this call (s): training stops (and saves) when it is spent.
+        Wall-time budget of this call (s), from its start (the environments' start counts):
+        training stops ``SAVE_S`` before it is spent, to save and close.
     n_envs : int
         Parallel environments (``SubprocVecEnv`` above 1).
     seed : int
@@ -218,6 +222,7 @@ def train(method: str, *, machine: str | MachineConfig, program: str = "compact"
     """
     from stable_baselines3.common.vec_env import DummyVecEnv, SubprocVecEnv
 
+    deadline = time.perf_counter() + budget_s - SAVE_S
     algo = _algorithm(method)
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
@@ -238,7 +243,7 @@ def train(method: str, *, machine: str | MachineConfig, program: str = "compact"
                          **_hyper(method, n_envs, rollout))
         left = total_steps - int(model.num_timesteps)
         if left > 0:
-            model.learn(left, callback=_callbacks(out, checkpoint_steps, n_envs, budget_s,
+            model.learn(left, callback=_callbacks(out, checkpoint_steps, n_envs, deadline,
                                                   progress, on_cost),
                         reset_num_timesteps=False, tb_log_name=method)
         path = out / "policy.zip"
