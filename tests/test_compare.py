@@ -150,8 +150,9 @@ def test_the_verdict_names_the_winner_of_every_figure_and_its_margin(compared):
     # every output in the call's own folder
     folder = Path(compared["folder"])
     assert Path(compared["report"]).parent == folder == Path(compared["recording"]).parent
-    assert {p.name for p in folder.glob("*.json")} == {f"compare-{law}.json"
-                                                       for law in compared["profiles"]}
+    assert {p.name for p in folder.glob("*.json")} == {
+        "verdict.json", *(f"compare-{law}.json" for law in compared["profiles"])}
+    assert json.loads((folder / "verdict.json").read_text()) == compared["verdict"]
 
 
 def test_verdict_ties_and_margins():
@@ -167,27 +168,13 @@ def test_verdict_ties_and_margins():
     assert verdict({"x": {}}, rows) == []                    # a figure a law lacks: left out
 
 
-def test_every_call_writes_into_a_folder_of_its_own(tmp_path):
-    prog = tmp_path / "two_lines.ngc"
-    prog.write_text(PROGRAM)
-    folders = []
-    for _ in range(2):
-        r = _twin("compare", str(prog), "--profiles", "parabolic", "--rerun", "none", "--out",
-                  str(tmp_path / "out"), "--json")
-        assert r.returncode == 0, r.stderr
-        folders.append(Path(json.loads(r.stdout)["folder"]))
-    assert folders[0] != folders[1] and all(f.parent == tmp_path / "out" for f in folders)
-    assert all((f / "compare.png").exists() for f in folders)
-
-
-def test_the_terminal_table_names_the_winners(tmp_path):
-    prog = tmp_path / "two_lines.ngc"
-    prog.write_text(PROGRAM)
-    r = _twin("compare", str(prog), "--profiles", "trapezoid,parabolic", "--rerun", "none",
-              "--out", str(tmp_path / "out"))
+def test_every_call_writes_into_a_folder_of_its_own(compared, tmp_path):
+    r = _twin("compare", "--builtin", "tiny", "--profiles", "parabolic", "--rerun", "none",
+              "--out", str(Path(compared["folder"]).parent), "--json")
     assert r.returncode == 0, r.stderr
-    assert "winner" in r.stdout and "margin" in r.stdout
-    assert re.search(r"parabolic wins \d+ of 11 figures", r.stdout)
+    second = Path(json.loads(r.stdout)["folder"])
+    assert second != Path(compared["folder"]) and second.parent == Path(compared["folder"]).parent
+    assert (second / "compare.png").exists() and (Path(compared["folder"]) / "compare.png").exists()
 
 
 def test_rrd_holds_one_subtree_per_law_with_every_tick(compared):
@@ -229,14 +216,18 @@ def test_unknown_law_exits_2_naming_it(tmp_path):
 
 def test_compare_on_the_default_program_names_the_winner_of_every_figure(tmp_path):
     r = _twin("compare", "--profiles", "trapezoid,jerk-limited", "--rerun", "none", "--out",
-              str(tmp_path), "--json")
+              str(tmp_path))
     assert r.returncode == 0, r.stderr
-    verdict = json.loads(r.stdout)["verdict"]
+    assert "winner" in r.stdout and "margin" in r.stdout              # the terminal table
+    assert re.search(r"(trapezoid|jerk-limited) wins \d+ of 11 figures", r.stdout)
+    (folder,) = tmp_path.iterdir()
+    verdict = json.loads((folder / "verdict.json").read_text())
     assert len(verdict) == 11
     for e in verdict:
         values = e["values"]
         if e["winner"] is not None:
             assert values[e["winner"]] == min(values.values()), e["label"]
+            assert f"{e['winner']} " in r.stdout
         else:
             assert max(values.values()) - min(values.values()) <= 1e-3 * max(values.values())
     named = {e["label"]: e["winner"] for e in verdict}

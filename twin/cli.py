@@ -39,6 +39,7 @@ from twin.cli_common import (  # noqa: E402
     PlannerMode,
     err,
     fail,
+    report_dry_run,
     rerun_target,
     summary_table,
 )
@@ -152,37 +153,6 @@ def _run(program: Path | None, machine: str, profile: str | None, planner: str |
                                         if k not in ("config", "spec")}) + "\n")
     if summary["status"] != "FINISHED":
         raise typer.Exit(1)
-
-
-def report_dry_run(s: dict, out: Path, as_json: bool) -> None:
-    """Print a dry run's summary (``twin.dry_run``): one JSON object, or its table."""
-    if as_json:
-        _emit({k: v for k, v in s.items() if k != "spec"}, True)
-        return
-    what = s["program"] or ", ".join(s["commands"])
-    table = Table(title=f"dry run {s['run_id']}: {what} on {s['machine']} (planned, "
-                        "nothing driven)")
-    for col in ("quantity", "value", "limit", "share of limit"):
-        table.add_column(col, justify="left" if col == "quantity" else "right")
-    table.add_row("status", s["status"], "", "")
-    table.add_row("cycle time (s)", f"{s['cycle_time_s']:.3f}", "", "")
-    table.add_row("path length (mm)", f"{s['path_length_mm']:.4g}", "", "")
-    table.add_row("peak feed (mm/min)", f"{s['peak_feed_mm_per_min']:.4g}",
-                  f"{s['feed_limit_mm_per_min']:.4g}",
-                  f"{s['peak_feed_mm_per_min'] / s['feed_limit_mm_per_min']:.0%}")
-    for ax, d in s["axes"].items():
-        for q, f in d.items():
-            table.add_row(f"{ax.upper()} peak {q} ({f['unit']})", f"{f['peak']:.4g}",
-                          f"{f['limit']:.4g}", f"{f['ratio']:.0%}")
-    for ax, (lo, hi) in s["extent_mm"].items():
-        zone = (s["work_zone_mm"] or {}).get(ax)
-        table.add_row(f"{ax.upper()} extent (mm)", f"{lo:.4g} … {hi:.4g}",
-                      "" if zone is None else f"{zone[0]:.4g} … {zone[1]:.4g}", "")
-    Console().print(table)
-    if s["over_limits"]:
-        err.print(f"[yellow]warning:[/] the planned reference exceeds the axis limits: "
-                  f"{', '.join(s['over_limits'])}", highlight=False)
-    Console().print(f"record: {out / (s['run_id'] + '.json')}", highlight=False)
 
 
 def _report(summary: dict, out: Path, as_json: bool) -> None:

@@ -8,7 +8,9 @@ message naming the place.
 from __future__ import annotations
 
 import enum
+import sys
 from collections.abc import Mapping, Sequence
+from pathlib import Path
 from typing import Any
 
 import typer
@@ -17,6 +19,7 @@ from rich.markup import escape
 from rich.table import Table
 
 from twin.errors import ConfigError
+from twin.jsonio import json_text
 
 __all__ = [
     "CONTROLLER_MODEL_HELP",
@@ -141,3 +144,34 @@ def summary_table(summaries: Mapping[str, Mapping[str, Any]], rows: Sequence[tup
                  for v in values]
         table.add_row(label, *cells, unit)
     return table
+
+
+def report_dry_run(s: dict, out: Path, as_json: bool) -> None:
+    """Print a dry run's summary (``twin.dry_run``): one JSON object, or its table."""
+    if as_json:
+        sys.stdout.write(json_text({k: v for k, v in s.items() if k != "spec"}) + "\n")
+        return
+    what = s["program"] or ", ".join(s["commands"])
+    table = Table(title=f"dry run {s['run_id']}: {what} on {s['machine']} (planned, "
+                        "nothing driven)")
+    for col in ("quantity", "value", "limit", "share of limit"):
+        table.add_column(col, justify="left" if col == "quantity" else "right")
+    table.add_row("status", s["status"], "", "")
+    table.add_row("cycle time (s)", f"{s['cycle_time_s']:.3f}", "", "")
+    table.add_row("path length (mm)", f"{s['path_length_mm']:.4g}", "", "")
+    table.add_row("peak feed (mm/min)", f"{s['peak_feed_mm_per_min']:.4g}",
+                  f"{s['feed_limit_mm_per_min']:.4g}",
+                  f"{s['peak_feed_mm_per_min'] / s['feed_limit_mm_per_min']:.0%}")
+    for ax, d in s["axes"].items():
+        for q, f in d.items():
+            table.add_row(f"{ax.upper()} peak {q} ({f['unit']})", f"{f['peak']:.4g}",
+                          f"{f['limit']:.4g}", f"{f['ratio']:.0%}")
+    for ax, (lo, hi) in s["extent_mm"].items():
+        zone = (s["work_zone_mm"] or {}).get(ax)
+        table.add_row(f"{ax.upper()} extent (mm)", f"{lo:.4g} … {hi:.4g}",
+                      "" if zone is None else f"{zone[0]:.4g} … {zone[1]:.4g}", "")
+    Console().print(table)
+    if s["over_limits"]:
+        err.print(f"[yellow]warning:[/] the planned reference exceeds the axis limits: "
+                  f"{', '.join(s['over_limits'])}", highlight=False)
+    Console().print(f"record: {out / (s['run_id'] + '.json')}", highlight=False)

@@ -20,7 +20,7 @@ from twin.cli_common import (
     rerun_target,
 )
 from twin.errors import ConfigError, TwinError
-from twin.jsonio import json_text, output_dir
+from twin.jsonio import json_text, output_dir, write_json_atomic
 from twin.overrides import SET_HELP
 
 __all__ = ["register"]
@@ -143,6 +143,7 @@ def compare_cmd(
             result = {"profiles": comparison.summaries(),
                       "verdict": verdict(comparison.summaries()), "report": str(report),
                       "recording": comparison.recording}
+            write_json_atomic(folder / "verdict.json", result["verdict"])
         result["folder"] = str(folder)
     except TwinError as exc:
         fail(exc)

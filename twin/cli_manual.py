@@ -20,6 +20,7 @@ from twin.cli_common import (
     err,
     fail,
     parse_position,
+    report_dry_run,
     rerun_target,
     summary_table,
 )
@@ -108,7 +109,6 @@ def _manual(commands: list[str], machine: str, out: Path, as_json: bool,
         spec = RunSpec(machine=machine, builtin="none", commands=tuple(commands),
                        start=start, overrides=sets)
         if dry_run:
-            from twin.cli import report_dry_run
             from twin.dry_run import dry_run as plan_only
 
             planned = plan_only(spec, out_dir=out)

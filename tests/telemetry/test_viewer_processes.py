@@ -113,7 +113,7 @@ def _read_until(proc: subprocess.Popen, text: str, timeout: float = 120.0) -> st
 
 def test_served_run_stops_its_server_on_sigterm(tmp_path):
     port = _free_port()
-    proc = subprocess.Popen([*TWIN, "run", "--builtin", "corner", "--rerun", "serve",
+    proc = subprocess.Popen([*TWIN, "run", "--builtin", "tiny", "--rerun", "serve",
                              "--rerun-port", str(port), "--out", str(tmp_path), "--json"],
                             stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
     try:
@@ -133,7 +133,7 @@ def test_served_run_stops_its_server_on_sigterm(tmp_path):
 
 
 def test_headless_spawn_run_is_complete_with_a_one_line_warning(tmp_path, headless):
-    done = subprocess.run([*TWIN, "run", "--builtin", "corner", "--rerun", "spawn",
+    done = subprocess.run([*TWIN, "run", "--builtin", "tiny", "--rerun", "spawn",
                            "--rerun-port", str(_free_port()), "--out", str(tmp_path),
                            "--json"], capture_output=True, text=True, timeout=300)
     assert done.returncode == 0, done.stderr

@@ -37,7 +37,7 @@ def test_human_output_is_a_table(tmp_path):
 
 
 @pytest.mark.parametrize("args, message", [
-    (("--method", "cma", "--program", "nope"), "program: unknown tuning program"),
+    (("--method", "cma", "--program", "nope"), "Invalid value for '--program'"),
     (("--method", "ppo", "--policy", "missing.zip"), "policy: no such file"),
 ])
 def test_errors_exit_2_naming_the_place(tmp_path, args, message):
