@@ -88,15 +88,15 @@ class RerunSink:
         self._partial = self.path.with_name(self.path.name + ".partial") if self.path else None
         self._rec: rr.RecordingStream | None = None
         self._live: rr.RecordingStream | None = None
-        if self._partial is not None:
-            self._partial.parent.mkdir(parents=True, exist_ok=True)
-            self._rec = rr.RecordingStream(APPLICATION_ID, recording_id=recording_id)
-            self._rec.set_sinks(rr.FileSink(str(self._partial)))
-        if live is not None:
+        if live is not None:          # first: a refused port leaves no file behind
             self.url = self._start_live(live, host, port)
             if self.url is not None:
                 self._live = rr.RecordingStream(APPLICATION_ID, recording_id=recording_id)
                 self._live.set_sinks(rr.GrpcSink(self.url))
+        if self._partial is not None:
+            self._partial.parent.mkdir(parents=True, exist_ok=True)
+            self._rec = rr.RecordingStream(APPLICATION_ID, recording_id=recording_id)
+            self._rec.set_sinks(rr.FileSink(str(self._partial)))
         for rec in self._streams():
             if recording_name:
                 rec.send_recording_name(recording_name)
