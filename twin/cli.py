@@ -171,6 +171,10 @@ def _report(summary: dict, out: Path, as_json: bool) -> None:
                           f"{t['jitter_p50_us']:.0f}/{t['jitter_p99_us']:.0f}/"
                           f"{t['jitter_max_us']:.0f} µs", highlight=False)
         console.print(f"record: {out / (summary['run_id'] + '.json')}", highlight=False)
+    if summary.get("error") and summary.get("status") != "FINISHED":
+        # why it stopped (a driver fault, a missed deadline, a program error), in words
+        err.print(f"[bold red]{summary['status'].lower()}:[/] {escape(summary['error'])}",
+                  highlight=False, soft_wrap=True)
 
 
 def _keep_serving(port: int) -> None:

@@ -119,3 +119,6 @@ def test_a_corrupted_counter_answer_ends_the_run_in_a_fault_naming_the_axis(tmp_
     found = re.search(r"axis x: implausible counter step of (-?\d+) counts", s["error"])
     assert found and abs(int(found.group(1)) - (1 << 24)) < 1000   # the flip, plus motion
     assert answers[0] >= 300
+    # and the reason is said in words, not only in the record (or a library's log line)
+    assert re.search(r"^fault: driver fault: modbus://\S+: axis x: implausible counter step",
+                     proc.stderr, re.M), proc.stderr
