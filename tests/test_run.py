@@ -166,8 +166,8 @@ def test_velocity_feed_forward_alone_already_helps(dcu_runs):
         assert s["status"] == "FINISHED"
 
 
-def test_dry_run_does_not_move_the_machine(tmp_path):
-    r = run(RunSpec(machine="tomsk_xy", dry_run=True, overrides={
+def test_drives_off_does_not_move_the_machine(tmp_path):
+    r = run(RunSpec(machine="tomsk_xy", drives_off=True, overrides={
         "controller.regulator.following_error_limit": 1.0}), out_dir=tmp_path, rerun="none")
     moved = np.ptp(r.record["table_position"], axis=0)
     assert np.all(moved < 1e-6)

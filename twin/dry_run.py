@@ -75,7 +75,7 @@ def dry_run(spec: RunSpec, *, out_dir: str | Path = "runs", run_id: str | None =
     """
     run_id = run_id or time.strftime("%Y%m%d-%H%M%S-") + uuid.uuid4().hex[:6]
     out = output_dir(out_dir)
-    p = prepare(dataclasses.replace(spec, dry_run=False))
+    p = prepare(dataclasses.replace(spec, drives_off=False))
     p.driver.close()       # nothing is driven: the plant only gave the start position
     ctrl, cfg = p.controller, p.cfg
     for command in spec.commands:

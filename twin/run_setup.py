@@ -57,8 +57,9 @@ class RunSpec:
         ``--set`` values by dotted config path (see ``twin.overrides``).
     mode : str
         Interpolator interface: "extended" (float v/a/j channels) or "traditional".
-    dry_run : bool
-        Run the controller without driving the motors.
+    drives_off : bool
+        Run the controller with the drives disabled (seed 001's "dry run": the loop runs,
+        the motors get nothing). The plan-only dry run is ``twin.dry_run``.
     max_time : float or None
         Stop after this much controller time (s); None: the machine's longest program
         (``controller.max_program_time``, judged on a lower bound of a program's time) with
@@ -87,7 +88,7 @@ class RunSpec:
     period: float | None = None
     overrides: Mapping[str, Any] = field(default_factory=dict)
     mode: str = "extended"
-    dry_run: bool = False
+    drives_off: bool = False
     max_time: float | None = None
     start: tuple[float, float] | None = None
     commands: tuple[str, ...] = ()
@@ -265,7 +266,7 @@ def prepare(spec: RunSpec) -> Prepared:
         plant = Plant.from_machine(cfg)
         plant.reset(positions=None if spec.start is None else np.asarray(spec.start, float))
         start = plant.truth().table_position
-        driver = SimDriver(plant, cfg.controller.period, dry_run=spec.dry_run,
+        driver = SimDriver(plant, cfg.controller.period, drives_off=spec.drives_off,
                            timing=cfg.controller.timing)
     else:
         from twin.hardware.drivers import open_driver

@@ -26,22 +26,23 @@ class SimDriver:
         The twin. Its state is whatever it is at construction (call ``plant.reset`` first).
     period : float
         Controller period (s); each ``write`` advances the plant by this much.
-    dry_run : bool
-        Run the controller without driving the motors (seed 001's dry run): the drives stay
-        disabled whatever the controller asks.
+    drives_off : bool
+        Run the controller without driving the motors (what seed 001 calls a dry run): the
+        drives stay disabled whatever the controller asks. (``twin run --dry-run`` is
+        another thing: the plan alone, ``twin.dry_run``.)
     timing : TimingConfig, optional
         When the ticks really come (``[controller.timing]``): each ``write`` then advances
         the plant to the next tick of that timer instead of by exactly one period (the
         controller does not know). Default: ideal.
     """
 
-    def __init__(self, plant: Plant, period: float, *, dry_run: bool = False,
+    def __init__(self, plant: Plant, period: float, *, drives_off: bool = False,
                  timing: TimingConfig | None = None):
         if not period > 0:
             raise ValueError(f"period must be > 0 s, got {period}")
         self.plant = plant
         self.period = period
-        self.dry_run = dry_run
+        self.drives_off = drives_off
         self.last_status = None
         self._zero = np.zeros(2)
         self._inputs = Inputs()
@@ -59,7 +60,7 @@ class SimDriver:
 
     def write(self, outputs: Outputs) -> None:
         """Apply the outputs and advance the plant one period."""
-        enable = bool(outputs.enable) and not self.dry_run
+        enable = bool(outputs.enable) and not self.drives_off
         if enable != self._enabled:
             self.plant.enable(enable)
             self._enabled = enable
