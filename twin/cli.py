@@ -187,10 +187,10 @@ def _keep_serving(port: int) -> None:
     if not servers:
         return
     url = f"rerun+http://127.0.0.1:{port}/proxy"
-    err.print(f"serving the run at {url} (connect: rerun --connect {url}); Ctrl-C to stop",
-              highlight=False, soft_wrap=True)
     try:
-        with stop_signals([]):
+        with stop_signals([]):      # before the message: a signal right after it is caught
+            err.print(f"serving the run at {url} (connect: rerun --connect {url}); Ctrl-C "
+                      "to stop", highlight=False, soft_wrap=True)
             for proc in servers:
                 proc.wait()
     except KeyboardInterrupt:

@@ -23,10 +23,10 @@ from twin.cli_hil import fifo_priority, spawn_hil_server
 from twin.run import RunSpec, prepare, run
 
 UNIT = 1
-TRUTH_ONLY = {f"/axes/{a}/{n}" for a in "xy" for n in
-              ("drive/armature_current", "drive/converter_voltage", "drive/conduction",
-               "drive/motor_speed",
-               "screw_deflection_um")}
+TRUTH_ONLY = {*(f"/axes/{a}/{n}" for a in "xy" for n in
+                ("drive/armature_current", "drive/converter_voltage", "drive/conduction",
+                 "drive/motor_speed", "screw_deflection_um", "velocity/actual")),
+              "/feed/actual"}
 
 
 @contextlib.contextmanager

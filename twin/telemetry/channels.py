@@ -180,17 +180,22 @@ class TelemetryWriter:
             self._distance = PathDistance(self.path)
         style = getattr(sink, "style", None)
         if style is not None:
+            # styles only for series that will carry data: the actual velocity and feed
+            # come from the twin's truth, the programmed feed from the program's lines
+            truth = truth_record is not None
             for ax in AXES:
                 for q in ("position", "velocity"):
                     style(f"axes/{ax}/{q}/reference", name=f"{ax} {q} reference",
                           color=(120, 120, 120))
-                    style(f"axes/{ax}/{q}/actual", name=f"{ax} {q} actual",
-                          color=(230, 80, 30))
+                    if q == "position" or truth:
+                        style(f"axes/{ax}/{q}/actual", name=f"{ax} {q} actual",
+                              color=(230, 80, 30))
                 style(f"axes/{ax}/regulator", name=[f"{ax} {t}" for t in TERMS])
                 style(f"axes/{ax}/following_error_um", name=f"{ax} following error",
                       color=(230, 80, 30))
             for name, color in FEED_STYLE.items():
-                style(f"feed/{name}", name=f"{name} feed", color=color)
+                if (name != "actual" or truth) and (name != "programmed" or self.feeds):
+                    style(f"feed/{name}", name=f"{name} feed", color=color)
         self.wall += time.perf_counter() - t0
 
     def add_fine(self, rows: np.ndarray) -> None:
