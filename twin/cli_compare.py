@@ -20,7 +20,7 @@ from twin.cli_common import (
     rerun_target,
 )
 from twin.errors import ConfigError, TwinError
-from twin.jsonio import json_text, output_dir, write_json_atomic
+from twin.jsonio import json_text, output_dir, record_id, write_json_atomic
 from twin.overrides import SET_HELP
 
 __all__ = ["register"]
@@ -61,11 +61,8 @@ def _wins(verdicts: list[dict[str, Any]]) -> str:
 def _call_folder(out: Path) -> Path:
     """A folder of its own for this call under ``out`` (time stamp + random suffix): a
     second comparison never overwrites the first's outputs."""
-    import time
-    import uuid
 
-    return output_dir(output_dir(out) / (time.strftime("%Y%m%d-%H%M%S-")
-                                         + uuid.uuid4().hex[:4]))
+    return output_dir(output_dir(out) / record_id(suffix=4))
 
 
 def _parse_sweep(text: str) -> tuple[str, list[Any]]:

@@ -16,7 +16,6 @@ from __future__ import annotations
 import dataclasses
 import math
 import time
-import uuid
 from pathlib import Path
 from typing import Any
 
@@ -24,7 +23,7 @@ import numpy as np
 
 from twin.config import AXES
 from twin.controller.interpolator import InterpolatorStatus
-from twin.jsonio import output_dir, write_json_atomic
+from twin.jsonio import output_dir, record_id, write_json_atomic
 from twin.run_setup import RunSpec, prepare
 from twin.runrecord import make_sink, parse_command
 from twin.telemetry.channels import programmed_polyline
@@ -73,7 +72,7 @@ def dry_run(spec: RunSpec, *, out_dir: str | Path = "runs", run_id: str | None =
         The program cannot be read or planned, or leaves the work zone (naming the line),
         exactly as a real run would refuse it.
     """
-    run_id = run_id or time.strftime("%Y%m%d-%H%M%S-") + uuid.uuid4().hex[:6]
+    run_id = run_id or record_id()
     out = output_dir(out_dir)
     p = prepare(dataclasses.replace(spec, drives_off=False))
     p.driver.close()       # nothing is driven: the plant only gave the start position

@@ -12,17 +12,25 @@ import json
 import math
 import os
 import sys
+import time
+import uuid
 from collections.abc import Iterator, Mapping
 from pathlib import Path
 from typing import Any
 
 from twin.errors import ConfigError
 
-__all__ = ["LOCK_NAME", "folder_lock", "json_text", "output_dir", "plain", "write_json_atomic",
-           "write_text_atomic"]
+__all__ = ["LOCK_NAME", "folder_lock", "json_text", "output_dir", "plain", "record_id",
+           "write_json_atomic", "write_text_atomic"]
 
 LOCK_NAME = ".job.lock"
 """The lock file a job holds in its output folder (``folder_lock``)."""
+
+
+def record_id(prefix: str = "", *, suffix: int = 6) -> str:
+    """A name for a record that sorts by time and does not collide:
+    ``<prefix>YYYYmmdd-HHMMSS-<random hex>`` (runs, dry runs, comparisons, identifications)."""
+    return f"{prefix}{time.strftime('%Y%m%d-%H%M%S')}-{uuid.uuid4().hex[:suffix]}"
 
 
 def output_dir(path: str | Path, field: str = "out") -> Path:

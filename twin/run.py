@@ -16,7 +16,6 @@ import dataclasses
 import gc
 import math
 import time
-import uuid
 from collections.abc import Callable, Sequence
 from pathlib import Path
 from typing import Any
@@ -31,7 +30,7 @@ from twin.controller.metrics import OscillationMeter
 from twin.controller.record import Record
 from twin.errors import DeadlineFault, DriverError
 from twin.hardware.realtime import DeadlinePolicy, RealTimeLoop, TickStats, fifo_priority
-from twin.jsonio import output_dir, write_json_atomic
+from twin.jsonio import output_dir, record_id, write_json_atomic
 from twin.model import mode_periods
 from twin.plant import FINE_FIELDS, FINE_WIDTH, TRUTH_FIELDS
 from twin.run_end import (
@@ -115,7 +114,7 @@ def run(spec: RunSpec, *, out_dir: str | Path = "runs", rerun: str = "file",
         memory does not grow with the run, and ``RunResult.record`` holds only the last
         rows (at most two chunks, ``RECORD_CHUNK`` rows each).
     """
-    run_id = run_id or time.strftime("%Y%m%d-%H%M%S-") + uuid.uuid4().hex[:6]
+    run_id = run_id or record_id()
     out = output_dir(out_dir)   # before the driver is opened: a bad folder costs nothing
     p = prepared or prepare(spec)
     recording = None

@@ -15,16 +15,14 @@ measured, and write BASE with the identified fields replaced.
 
 from __future__ import annotations
 
-import time
 import tomllib
-import uuid
 from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
 from twin.config import AXES, MachineConfig, load_machine, machine_from_toml_dict
 from twin.errors import ConfigError, ExperimentAborted
-from twin.jsonio import output_dir, write_json_atomic, write_text_atomic
+from twin.jsonio import output_dir, record_id, write_json_atomic, write_text_atomic
 
 __all__ = ["identify", "open_identification_driver"]
 
@@ -133,8 +131,7 @@ def identify(machine: str, output: str | Path, *, driver: str = "sim",
                             amplitude=amplitude,
                             home_width=max(base.axes[a].switches.home_width for a in AXES))
         io, paced = open_identification_driver(driver, base, noise=noise)
-        where = Path(out_dir) / (time.strftime("identify-%Y%m%d-%H%M%S-")
-                                 + uuid.uuid4().hex[:6])
+        where = Path(out_dir) / record_id("identify-")
         where.mkdir(parents=True, exist_ok=False)
         say(f"experiments on {driver} ({'paced' if paced else 'lock-step'}), "
             f"record in {where}")
