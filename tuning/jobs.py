@@ -321,7 +321,7 @@ def _tune_in(spec: TuneSpec, cfg: MachineConfig, out: Path, start: float,
     files["result"] = out / "result.json"
     files["report"] = out / "report.md"
     files["plot"] = out / "convergence.png"
-    weights = dataclasses.asdict(Weights.from_mapping(spec.weights))
+    weights = dataclasses.asdict(ev.tuning.weights)     # the weights the runs were costed with
     result = TuneResult(spec, baseline, best, list(trials), files,
                         time.perf_counter() - start, weights)
     doc = {**result.summary(), "trials": [t.to_dict() for t in trials],

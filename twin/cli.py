@@ -360,7 +360,7 @@ def _machine_fields(machine: str, as_json: bool) -> None:
     rows = []
     for path, value in flatten(cfg).items():
         meta = field_meta(path)
-        shown = display_unit(meta) if meta.get("unit") else None
+        shown = display_unit(meta)
         rows.append({"field": path, "value": value, "unit": meta.get("unit", ""),
                      "display_unit": shown, "range": range_text(meta),
                      "meaning": meta.get("doc", "")})

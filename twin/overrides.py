@@ -76,7 +76,7 @@ def _checked(key: str, path: str, value: Any) -> Any:
     """``value`` for ``path``, refused when it is a bare number for a field shown in
     another unit than its SI one (the unit must be given)."""
     meta = field_meta(path)
-    shown = display_unit(meta) if meta.get("unit") else None
+    shown = display_unit(meta)
     if shown is not None and _bare(value):
         raise ConfigError(key, f"give a unit: {key}={example(meta['unit'], shown)} (this "
                           f"field is shown in {shown}; a bare {value!r} would be read in "
@@ -105,7 +105,7 @@ def key_units() -> dict[str, str]:
     for key, path in SHORT_KEYS.items():
         meta = field_meta(path)
         unit = str(meta.get("unit", "")) or "-"
-        shown = display_unit(meta) if meta.get("unit") else None
+        shown = display_unit(meta)
         out[key] = f"{shown}, with the unit" if shown else unit
     return out
 

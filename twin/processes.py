@@ -28,6 +28,16 @@ def _group_alive(pgid: int) -> bool:
     return True
 
 
+def _group_gone(pgid: int, until: float) -> bool:
+    """Wait until the process group ``pgid`` has no member left, or ``until`` (monotonic);
+    whether it is gone."""
+    while _group_alive(pgid):
+        if time.monotonic() >= until:
+            return False
+        time.sleep(0.01)
+    return True
+
+
 def stop_process(proc: subprocess.Popen, timeout: float = 10.0) -> None:
     """SIGTERM ``proc`` if it still runs, wait up to ``timeout`` s, then SIGKILL; always
     reap it (no zombie is left behind).
@@ -44,13 +54,9 @@ def stop_process(proc: subprocess.Popen, timeout: float = 10.0) -> None:
             proc.wait(timeout=timeout)
         except subprocess.TimeoutExpired:
             pass
-        while _group_alive(group) and time.monotonic() < deadline:
-            time.sleep(0.02)
-        if _group_alive(group):
+        if not _group_gone(group, deadline):
             os.killpg(group, signal.SIGKILL)
-            settle = time.monotonic() + 5.0     # SIGKILL is not refused, only delivered late
-            while _group_alive(group) and time.monotonic() < settle:
-                time.sleep(0.01)
+            _group_gone(group, time.monotonic() + 5.0)   # SIGKILL is only delivered late
     elif proc.poll() is None:
         proc.terminate()
         try:

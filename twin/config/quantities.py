@@ -60,7 +60,9 @@ def is_bare_number(value: Any) -> bool:
 def display_unit(meta: dict[str, Any]) -> str | None:
     """The unit a field is shown in when it is not its SI unit (``mm/min`` for a feed,
     ``µm`` for a tolerance, ``ms`` for the period), from the field's metadata; None when
-    the field is shown in SI."""
+    the field is shown in SI or has no unit."""
+    if not meta.get("unit"):
+        return None
     if meta.get("display"):
         return str(meta["display"])
     return DISPLAY_BY_UNIT.get(str(meta.get("unit", "")))

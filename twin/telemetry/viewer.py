@@ -48,6 +48,11 @@ def listening(host: str, port: int) -> bool:
         return False
 
 
+def _rerun_exe() -> str:
+    """The ``rerun`` command: on the PATH, or beside this Python (a venv not activated)."""
+    return shutil.which("rerun") or str(Path(sys.executable).with_name("rerun"))
+
+
 def start_rerun(kind: str, *, host: str = "127.0.0.1", port: int = 9876,
                 timeout: float = 20.0) -> str:
     """Start ``rerun`` as a viewer (``kind="spawn"``) or a headless gRPC server
@@ -63,7 +68,7 @@ def start_rerun(kind: str, *, host: str = "127.0.0.1", port: int = 9876,
     if kind == "spawn" and not has_display():
         raise ViewerUnavailable("no display for a rerun viewer (DISPLAY and WAYLAND_DISPLAY "
                                 "are unset)")
-    exe = shutil.which("rerun") or str(Path(sys.executable).with_name("rerun"))
+    exe = _rerun_exe()
     args = [exe, "--bind", host, "--port", str(port)]
     if kind == "serve":
         args.append("--serve-grpc")
@@ -125,7 +130,7 @@ def open_recording(recording: str | Path, *, web: bool = False, web_port: int = 
         raise ViewerUnavailable("no display for the native viewer (DISPLAY and "
                                 "WAYLAND_DISPLAY are unset); serve it to a browser with "
                                 "--web")
-    exe = shutil.which("rerun") or str(Path(sys.executable).with_name("rerun"))
+    exe = _rerun_exe()
     args = [exe, str(recording), "--bind", host, "--port", str(grpc_port)]
     if web:
         args += ["--web-viewer", "--web-viewer-port", str(web_port)]
