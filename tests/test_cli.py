@@ -68,12 +68,13 @@ def test_ctrl_c_leaves_a_readable_recording_and_summary(tmp_path):
     proc = subprocess.Popen([*TWIN, "run", str(prog), "--machine", "laser_belt", "--out",
                              str(tmp_path)], env=ENV, stdout=subprocess.PIPE,
                             stderr=subprocess.PIPE, text=True)
-    # Wait until the run is under way (its .rrd.partial has grown past the first gathered
-    # telemetry, written after 2 s of wall time), then interrupt it.
+    # Wait until the loop is under way (its .rrd.partial has grown past the recording's
+    # start, about 140 kB, with the first gathered telemetry, tens of MB after 2 s of wall
+    # time), then interrupt it. A signal before the loop leaves nothing and exits 130.
     deadline = time.monotonic() + 120
     while time.monotonic() < deadline:
         partial = list(tmp_path.glob("*.rrd.partial"))
-        if partial and partial[0].stat().st_size > 100_000:
+        if partial and partial[0].stat().st_size > 1 << 20:
             break
         time.sleep(0.02)
     proc.send_signal(signal.SIGINT)

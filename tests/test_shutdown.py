@@ -42,11 +42,10 @@ def test_a_stop_signal_ends_the_run_aborted_with_its_whole_record(signum, named,
                             env={**os.environ, "RERUN_ANALYTICS": "0"})
     try:
         deadline = time.monotonic() + 60.0
-        while not list(out.glob("*.rrd.partial")):   # the loop has started
+        while not _loop_under_way(out):
             assert proc.poll() is None, proc.stderr.read() if proc.stderr else ""
             assert time.monotonic() < deadline, "the run never started"
             time.sleep(0.05)
-        time.sleep(1.0)
         proc.send_signal(signum)
         stdout, stderr = proc.communicate(timeout=60.0)
     finally:
@@ -77,6 +76,41 @@ class _OrderSink(NullSink):
 
     def close(self) -> None:
         self.calls.append(("close", self.summary.exists()))
+
+
+LOOP_STARTED_BYTES = 1 << 20
+"""A ``.rrd.partial`` this large holds telemetry from the loop: the recording's start (name,
+blueprint, path frame) is about 140 kB, the first gathered telemetry tens of MB."""
+
+
+def _loop_under_way(out: Path) -> bool:
+    """True once a run writing into ``out`` is in its loop (a stop signal before the loop
+    leaves nothing behind and ends the command with 128 + signum)."""
+    return any(p.stat().st_size > LOOP_STARTED_BYTES for p in out.glob("*.rrd.partial"))
+
+
+def test_a_stop_signal_before_the_loop_leaves_nothing_behind(tmp_path, monkeypatch):
+    import twin.run as run_module
+
+    made = []
+
+    def make_sink_then_signal(*args, **kwargs):
+        # the signal comes while the recording is being begun, inside make_sink: the sink
+        # never reaches run(), yet its .partial must go
+        made.append(run_module.recording_path(args[0], args[1], args[2]))
+        os.kill(os.getpid(), signal.SIGTERM)
+        for _ in range(1000):   # the handler runs at the next bytecode boundaries
+            pass
+        raise AssertionError("the signal was not raised")
+
+    real = run_module.make_sink
+    monkeypatch.setattr(run_module, "make_sink",
+                        lambda *a, **k: (real(*a, **k), make_sink_then_signal(*a, **k))[0])
+    with pytest.raises(Terminated):
+        run(RunSpec(builtin="spline_line"), out_dir=tmp_path, run_id="early")
+    assert made == [tmp_path / "early.rrd"]
+    assert list(tmp_path.iterdir()) == []            # no .partial, no .json, no .rrd
+    assert signal.getsignal(signal.SIGTERM) is signal.SIG_DFL   # handlers given back
 
 
 def test_the_summary_is_written_before_the_recording_is_published(tmp_path):
@@ -180,6 +214,7 @@ def test_stop_signals_at_random_instants_of_a_lockstep_run(tmp_path):
         # Python itself may still be starting (before twin.cli runs): its traceback has no
         # frame of ours; from twin.cli on, a start-up Ctrl-C is quiet
         assert "Traceback" not in stderr or "twin/" not in stderr, f"{where}: {stderr[-3000:]}"
+        assert not list(out.glob("*.partial")) if out.exists() else True, where
         recordings = sorted(out.glob("*.rrd")) if out.exists() else []
         summaries = sorted(out.glob("*.json")) if out.exists() else []
         assert [p.stem for p in recordings] == [p.stem for p in summaries], where

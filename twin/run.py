@@ -12,6 +12,7 @@ the one place users import a run from.
 
 from __future__ import annotations
 
+import contextlib
 import dataclasses
 import gc
 import math
@@ -28,7 +29,7 @@ from twin.controller.controller import Controller, ControllerStatus
 from twin.controller.gcode import Move
 from twin.controller.metrics import OscillationMeter
 from twin.controller.record import Record
-from twin.errors import DeadlineFault, DriverError
+from twin.errors import ConfigError, DeadlineFault, DriverError
 from twin.hardware.realtime import DeadlinePolicy, RealTimeLoop, TickStats, fifo_priority
 from twin.jsonio import output_dir, record_id, write_json_atomic
 from twin.model import mode_periods
@@ -53,7 +54,14 @@ from twin.run_setup import (
     model_options,
     prepare,
 )
-from twin.runrecord import RunSummary, make_sink, parse_command, run_summary, ticks_dict
+from twin.runrecord import (
+    RunSummary,
+    make_sink,
+    parse_command,
+    recording_path,
+    run_summary,
+    ticks_dict,
+)
 from twin.telemetry.channels import TelemetryWriter
 from twin.telemetry.sink import Sink
 
@@ -118,22 +126,35 @@ def run(spec: RunSpec, *, out_dir: str | Path = "runs", rerun: str = "file",
     out = output_dir(out_dir)   # before the driver is opened: a bad folder costs nothing
     p = prepared or prepare(spec)
     recording = None
-    try:
-        pending = [*(parse_command(c) for c in spec.commands), *commands]
-        if sink is None:
-            sink, recording = make_sink(rerun, out, run_id, notice=warn, port=rerun_port)
-    except BaseException:
-        p.driver.close()        # whatever fails once the driver is open closes it
-        raise
-    loop = _Loop(p, sink, spec.time_limit(p.cfg), pending, progress, spec.rt_priority, keep_fine,
-                 warn, keep_record)
+    caught: list[int] = []
+    loop: _Loop | None = None
     aborted = fault = None
-    t_wall = time.perf_counter()
     late: list[int] = []
+    t_wall = time.perf_counter()
     try:
-        with stop_signals(loop.caught):
+        # one signal handler from the moment the recording is begun: a stop signal before
+        # the loop leaves nothing behind (driver closed, no .partial) and is raised; in the
+        # loop it takes the one shutdown path (safe stop, record written)
+        with stop_signals(caught):
+            made = None
+            try:
+                pending = [*(parse_command(c) for c in spec.commands), *commands]
+                if sink is None:
+                    made, recording = make_sink(rerun, out, run_id, notice=warn,
+                                                port=rerun_port)
+                    sink = made
+                loop = _Loop(p, sink, spec.time_limit(p.cfg), pending, progress,
+                             spec.rt_priority, keep_fine, warn, keep_record, caught)
+            except BaseException:
+                p.driver.close()        # whatever fails once the driver is open closes it
+                if made is not None or sink is None:
+                    _discard(made, rerun, out, run_id)
+                raise
+            t_wall = time.perf_counter()
             loop.run_lockstep() if p.plant is not None else loop.run_paced()
     except KeyboardInterrupt as exc:
+        if loop is None:
+            raise
         aborted = f"interrupted ({signal_name(exc)})"
     except DriverError as exc:
         fault = ("DRIVER", f"driver fault: {exc}")
@@ -143,12 +164,26 @@ def run(spec: RunSpec, *, out_dir: str | Path = "runs", rerun: str = "file",
         aborted = f"{type(exc).__name__}: {exc}"
         raise
     finally:
-        wall = time.perf_counter() - t_wall
-        with deferred_signals(late):  # a second signal must not lose the record
-            result = loop.finish(spec, run_id, out, recording, wall, aborted, fault)
+        if loop is not None:
+            wall = time.perf_counter() - t_wall
+            with deferred_signals(late):  # a second signal must not lose the record
+                result = loop.finish(spec, run_id, out, recording, wall, aborted, fault)
     if late:
         raise RunInterrupted(result, late[0])
     return result
+
+
+def _discard(sink: Sink | None, rerun: str, out: Path, run_id: str) -> None:
+    """Drop the recording of a run stopped before its loop began: nothing was run, so
+    nothing is kept (the ``.partial`` is removed even when the signal came while the sink
+    was still being made)."""
+    discard = getattr(sink, "discard", None)
+    if discard is not None:
+        discard()
+    with contextlib.suppress(ConfigError, OSError):
+        path = recording_path(rerun, out, run_id)
+        if path is not None:
+            path.with_name(path.name + ".partial").unlink(missing_ok=True)
 
 
 class _Loop:
@@ -158,13 +193,14 @@ class _Loop:
                  pending: list[Callable[[Controller], None]],
                  progress: Callable[[float, float], None] | None, rt_priority: int = 0,
                  keep_fine: bool = False, warn: Callable[[str], None] | None = None,
-                 keep_record: bool = True):
+                 keep_record: bool = True, caught: list[int] | None = None):
         self.p, self.sink, self.pending, self.progress = p, sink, pending, progress
         self.rt_priority = rt_priority
         self.rt_granted = False
         self.warn = warn
         self.deadline_warnings: list[str] = []
-        self.caught: list[int] = []   # stop signals, checked at every telemetry checkpoint
+        # stop signals, checked at every telemetry checkpoint
+        self.caught: list[int] = caught if caught is not None else []
         self.period = p.cfg.controller.period
         self.max_time = max_time
         self.limit = round(max_time / self.period)

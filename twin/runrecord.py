@@ -17,7 +17,8 @@ from twin.errors import ConfigError
 from twin.hardware.realtime import TickStats
 from twin.telemetry.sink import NullSink, Sink
 
-__all__ = ["RunSummary", "make_sink", "parse_command", "run_summary", "ticks_dict"]
+__all__ = ["RunSummary", "make_sink", "parse_command", "recording_path", "run_summary",
+           "ticks_dict"]
 
 
 def make_sink(rerun: str, out: Path, run_id: str,
@@ -27,19 +28,26 @@ def make_sink(rerun: str, out: Path, run_id: str,
     ending in ``.rrd``; spawn and serve also write the file. Returns (sink, .rrd path).
     ``notice`` is told when the live view is given up (``RerunSink``); ``port`` is the live
     viewer's or server's."""
-    if rerun == "none":
+    path = recording_path(rerun, out, run_id)
+    if path is None:
         return NullSink(), None
     from twin.telemetry.rerun_sink import RerunSink
 
-    if rerun.endswith(".rrd"):
-        path, live = Path(rerun), None
-    elif rerun in ("file", "spawn", "serve"):
-        path, live = out / f"{run_id}.rrd", None if rerun == "file" else rerun
-    else:
-        raise ConfigError("rerun", f"must be spawn, serve, none, file or a path ending in "
-                          f".rrd, got {rerun!r}")
+    live = rerun if rerun in ("spawn", "serve") else None
     return RerunSink(path, live=live, recording_id=run_id, recording_name=run_id,
                      notice=notice, port=port), str(path)
+
+
+def recording_path(rerun: str, out: Path, run_id: str) -> Path | None:
+    """Where ``--rerun`` puts the ``.rrd`` (None: no file)."""
+    if rerun == "none":
+        return None
+    if rerun.endswith(".rrd"):
+        return Path(rerun)
+    if rerun in ("file", "spawn", "serve"):
+        return out / f"{run_id}.rrd"
+    raise ConfigError("rerun", f"must be spawn, serve, none, file or a path ending in "
+                      f".rrd, got {rerun!r}")
 
 
 def ticks_dict(stats: TickStats) -> dict[str, Any]:

@@ -93,19 +93,23 @@ class RerunSink:
             if self.url is not None:
                 self._live = rr.RecordingStream(APPLICATION_ID, recording_id=recording_id)
                 self._live.set_sinks(rr.GrpcSink(self.url))
-        if self._partial is not None:
-            self._partial.parent.mkdir(parents=True, exist_ok=True)
-            self._rec = rr.RecordingStream(APPLICATION_ID, recording_id=recording_id)
-            self._rec.set_sinks(rr.FileSink(str(self._partial)))
-        for rec in self._streams():
-            if recording_name:
-                rec.send_recording_name(recording_name)
-            if blueprint is True:
-                rec.send_blueprint(default_blueprint())
-                rec.log("path", PATH_TRANSFORM, static=True)
-            elif blueprint:
-                rec.send_blueprint(blueprint)
         self._closed = self._finished = False
+        try:
+            if self._partial is not None:
+                self._partial.parent.mkdir(parents=True, exist_ok=True)
+                self._rec = rr.RecordingStream(APPLICATION_ID, recording_id=recording_id)
+                self._rec.set_sinks(rr.FileSink(str(self._partial)))
+            for rec in self._streams():
+                if recording_name:
+                    rec.send_recording_name(recording_name)
+                if blueprint is True:
+                    rec.send_blueprint(default_blueprint())
+                    rec.log("path", PATH_TRANSFORM, static=True)
+                elif blueprint:
+                    rec.send_blueprint(blueprint)
+        except BaseException:   # a Ctrl-C while the file is begun leaves no .partial
+            self.discard()
+            raise
         self.failed: str | None = None
         """Why the recording could not be written (set by ``finish``), or None."""
         self._flushed = self._sent = time.perf_counter()
@@ -281,6 +285,17 @@ class RerunSink:
             with contextlib.suppress(RuntimeError, OSError):
                 rec.disconnect()
         if self.failed is not None and self._partial is not None:
+            self._partial.unlink(missing_ok=True)
+
+    def discard(self) -> None:
+        """Drop the recording: a run stopped before its loop began (a Ctrl-C while it was
+        being set up) has nothing to keep; the ``.partial`` is removed and nothing is
+        published."""
+        self._finished = self._closed = True
+        for rec in self._streams():
+            with contextlib.suppress(RuntimeError, OSError):
+                rec.disconnect()
+        if self._partial is not None:
             self._partial.unlink(missing_ok=True)
 
     def _fail(self, exc: BaseException) -> None:
