@@ -127,7 +127,8 @@ def iter_items(lines: Iterable[str], *, start: tuple[float, float] = (0.0, 0.0),
     folder : str, optional
         The program's folder: searched first for a called ``name.ngc``.
     fast : bool
-        Run the commonest CAM lines by the reader's fast path (``Interpreter.fast_line``);
+        Run the commonest CAM lines by the reader's fast path (``Interpreter.fast_line``),
+        and lines with parameters and expressions by their compiled shapes;
         False: every line the general way, the reference the tests compare it with. The
         items are the same.
 
@@ -144,7 +145,8 @@ def iter_items(lines: Iterable[str], *, start: tuple[float, float] = (0.0, 0.0),
     interpreter = Interpreter(start=start, arc_tolerance=arc_tolerance, options=options)
     runner = Runner(interpreter.execute_words, interpreter.parameters,
                     interpreter.options.limits, folder,
-                    (FAST_LINE.fullmatch, interpreter.fast_line) if fast else None)
+                    (FAST_LINE.fullmatch, interpreter.fast_line, interpreter.fast_move)
+                    if fast else None)
 
     def started() -> bool:
         return interpreter.blocks > 0

@@ -118,6 +118,75 @@ _NUMBER_START = frozenset("+-.0123456789")
 _NUMBER_BODY = frozenset(".0123456789")
 
 
+class BadValue(ValueError):
+    """An operation's operands are outside its domain (the message says how)."""
+
+
+def binary(op: str, a: float, b: float) -> float:
+    """``a op b`` as LinuxCNC computes it.
+
+    Raises
+    ------
+    BadValue
+        Division or MOD by zero, a power without a real value, a result out of range.
+    """
+    if op == "+":
+        result = a + b
+    elif op == "-":
+        result = a - b
+    elif op == "*":
+        result = a * b
+    elif op == "/":
+        if b == 0.0:
+            raise BadValue("division by zero")
+        result = a / b
+    elif op == "MOD":
+        if b == 0.0:
+            raise BadValue("MOD by zero")
+        result = math.fmod(a, b)
+        if result < 0.0:
+            result += abs(b)
+    elif op == "**":
+        if a < 0.0 and b != math.floor(b):
+            raise BadValue("a negative number raised to a non-integer power")
+        if a == 0.0 and b < 0.0:
+            raise BadValue("zero raised to a negative power")
+        try:
+            result = math.pow(a, b)
+        except OverflowError:
+            raise BadValue("power overflows") from None
+    elif op == "EQ":
+        result = float(abs(a - b) < EQUAL_TOLERANCE)
+    elif op == "NE":
+        result = float(abs(a - b) >= EQUAL_TOLERANCE)
+    elif op == "GT":
+        result = float(a > b)
+    elif op == "GE":
+        result = float(a >= b)
+    elif op == "LT":
+        result = float(a < b)
+    elif op == "LE":
+        result = float(a <= b)
+    elif op == "AND":
+        result = float(a != 0.0 and b != 0.0)
+    elif op == "OR":
+        result = float(a != 0.0 or b != 0.0)
+    else:  # XOR
+        result = float((a != 0.0) != (b != 0.0))
+    if not math.isfinite(result) or abs(result) >= 1e300:
+        raise BadValue(f"{op} gives a value out of range")
+    return result
+
+
+def parameter_index(value: float) -> int | None:
+    """The parameter number ``#value`` names (a whole number within 1e-4), or None when it
+    names none (not whole, or outside 1 to 5601)."""
+    index = math.floor(value + 1e-4)
+    if abs(value - index) > 1e-4 or not 1 <= index <= 5601:
+        return None
+    return index
+
+
 class _Reader:
     """One compacted line (blanks removed, upper case) and the columns of its characters."""
 
@@ -162,7 +231,7 @@ class _Reader:
             if (char == "+" or char == "-") and text[pos + 1] not in _NUMBER_BODY:
                 self.pos = pos + 1
                 value = self.value()
-                return -value if char == "-" else value
+                return self.negate(value) if char == "-" else value
             return self.number()
         if char == "[":
             return self.expression()
@@ -187,19 +256,48 @@ class _Reader:
                 raise self.error("empty parameter name '#<>'", pos=start)
             self.pos = close + 1
             return name
-        value = self.value()
-        index = math.floor(value + 1e-4)
-        if abs(value - index) > 1e-4:
-            raise self.error(f"parameter number {value:.12g} is not a whole number",
-                             "bad-value", start)
-        if not 1 <= index <= 5601:
+        return self.index(self.value(), start)
+
+    def parameter(self) -> float:
+        start = self.pos
+        return self.read(self.parameter_key(), self.column(start))
+
+    # -- what a value means (``twin.controller.gcode.shapes`` compiles the same reading) --
+    def negate(self, value: float) -> float:
+        return -value
+
+    def index(self, value: float, start: int) -> int:
+        """The parameter number ``#value`` names."""
+        index = parameter_index(value)
+        if index is None:
+            index = math.floor(value + 1e-4)
+            if abs(value - index) > 1e-4:
+                raise self.error(f"parameter number {value:.12g} is not a whole number",
+                                 "bad-value", start)
             raise self.error(f"parameter number {index} is out of range (1 to 5601)",
                              "out-of-range", start)
         return index
 
-    def parameter(self) -> float:
-        start = self.pos
-        return self.lookup(self.parameter_key(), self.column(start))
+    def read(self, key: int | str, column: int) -> float:
+        return self.lookup(key, column)
+
+    def exists_value(self, name: str) -> float:
+        return 1.0 if self.exists(name) else 0.0
+
+    def atan(self, y: float, x: float) -> float:
+        return math.degrees(math.atan2(y, x))
+
+    def call(self, name: str, argument: float, start: int) -> float:
+        f, domain, message = _FUNCTIONS[name]
+        if domain is not None and not domain(argument):
+            raise self.error(f"{message} ({name}[{argument:.12g}])", "bad-value", start)
+        return float(f(argument))
+
+    def word_value(self, letter: str, value: float, start: int) -> float:
+        if not -MAX_VALUE < value < MAX_VALUE:
+            raise self.error(f"{letter} value {value:.12g} is out of range (|value| < "
+                             f"{MAX_VALUE:g})", "bad-number", start)
+        return value
 
     def function(self) -> float:
         start, text = self.pos, self.text
@@ -216,7 +314,7 @@ class _Reader:
                 raise self.error("EXISTS needs a named parameter: EXISTS[#<name>]")
             key = self.parameter_key()
             self.expect("]")
-            return 1.0 if self.exists(str(key)) else 0.0
+            return self.exists_value(str(key))
         argument = self.expression()
         if name == "ATAN":
             if self.peek() != "/":
@@ -224,11 +322,8 @@ class _Reader:
             self.pos += 1
             if self.peek() != "[":
                 raise self.error("ATAN takes two arguments: ATAN[y]/[x]")
-            return math.degrees(math.atan2(argument, self.expression()))
-        f, domain, message = _FUNCTIONS[name]
-        if domain is not None and not domain(argument):
-            raise self.error(f"{message} ({name}[{argument:.12g}])", "bad-value", start)
-        return float(f(argument))
+            return self.atan(argument, self.expression())
+        return self.call(name, argument, start)
 
     def expect(self, char: str) -> None:
         if self.peek() != char:
@@ -274,53 +369,10 @@ class _Reader:
         values.append(self.binary(spelling, left, right, at))
 
     def binary(self, op: str, a: float, b: float, at: int) -> float:
-        if op == "+":
-            result = a + b
-        elif op == "-":
-            result = a - b
-        elif op == "*":
-            result = a * b
-        elif op == "/":
-            if b == 0.0:
-                raise self.error("division by zero", "bad-value", at)
-            result = a / b
-        elif op == "MOD":
-            if b == 0.0:
-                raise self.error("MOD by zero", "bad-value", at)
-            result = math.fmod(a, b)
-            if result < 0.0:
-                result += abs(b)
-        elif op == "**":
-            if a < 0.0 and b != math.floor(b):
-                raise self.error("a negative number raised to a non-integer power",
-                                 "bad-value", at)
-            if a == 0.0 and b < 0.0:
-                raise self.error("zero raised to a negative power", "bad-value", at)
-            try:
-                result = math.pow(a, b)
-            except OverflowError:
-                raise self.error("power overflows", "bad-value", at) from None
-        elif op == "EQ":
-            result = float(abs(a - b) < EQUAL_TOLERANCE)
-        elif op == "NE":
-            result = float(abs(a - b) >= EQUAL_TOLERANCE)
-        elif op == "GT":
-            result = float(a > b)
-        elif op == "GE":
-            result = float(a >= b)
-        elif op == "LT":
-            result = float(a < b)
-        elif op == "LE":
-            result = float(a <= b)
-        elif op == "AND":
-            result = float(a != 0.0 and b != 0.0)
-        elif op == "OR":
-            result = float(a != 0.0 or b != 0.0)
-        else:  # XOR
-            result = float((a != 0.0) != (b != 0.0))
-        if not math.isfinite(result) or abs(result) >= 1e300:
-            raise self.error(f"{op} gives a value out of range", "bad-value", at)
-        return result
+        try:
+            return binary(op, a, b)
+        except BadValue as bad:
+            raise self.error(str(bad), "bad-value", at) from None
 
     # -- the line ---------------------------------------------------------------------
     def oword(self) -> OWord:
@@ -390,10 +442,7 @@ class _Reader:
                 if self.pos >= end:
                     raise self.error(f"{char} word without a value", "bad-number", start)
                 value = self.value()
-                if not -MAX_VALUE < value < MAX_VALUE:
-                    raise self.error(f"{char} value {value:.12g} is out of range (|value| < "
-                                     f"{MAX_VALUE:g})", "bad-number", start)
-                words.append((char, value, self.column(start)))
+                words.append((char, self.word_value(char, value, start), self.column(start)))
             elif char in "+-.0123456789":
                 raise self.error("number without a letter before it")
             else:

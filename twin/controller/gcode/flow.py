@@ -27,11 +27,13 @@ import os
 import re
 from collections.abc import Callable, Iterable, Iterator
 from dataclasses import dataclass, field
+from functools import partial
 from pathlib import Path
 
 from twin.controller.gcode.expr import OWord, read_statement
 from twin.controller.gcode.lexer import clean, words
 from twin.controller.gcode.parameters import Parameters
+from twin.controller.gcode.shapes import Shapes
 from twin.controller.gcode.tape import Tape
 from twin.errors import ConfigError, GCodeError
 
@@ -114,15 +116,19 @@ class Runner:
         Loop, call and search-path bounds.
     folder : str, optional
         The program's folder, searched first for ``name.ngc``.
-    fast : (match, run), optional
+    fast : (match, run, run_words), optional
         A fast path for the commonest lines: ``match(text)`` (a regex's ``fullmatch``) and
         ``run(found, line)`` returning the item, True (nothing to yield) or None (run the
-        line the general way). None: every line the general way (the reference).
+        line the general way); ``run_words(n, g, x, y, f, line)`` the same for such a line
+        written with parameters and expressions, whose shapes are compiled
+        (``twin.controller.gcode.shapes``). None: every line the general way (the
+        reference).
     """
 
     def __init__(self, execute: Callable[..., tuple], parameters: Parameters, limits: Limits,
                  folder: str | None = None,
-                 fast: tuple[Callable[[str], re.Match[str] | None], Callable] | None = None):
+                 fast: tuple[Callable[[str], re.Match[str] | None], Callable, Callable] | None
+                 = None):
         self._execute = execute
         self._fast = fast
         self.parameters = parameters
@@ -157,7 +163,8 @@ class Runner:
         self._frames = [_Frame(tape, None)]
         tape_opened = False
         parameters = self.parameters
-        match, fast = self._fast if self._fast is not None else (None, None)
+        match, fast, fast_move = self._fast if self._fast is not None else (None, None, None)
+        shapes = Shapes(parameters) if self._fast is not None else None
         while True:
             frame = self._frames[-1]
             text = frame.tape.next()
@@ -186,8 +193,21 @@ class Runner:
                 self._unclosed(frame)
                 return
             if "#" in code or "[" in code or "O" in code or "@" in code or "^" in code:
-                statement = read_statement(code, line, text, self._lookup(frame, text),
-                                           parameters.exists)
+                if shapes is None:
+                    statement = read_statement(code, line, text, self._lookup(frame, text),
+                                               parameters.exists)
+                else:
+                    statement = shapes.read(code, line, text,
+                                            partial(self._lookup, frame, text))
+                    if type(statement) is tuple:        # only N, G, X, Y, F words
+                        item = fast_move(*statement, line)
+                        if item is not None:
+                            if item is not True:
+                                yield item
+                            continue
+                        statement = read_statement(code, line, text,
+                                                   self._lookup(frame, text),
+                                                   parameters.exists)
                 if statement.oword is not None:
                     self._control(statement.oword, line, text)
                     continue

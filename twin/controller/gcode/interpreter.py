@@ -301,36 +301,56 @@ class Interpreter(Motion):
             that may be an error), which then runs it from the start.
         """
         number, g, x, y, f = found.groups()
+        return self.fast_move(None if number is None else int(number),
+                              None if g is None else float(g),
+                              None if x is None else float(x),
+                              None if y is None else float(y),
+                              None if f is None else float(f), line)
+
+    def fast_move(self, number: float | None, g: float | None, x: float | None,
+                  y: float | None, f: float | None, line: int) -> Move | bool | None:
+        """``fast_line`` on the words' values: a block of only N, G, X, Y and F words (the
+        parameterised lines ``twin.controller.gcode.shapes`` compiles come here too).
+        Returns as ``fast_line``; None also for a G other than G0/G1, a negative or zero
+        feed word, a block number that is not a whole number."""
         if x is None and y is None:
             return None
         modal = self._modal
-        motion = modal.motion if g is None else ("rapid" if g == "0" else "line")
+        if g is None:
+            motion = modal.motion
+        elif g == 1.0:
+            motion = "line"
+        elif g == 0.0:
+            motion = "rapid"
+        else:
+            return None
         if (motion != "line" and motion != "rapid") or modal.plane != "xy":
             return None
         unit = modal.unit
         feed = modal.feed
         if f is not None:
-            value = float(f)
-            if not value < MAX_VALUE:
+            if not 0.0 <= f < MAX_VALUE:
                 return None
-            feed = value * unit / 60.0
+            feed = f * unit / 60.0
         if motion == "line" and not feed:
             return None
         start = self._position
         incremental = modal.distance == "incremental"
         end_x, end_y = start
         if x is not None:
-            value = float(x)
-            if not -MAX_VALUE < value < MAX_VALUE:
+            if not -MAX_VALUE < x < MAX_VALUE:
                 return None
-            end_x = start[0] + value * unit if incremental else value * unit + self._offset(0)
+            end_x = start[0] + x * unit if incremental else x * unit + self._offset(0)
         if y is not None:
-            value = float(y)
-            if not -MAX_VALUE < value < MAX_VALUE:
+            if not -MAX_VALUE < y < MAX_VALUE:
                 return None
-            end_y = start[1] + value * unit if incremental else value * unit + self._offset(1)
+            end_y = start[1] + y * unit if incremental else y * unit + self._offset(1)
         if not (abs(end_x) <= WORKSPACE and abs(end_y) <= WORKSPACE):
             return None
+        if number is not None:
+            if not 0.0 <= number < MAX_VALUE or number != int(number):
+                return None
+            number = int(number)
         if motion != modal.motion or feed != modal.feed:
             self._modal = replace(modal, motion=motion, feed=feed)
         self.blocks += 1
@@ -338,7 +358,7 @@ class Interpreter(Motion):
             return True
         target = self._position = (end_x, end_y)
         return trusted_move(motion, start, target, None if motion == "rapid" else feed, line,
-                            None if number is None else int(number))
+                            number)
 
     # -- one block ------------------------------------------------------------------------
     def _run(self, block: Block) -> list[Item]:
