@@ -168,7 +168,7 @@ class Runner:
         while True:
             frame = self._frames[-1]
             text = frame.tape.next()
-            if match is not None and text is not None:
+            if match is not None and text is not None and "[" not in text and "#" not in text:
                 found = match(text)
                 if found is not None:
                     item = fast(found, frame.tape.line)

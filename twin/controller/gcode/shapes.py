@@ -188,7 +188,13 @@ class _Compiler(_Reader):
                 i, parameters = a.i, self.parameters
 
                 def offset(s: list[float]) -> float:
-                    r = _numbered(parameters, s[i]) + s[j]
+                    v = s[i]                    # _numbered, inline
+                    number = int(v)
+                    if number != v or not 1 <= number <= 5601:
+                        raise _Fallback
+                    table = (parameters.scopes[-1][0] if number <= Parameters.LOCAL
+                             else parameters.numbered)
+                    r = table.get(number, 0.0) + s[j]
                     if -1e300 < r < 1e300:
                         return r
                     raise _Fallback
