@@ -183,7 +183,7 @@ class Blender:
     @staticmethod
     def _flush(p: _Pending) -> BlendedBlock:
         """The pending line from its trimmed start to its programmed end."""
-        seg = p.segment if p.start is p.origin else Line(p.start, p.end)
+        seg = p.segment if p.start is p.origin else Line.between(p.start, p.end)
         return BlendedBlock(seg, p.feed, p.line)
 
     def _corner(self, a: _Pending, b: _Pending) -> tuple[BlendedBlock | None, BlendedBlock] | None:
@@ -206,13 +206,13 @@ class Blender:
         p_out = _midpoint(b) if reach >= b.half else (vx + reach * b.ux, vy + reach * b.uy)
         trimmed = None
         if math.dist(a.start, p_in) > _SNAP:
-            trimmed = BlendedBlock(Line(a.start, p_in), a.feed, a.line)
+            trimmed = BlendedBlock(Line.between(a.start, p_in), a.feed, a.line)
         else:                               # the blends of this line meet
             p_in = a.start
         ccw = cross > 0.0
         nx, ny = (-a.uy, a.ux) if ccw else (a.uy, -a.ux)
         center = (p_in[0] + radius * nx, p_in[1] + radius * ny)
-        arc = Arc(p_in, p_out, center, ccw=ccw, tol=4.0 * _SNAP)
+        arc = Arc.between(p_in, p_out, center, ccw=ccw, tol=4.0 * _SNAP)
         self.blends += 1
         b.start = p_out
         feed = a.feed if a.feed < b.feed else b.feed

@@ -163,7 +163,17 @@ class Line(Segment):
 
     def __init__(self, start, end):
         # floats only: the planner builds one per block; the arrays come when asked
-        p0, p1 = _pair(start, "start"), _pair(end, "end")
+        self._set(_pair(start, "start"), _pair(end, "end"))
+
+    @classmethod
+    def between(cls, p0: tuple[float, float], p1: tuple[float, float]) -> Line:
+        """The line between two points already given as finite floats (the planner's own:
+        a trimmed line of a blend), without checking them again."""
+        line = cls.__new__(cls)
+        line._set(p0, p1)
+        return line
+
+    def _set(self, p0: tuple[float, float], p1: tuple[float, float]) -> None:
         dx, dy = p1[0] - p0[0], p1[1] - p0[1]
         self.length = math.hypot(dx, dy)
         if self.length == 0.0:
@@ -261,7 +271,21 @@ class Arc(Segment):
             raise PlanningError(f"turns must be an integer ≥ 0, got {turns!r}")
         if not (math.isfinite(tol) and tol >= 0.0):
             raise PlanningError(f"tol must be finite and ≥ 0 (m), got {tol!r}")
-        p0, p1, c = _pair(start, "start"), _pair(end, "end"), _pair(center, "center")
+        self._set(_pair(start, "start"), _pair(end, "end"), _pair(center, "center"), ccw,
+                  int(turns), tol)
+
+    @classmethod
+    def between(cls, p0: tuple[float, float], p1: tuple[float, float],
+                c: tuple[float, float], *, ccw: bool, tol: float) -> Arc:
+        """The arc of less than a turn between points already given as finite floats (the
+        planner's own: a blend), without checking its arguments again; its end is still
+        checked on the circle."""
+        arc = cls.__new__(cls)
+        arc._set(p0, p1, c, ccw, 0, tol)
+        return arc
+
+    def _set(self, p0: tuple[float, float], p1: tuple[float, float], c: tuple[float, float],
+             ccw: bool, turns: int, tol: float) -> None:
         sx, sy, ex, ey = p0[0] - c[0], p0[1] - c[1], p1[0] - c[0], p1[1] - c[1]
         self.radius = math.hypot(sx, sy)
         end_radius = math.hypot(ex, ey)

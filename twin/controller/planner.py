@@ -104,8 +104,7 @@ from twin.controller.geometry import Line, Segment
 from twin.controller.loop_defaults import default_corner_model
 from twin.controller.profiles import Limits, min_distance, plan_move
 from twin.controller.profiles.laws import check_law
-from twin.controller.reach import monotone_end_speed as reach_speed
-from twin.controller.reach import reach_floor
+from twin.controller.reach import reach_floor, reach_function
 from twin.controller.segment_limits import SegmentLimits
 from twin.controller.workzone import WorkZone
 from twin.errors import ConfigError, PlanningError, TwinError
@@ -204,6 +203,7 @@ class Planner:
         self.rapid_velocity = float(rapid_velocity)
         self.tolerance = float(tolerance)
         self.law = law
+        self._reach = reach_function(law)   # monotone_end_speed for this law
         self.lookahead = lookahead
         self.mode = mode
         self.corner_model: CornerModel = corner_model or SeedCornerModel()
@@ -501,17 +501,18 @@ class Planner:
                 emax = prev.v_nom
             if b.v_nom < emax:
                 emax = b.v_nom
-            reach = reach_speed(law, prev.fw, prev.length, prev.limits, prev.floor)
+            reach = self._reach(prev.fw, prev.length, prev.limits, prev.floor)
             if reach < emax:
                 emax = reach
         b.fw = emax
         b.entry = -1.0
         window.append(b)
         v = 0.0
+        reach_speed = self._reach
         for r in reversed(window):          # backward pass, newest first
             if r.entry == r.fw:             # at its forward cap (or committed): final
                 break
-            cand = reach_speed(law, v, r.length, r.limits, r.floor)
+            cand = reach_speed(v, r.length, r.limits, r.floor)
             new = r.fw if r.fw < cand else cand
             if new <= r.entry:
                 break
@@ -551,11 +552,11 @@ class Planner:
 
     def _propagate(self, window: deque[_Block]) -> None:
         """Forward pass after a lowered envelope at ``window[0]``; stops when nothing changes."""
-        law = self.law
+        reach_speed = self._reach
         prev = None
         for r in window:
             if prev is not None:
-                cand = reach_speed(law, prev.fw, prev.length, prev.limits, prev.floor)
+                cand = reach_speed(prev.fw, prev.length, prev.limits, prev.floor)
                 if cand >= r.fw:
                     return
                 r.fw = cand

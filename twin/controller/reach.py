@@ -23,9 +23,9 @@ from __future__ import annotations
 import math
 
 from twin.controller.profiles import SHAPES, Limits, max_end_speed
-from twin.controller.profiles.laws import JERK_LIMITED
+from twin.controller.profiles.laws import JERK_LIMITED, end_speed_function
 
-__all__ = ["ReachFloor", "monotone_end_speed", "reach_floor"]
+__all__ = ["ReachFloor", "monotone_end_speed", "reach_floor", "reach_function"]
 
 ReachFloor = tuple[float, float, float, float]
 """(u1, f(u1), u2, f(u2)): the candidate minima of ``f`` for one block (m/s)."""
@@ -120,3 +120,25 @@ def monotone_end_speed(law: str, v: float, distance: float, limits: Limits,
     if v < u2 and f2 < f:
         f = f2
     return f
+
+
+def reach_function(law: str):
+    """``monotone_end_speed`` for one law, as one closure ``reach(v, distance, limits,
+    floor)``: the same arithmetic without the law lookup and two call levels per call (the
+    look-ahead passes call it several times per block). Arguments that are negative or NaN
+    go through ``monotone_end_speed``, which raises."""
+    end_speed = end_speed_function(law)
+
+    def reach(v: float, distance: float, limits: Limits, floor: ReachFloor) -> float:
+        if not (v >= 0.0 and distance >= 0.0):
+            return monotone_end_speed(law, v, distance, limits, floor)
+        f = end_speed(v, distance, limits.max_acceleration, limits.max_jerk)
+        cap = limits.max_velocity
+        f = f if f < cap else cap
+        u1, f1, u2, f2 = floor
+        if v < u1 and f1 < f:
+            f = f1
+        if v < u2 and f2 < f:
+            f = f2
+        return f
+    return reach

@@ -54,6 +54,7 @@ __all__ = [
     "Shape",
     "change_time",
     "check_law",
+    "end_speed_function",
     "max_end_speed",
     "min_distance",
     "peak_speed",
@@ -297,6 +298,16 @@ def min_distance(law: str, v_start: float, v_end: float, limits: Limits) -> floa
         raise PlanningError(f"speeds must be >= 0, got v_start={v_start!r}, v_end={v_end!r}")
     dv = v_end - v_start if v_end >= v_start else v_start - v_end
     return 0.5 * (v_start + v_end) * fn(dv, limits.max_acceleration, limits.max_jerk)
+
+
+def end_speed_function(law: str) -> Callable[[float, float, float, float], float]:
+    """The law's uncapped end speed ``f(v_start, distance, A, J)`` (m/s), for callers that
+    call it per block and check their arguments themselves (the planner's passes);
+    `max_end_speed` is it with the checks and the speed cap."""
+    fn = _END_SPEED.get(law)
+    if fn is None:
+        check_law(law)
+    return fn
 
 
 def max_end_speed(law: str, v_start: float, distance: float, limits: Limits) -> float:
