@@ -100,7 +100,7 @@ from twin.controller.blend import BlendedBlock, Blender
 from twin.controller.blocks import MotionBlock, PlannedBlock, segment_of, segments_from_program
 from twin.controller.corner import CornerModel, SeedCornerModel
 from twin.controller.gcode.items import Dwell, Move, PathControl, ProgramEnd
-from twin.controller.geometry import Line, Segment
+from twin.controller.geometry import Arc, Line, Segment
 from twin.controller.loop_defaults import default_corner_model
 from twin.controller.profiles import Limits, min_distance, plan_move
 from twin.controller.profiles.laws import check_law
@@ -403,7 +403,12 @@ class Planner:
 
     def _block(self, seg: Segment, feed: float | None, line: int, blend: bool = False
                ) -> _Block:
-        v_cap = self._full_speed(feed)
+        if feed is None:                    # _full_speed, inline
+            v_cap = self.rapid_velocity
+        else:
+            v_cap = self.limits.max_velocity
+            if feed <= v_cap:
+                v_cap = feed
         b = _Block()
         b.segment, b.feed, b.line, b.blend = seg, feed, line, blend
         b.rapid = feed is None
@@ -416,6 +421,14 @@ class Planner:
             b.t0y = b.t1y = uy
             b.k0 = b.k1 = 0.0
             v_nom, acc, jerk = self._caps.line_caps(abs(ux), abs(uy), v_cap)
+        elif type(seg) is Arc:              # Arc.frame at both ends, inline
+            sign, k, theta0 = seg._sign, seg._k, seg._theta0
+            phi = theta0 + k * 0.0          # as frame(0.0) computes it (a signed zero)
+            b.t0x, b.t0y = -sign * math.sin(phi), sign * math.cos(phi)
+            phi = theta0 + k * seg.length
+            b.t1x, b.t1y = -sign * math.sin(phi), sign * math.cos(phi)
+            b.k0 = b.k1 = k
+            v_nom, acc, jerk = self._caps.curve_caps(seg, v_cap)
         else:
             _, _, b.t0x, b.t0y, b.k0, _ = seg.frame(0.0)
             _, _, b.t1x, b.t1y, b.k1, _ = seg.frame(seg.length)

@@ -51,6 +51,10 @@ class SegmentLimits:
         self.limits = limits
         self.axis_limits = tuple(axis_limits)
         self.jerk = jerk
+        self._axis_caps = tuple((lim.max_velocity, lim.max_acceleration, lim.max_jerk)
+                                for lim in self.axis_limits)
+        if len(self._axis_caps) != 2:
+            raise ValueError(f"axis_limits: two axes (x, y), got {len(self._axis_caps)}")
 
     def caps(self, segment: Segment, v_cap: float) -> tuple[float, float, float]:
         """(speed cap (m/s), tangential acceleration (m/s²), tangential jerk (m/s³))."""
@@ -62,13 +66,19 @@ class SegmentLimits:
         """Caps of a straight segment with direction components ``|t̂_x|, |t̂_y|``."""
         c = self.limits
         v, a, j = v_cap, c.max_acceleration, c.max_jerk
-        for comp, lim in zip((ax, ay), self.axis_limits, strict=True):
-            if comp * v > lim.max_velocity:
-                v = lim.max_velocity / comp
-            if comp * a > lim.max_acceleration:
-                a = lim.max_acceleration / comp
-            if comp * j > lim.max_jerk:
-                j = lim.max_jerk / comp
+        (xv, xa, xj), (yv, ya, yj) = self._axis_caps   # per block: unrolled
+        if ax * v > xv:
+            v = xv / ax
+        if ax * a > xa:
+            a = xa / ax
+        if ax * j > xj:
+            j = xj / ax
+        if ay * v > yv:
+            v = yv / ay
+        if ay * a > ya:
+            a = ya / ay
+        if ay * j > yj:
+            j = yj / ay
         return v, a, j
 
     def curve_caps(self, seg: Segment, v_cap: float) -> tuple[float, float, float]:
