@@ -284,10 +284,18 @@ class Planner:
         self._count = 0
         self._time_bound = 0.0
         self._length = 0.0
+        # the blocks that leave the window (_pop) gather here and are yielded after each
+        # step: plain calls, no generator per block
+        out: list[PlannedBlock] = []
+        self._out = out
+        append, pop, end_run = self._append, self._pop, self._end_run
         exact_stop = False
         run: _Block | None = None       # the run being grown
         held: _Block | None = None      # a run closed for its length, its successor to come
         while True:
+            if out:
+                yield from out
+                out.clear()
             try:
                 item = next(stream)
             except StopIteration:
@@ -299,27 +307,29 @@ class Planner:
                 block = self._block(*item)
                 if exact_stop:                  # G61.1: every block ends at rest
                     if run is not None:
-                        yield from self._end_run(window, held, run)
+                        end_run(window, held, run)
                         run = held = None
-                    yield from self._append(window, block)
+                    append(window, block)
                     while window:
-                        yield from self._pop(window)
+                        pop(window)
                     continue
             elif type(item) is PathControl:     # G61, G61.1, G64: no stop, nothing to run
                 exact_stop = item.mode == "exact_stop"
                 continue
             else:
                 if run is not None:
-                    yield from self._end_run(window, held, run)
+                    end_run(window, held, run)
                     run = held = None
                 while window:
-                    yield from self._pop(window)
+                    pop(window)
+                yield from out
+                out.clear()
                 yield item
                 if isinstance(item, ProgramEnd):
                     break
                 continue
             if not runs:
-                yield from self._append(window, block)
+                append(window, block)
                 continue
             joins = self._joins(run, block) if run is not None else _APART
             if joins == _JOINS:
@@ -327,16 +337,18 @@ class Planner:
                 continue
             if joins == _TOO_LONG:              # the same curve goes on: hold this part
                 if held is not None:
-                    yield from self._append(window, _close(held))
+                    append(window, _close(held))
                 held = run
             elif run is not None:
-                yield from self._end_run(window, held, run)
+                end_run(window, held, run)
                 held = None
             run = _open(block)
         if run is not None:
-            yield from self._end_run(window, held, run)
+            end_run(window, held, run)
         while window:
-            yield from self._pop(window)
+            pop(window)
+        yield from out
+        out.clear()
         if error is not None:
             raise error
 
@@ -485,21 +497,20 @@ class Planner:
             return _APART
         return _TOO_LONG if run.length >= self._view else _JOINS
 
-    def _end_run(self, window: deque[_Block], held: _Block | None, run: _Block
-                 ) -> Iterator[PlannedBlock]:
+    def _end_run(self, window: deque[_Block], held: _Block | None, run: _Block) -> None:
         """Append the last run of a curve, and the part of it held before: one run if the
         last is short (so that a change near the curve's end is not cut in two)."""
         if held is not None:
             if run.length < 0.5 * self._view:
                 for m in run.members:
                     _absorb(held, m)
-                yield from self._append(window, _close(held))
+                self._append(window, _close(held))
                 return
-            yield from self._append(window, _close(held))
-        yield from self._append(window, _close(run))
+            self._append(window, _close(held))
+        self._append(window, _close(run))
 
-    def _append(self, window: deque[_Block], b: _Block) -> Iterator[PlannedBlock]:
-        """Add ``b`` to the window (both passes) and yield the blocks that leave it."""
+    def _append(self, window: deque[_Block], b: _Block) -> None:
+        """Add ``b`` to the window (both passes); the blocks that leave it go to ``_out``."""
         law = self.law
         b.floor = reach_floor(law, b.length, b.limits)
         self._length += b.length
@@ -532,10 +543,10 @@ class Planner:
             r.entry = v = new
         while len(window) >= self.lookahead or (
                 len(window) > 1 and self._length - window[0].length >= self._view):
-            yield from self._pop(window)
+            self._pop(window)
 
-    def _pop(self, window: deque[_Block]) -> Iterator[PlannedBlock]:
-        """Commit the window's first block (or run) and yield what it plans."""
+    def _pop(self, window: deque[_Block]) -> None:
+        """Commit the window's first block (or run); what it plans goes to ``_out``."""
         b = window.popleft()
         self._length -= b.length
         v_end = 0.0
@@ -546,8 +557,8 @@ class Planner:
                 head.fw = v_end
                 self._propagate(window)
         if b.members is None:
-            yield PlannedBlock(b.segment, b.feed, b.entry, b.v_nom, v_end, self.law, b.limits,
-                               b.line, b.index, b.blend)
+            self._out.append(PlannedBlock(b.segment, b.feed, b.entry, b.v_nom, v_end, self.law,
+                                          b.limits, b.line, b.index, b.blend))
             return
         # a run: one move over the members, each block its part of it (times and speeds
         # inside the run are found when the block is used)
@@ -556,11 +567,12 @@ class Planner:
         scale = run.distance / b.length
         d0 = 0.0
         last = len(b.members) - 1
+        out = self._out
         for k, m in enumerate(b.members):
             d1 = run.distance if k == last else d0 + m.length * scale
-            yield PlannedBlock(m.segment, m.feed, b.entry if k == 0 else None, b.v_nom,
-                               v_end if k == last else None, self.law, b.limits, m.line,
-                               m.index, m.blend, (run, d0, d1))
+            out.append(PlannedBlock(m.segment, m.feed, b.entry if k == 0 else None, b.v_nom,
+                                    v_end if k == last else None, self.law, b.limits, m.line,
+                                    m.index, m.blend, (run, d0, d1)))
             d0 = d1
 
     def _propagate(self, window: deque[_Block]) -> None:
