@@ -125,6 +125,13 @@ RUN_CAP_SHARE = 0.95
 """A block joins a run only if that lowers the run's speed cap by at most 5 %, and a
 faster block only if it is short (at most 5 % of the run): its cap then costs nothing."""
 
+STRAIGHT = 1e-9
+"""A node whose tangent turns by less than this (rad) is straight through: a blend's ends
+meet their lines at angles of 1e-16..1e-12 from rounding. Below it neither the corner model
+(``δ/(sin θ · f2)``, beyond 1e5 m/s for any δ ≥ 1 µm and f2 ≤ 0.01 s) nor the velocity
+step (``A·T/θ``, beyond 1e4 m/s for any A ≥ 0.1 m/s² and T ≥ 0.1 ms) could cap a speed."""
+
+
 class _Block:
     """A block in the window: its geometry summary and its speeds (mutable, internal).
 
@@ -465,7 +472,7 @@ class Planner:
         cross = prev.t1x * b.t0y - prev.t1y * b.t0x
         dot = prev.t1x * b.t0x + prev.t1y * b.t0y
         angle = math.atan2(abs(cross), dot)
-        if angle > 0.0:
+        if angle > STRAIGHT:
             corner = self.corner_model.max_node_speed(angle, self.tolerance)
             if corner < emax:
                 emax = corner
