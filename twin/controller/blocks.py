@@ -125,7 +125,7 @@ def segment_of(move: Move) -> Segment | None:
         return Arc(move.start, move.end, move.center, ccw=move.ccw, turns=move.turns)
     if move.start == move.end:
         return None
-    return Line(move.start, move.end)
+    return Line.between(move.start, move.end)    # a Move's points are finite float pairs
 
 
 def segments_from_program(items: Iterable[Any]) -> Iterator[Any]:

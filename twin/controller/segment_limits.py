@@ -55,6 +55,11 @@ class SegmentLimits:
                                 for lim in self.axis_limits)
         if len(self._axis_caps) != 2:
             raise ValueError(f"axis_limits: two axes (x, y), got {len(self._axis_caps)}")
+        lx, ly = self.axis_limits
+        # the acceleration and jerk a curve may use in total (normal and tangential)
+        self._curve_totals = (
+            min(limits.max_acceleration, lx.max_acceleration, ly.max_acceleration),
+            min(limits.max_jerk, lx.max_jerk, ly.max_jerk))
 
     def caps(self, segment: Segment, v_cap: float) -> tuple[float, float, float]:
         """(speed cap (m/s), tangential acceleration (m/s²), tangential jerk (m/s³))."""
@@ -84,8 +89,7 @@ class SegmentLimits:
     def curve_caps(self, seg: Segment, v_cap: float) -> tuple[float, float, float]:
         """Caps of an arc (exact) or any other curved segment (sampled)."""
         lx, ly = self.axis_limits
-        a_tot = min(self.limits.max_acceleration, lx.max_acceleration, ly.max_acceleration)
-        j_tot = min(self.limits.max_jerk, lx.max_jerk, ly.max_jerk)
+        a_tot, j_tot = self._curve_totals
         if type(seg) is Arc:
             mx, my = _arc_tangent_extent(seg)
             kappa, dkappa = 1.0 / seg.radius, 0.0
