@@ -382,6 +382,42 @@ def test_streaming_plans_in_bounded_memory():
     assert large_peak < 2_000_000
 
 
+def _counted(items, taken: list[int]):
+    """``items``, counting in ``taken[0]`` how many the consumer has taken."""
+    for item in items:
+        taken[0] += 1
+        yield item
+
+
+def test_the_planner_reads_no_further_than_a_barrier_before_passing_it():
+    """The planner reads the program in batches, but never past a dwell (or any item that
+    is not a motion block) before it has yielded it: a live source is not asked early."""
+    moves = [Move("line", (0.01 * k, 0.0), (0.01 * (k + 1), 0.0), 0.01, line=k + 1)
+             for k in range(10)]
+    program = [*moves[:5], Dwell(0.5, line=6), *moves[5:], ProgramEnd("M2", line=20)]
+    taken = [0]
+    for item in tomsk_planner().plan(_counted(program, taken)):
+        if type(item) is Dwell:
+            assert taken[0] == 6                 # five moves and the dwell, nothing after
+    assert taken[0] == len(program)
+
+
+def test_a_source_error_comes_after_the_blocks_read_before_it():
+    """An error of the program (a bad line) comes after every block before it is planned,
+    in order, ending at rest, whatever the batch the planner was reading."""
+    def source():
+        for k in range(150):
+            yield Move("line", (0.001 * k, 0.0), (0.001 * (k + 1), 0.0), 0.01, line=k + 1)
+        raise PlanningError("line 151: bad")
+
+    planned = []
+    with pytest.raises(PlanningError, match="line 151"):
+        for item in tomsk_planner().plan(source()):
+            planned.append(item)
+    assert [b.line for b in planned] == list(range(1, 151))
+    assert planned[-1].v_end == 0.0
+
+
 # ------------------------------------------------------------------------ monotone reach
 @pytest.mark.parametrize("law", LAWS)
 def test_monotone_reach_is_the_lower_envelope_of_max_end_speed(law):
