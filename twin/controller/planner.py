@@ -645,9 +645,11 @@ def _step_speed(step: tuple[float, float, float], dx: float, dy: float) -> float
 def _open(b: _Block) -> _Block:
     """A run of one block, to be grown by `_absorb`."""
     run = _Block()
-    for name in ("acc", "feed", "index", "jerk", "k0", "k1", "length", "line", "rapid",
-                 "segment", "t0x", "t0y", "t1x", "t1y", "v_nom", "blend", "limits"):
-        setattr(run, name, getattr(b, name))
+    run.acc, run.feed, run.index, run.jerk, run.k0, run.k1 = b.acc, b.feed, b.index, b.jerk, \
+        b.k0, b.k1
+    run.length, run.line, run.rapid, run.segment, run.blend, run.limits = b.length, b.line, \
+        b.rapid, b.segment, b.blend, b.limits
+    run.t0x, run.t0y, run.t1x, run.t1y, run.v_nom = b.t0x, b.t0y, b.t1x, b.t1y, b.v_nom
     run.members = [b]
     return run
 
