@@ -21,11 +21,13 @@ acceleration law:
 * ``axis_acceleration``: the largest |second difference| of the position reference over one
   controller period, as the interpolator produces it, relative to each axis' limit (velocity
   steps at nodes count as Δv/T there);
-* ``blocks_per_s``: planning throughput in memory.
+* ``blocks_per_s``: planning throughput in memory (the speeds at the nodes; a block's
+  speed profile is made when it is used, ``PlannedBlock.profile``).
 
 Then the chord-independence table (circles of r = 2 and 20 mm as G3 and as chords of 0.001 …
 0.5 mm: the planned speed at mid-circle), and the planner's throughput on a 100 000-block
-chord program in memory and streamed from a file through the G-code reader (peak RSS).
+chord program in memory (also with every block's profile made, as the interpolator makes it)
+and streamed from a file through the G-code reader (peak RSS).
 
 Prints one JSON object. ``--quick``: one law set on smaller programs (a sanity run).
 """
@@ -274,10 +276,19 @@ def throughput(cfg, machine: str, laws, blocks: int) -> dict:
             t0 = time.perf_counter()
             planned = sum(1 for _ in planner.plan(items))
             mem = time.perf_counter() - t0
+            # the same, with every block's speed profile made as the interpolator makes it
+            # when it reaches the block (plan_move, or the block's part of its run's move)
+            planner = Planner.from_settings(cfg.controller, cfg.axes, law=law, work_zone=None)
+            t0 = time.perf_counter()
+            for block in planner.plan(items):
+                if type(block) is PlannedBlock:
+                    block.profile()
+            profiled = time.perf_counter() - t0
             done = subprocess.run([sys.executable, "-c", _STREAM, str(path), machine, law],
                                   capture_output=True, text=True, check=True)
             _, seconds, hwm = done.stdout.split()
             out[law] = {"in_memory_blocks_per_s": round(lines / mem),
+                        "in_memory_with_profiles_blocks_per_s": round(lines / profiled),
                         "planned_items": planned,
                         "streamed_blocks_per_s": round(lines / float(seconds)),
                         "streamed_peak_rss_mb": round(int(hwm) / 1024, 1)}

@@ -12,7 +12,7 @@ from twin.controller.gcode.items import Move
 from twin.controller.geometry import Arc, Line, Segment
 from twin.controller.profiles import Limits, Profile, plan_move
 
-__all__ = ["MotionBlock", "PlannedBlock", "segment_of", "segments_from_program"]
+__all__ = ["MotionBlock", "PlannedBlock", "RunMove", "segment_of", "segments_from_program"]
 
 
 @dataclass(frozen=True, slots=True)
@@ -63,18 +63,27 @@ class PlannedBlock:
         when asked). None: the block's profile is its own move.
     """
 
-    __slots__ = ("_times", "_v_end", "_v_start", "blend", "feed", "index", "law", "limits",
-                 "line", "piece", "segment", "v_nominal")
+    __slots__ = ("_piece", "_times", "_v_end", "_v_start", "blend", "feed", "index", "law",
+                 "limits", "line", "segment", "v_nominal")
 
     def __init__(self, segment: Segment, feed: float | None, v_start: float | None,
                  v_nominal: float, v_end: float | None, law: str, limits: Limits, line: int,
                  index: int, blend: bool = False,
-                 piece: tuple[Profile, float, float] | None = None):
+                 piece: tuple[Profile | RunMove, float, float] | None = None):
         self.segment, self.feed, self.v_nominal = segment, feed, v_nominal
         self._v_start, self._v_end = v_start, v_end
         self.law, self.limits, self.line, self.index = law, limits, line, index
-        self.blend, self.piece = blend, piece
+        self.blend, self._piece = blend, piece
         self._times: tuple[float, float] | None = None
+
+    @property
+    def piece(self) -> tuple[Profile, float, float] | None:
+        """The run's profile and this block's part of it (see the class doc); a run's move
+        is planned when one of its blocks first asks (``RunMove``)."""
+        piece = self._piece
+        if piece is not None and type(piece[0]) is RunMove:
+            piece = self._piece = (piece[0].profile(), piece[1], piece[2])
+        return piece  # type: ignore[return-value]
 
     def __repr__(self) -> str:
         return (f"PlannedBlock(segment={self.segment!r}, feed={self.feed!r}, "
@@ -117,6 +126,32 @@ class PlannedBlock:
             return self.piece[0].slice(t0, t1)
         return plan_move(self.law, self.segment.length, v_start=self.v_start,
                          v_end=self.v_end, v_max=self.v_nominal, limits=self.limits)
+
+
+class RunMove:
+    """The one speed change the blocks of a run share (a smooth law over short blocks),
+    planned by ``plan_move`` when one of them first asks, as a single block's own profile is
+    (``PlannedBlock.profile``): the look-ahead decides the speeds at the nodes, the profile
+    between them is made when the block is used."""
+
+    __slots__ = ("_args", "_profile")
+
+    def __init__(self, law: str, distance: float, v_start: float, v_end: float,
+                 v_max: float, limits: Limits):
+        self._args = (law, distance, v_start, v_end, v_max, limits)
+        self._profile: Profile | None = None
+
+    @property
+    def distance(self) -> float:
+        """The run's length (m): the profile's ``distance``."""
+        return self._args[1]
+
+    def profile(self) -> Profile:
+        if self._profile is None:
+            law, distance, v_start, v_end, v_max, limits = self._args
+            self._profile = plan_move(law, distance, v_start=v_start, v_end=v_end,
+                                      v_max=v_max, limits=limits)
+        return self._profile
 
 
 def segment_of(move: Move) -> Segment | None:

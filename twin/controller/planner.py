@@ -97,12 +97,18 @@ from typing import Any
 
 from twin.config import AxisConfig, ControllerSettings
 from twin.controller.blend import BlendedBlock, Blender
-from twin.controller.blocks import MotionBlock, PlannedBlock, segment_of, segments_from_program
+from twin.controller.blocks import (
+    MotionBlock,
+    PlannedBlock,
+    RunMove,
+    segment_of,
+    segments_from_program,
+)
 from twin.controller.corner import CornerModel, SeedCornerModel
 from twin.controller.gcode.items import Dwell, Move, PathControl, ProgramEnd
 from twin.controller.geometry import Arc, Line, Segment
 from twin.controller.loop_defaults import default_corner_model
-from twin.controller.profiles import Limits, min_distance, plan_move
+from twin.controller.profiles import Limits, min_distance
 from twin.controller.profiles.laws import check_law
 from twin.controller.reach import reach_floor, reach_function
 from twin.controller.segment_limits import SegmentLimits
@@ -567,16 +573,14 @@ class Planner:
             self._out.append(PlannedBlock(b.segment, b.feed, b.entry, b.v_nom, v_end, self.law,
                                           b.limits, b.line, b.index, b.blend))
             return
-        # a run: one move over the members, each block its part of it (times and speeds
-        # inside the run are found when the block is used)
-        run = plan_move(self.law, b.length, v_start=b.entry, v_end=v_end, v_max=b.v_nom,
-                        limits=b.limits)
-        scale = run.distance / b.length
+        # a run: one move over the members, each block its part of it (the move, and the
+        # times and speeds inside it, are made when a block is used: RunMove)
+        run = RunMove(self.law, b.length, b.entry, v_end, b.v_nom, b.limits)
         d0 = 0.0
         last = len(b.members) - 1
         out = self._out
         for k, m in enumerate(b.members):
-            d1 = run.distance if k == last else d0 + m.length * scale
+            d1 = run.distance if k == last else d0 + m.length   # the move's length is b's
             out.append(PlannedBlock(m.segment, m.feed, b.entry if k == 0 else None, b.v_nom,
                                     v_end if k == last else None, self.law, b.limits, m.line,
                                     m.index, m.blend, (run, d0, d1)))
