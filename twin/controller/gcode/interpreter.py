@@ -54,6 +54,9 @@ FAST_LINE = re.compile(rf"(?:[Nn]([0-9]+) ?)?(?:[Gg]0?([01]) ?)?(?:[Xx]({_NUMBER
 """The commonest line of CAM output, ``[N…] [G0|G1] X… Y… [F…]``: ``Interpreter.fast_line``
 runs it."""
 
+_NO_OFFSET = (0.0, 0.0, 0.0)
+"""The offsets of a coordinate system never set (m)."""
+
 ORDER = (
     ("parameters", "assignments (`#1 = …`) take effect after the line is read: `X#1` in "
                    "the same line uses the old value"),
@@ -223,7 +226,7 @@ class Interpreter(Motion):
 
     def _offset(self, axis: int) -> float:
         """Machine coordinate of the work zero along ``axis`` (m)."""
-        work = self._offsets.get(self._modal.coordinate_system, (0.0,) * 3)[axis]
+        work = self._offsets.get(self._modal.coordinate_system, _NO_OFFSET)[axis]
         return work + (self._g92[axis] if self._g92_on else 0.0)
 
     def _machine(self, axis: int) -> float:
@@ -335,16 +338,23 @@ class Interpreter(Motion):
         if motion == "line" and not feed:
             return None
         start = self._position
-        incremental = modal.distance == "incremental"
         end_x, end_y = start
+        if modal.distance == "incremental":
+            ox = oy = None
+        else:                                       # _offset(0), _offset(1), inline
+            work = self._offsets.get(modal.coordinate_system, _NO_OFFSET)
+            if self._g92_on:
+                ox, oy = work[0] + self._g92[0], work[1] + self._g92[1]
+            else:
+                ox, oy = work[0] + 0.0, work[1] + 0.0
         if x is not None:
             if not -MAX_VALUE < x < MAX_VALUE:
                 return None
-            end_x = start[0] + x * unit if incremental else x * unit + self._offset(0)
+            end_x = start[0] + x * unit if ox is None else x * unit + ox
         if y is not None:
             if not -MAX_VALUE < y < MAX_VALUE:
                 return None
-            end_y = start[1] + y * unit if incremental else y * unit + self._offset(1)
+            end_y = start[1] + y * unit if oy is None else y * unit + oy
         if not (abs(end_x) <= WORKSPACE and abs(end_y) <= WORKSPACE):
             return None
         if number is not None:
