@@ -459,12 +459,15 @@ class Planner:
             _, _, b.t1x, b.t1y, b.k1, _ = seg.frame(seg.length)
             v_nom, acc, jerk = self._caps.curve_caps(seg, v_cap)
         b.v_nom = v_nom
-        key = (v_nom, acc, jerk)
-        lim = self._limits_cache.get(key)
-        if lim is None:
-            if len(self._limits_cache) > 256:
-                self._limits_cache.clear()
-            lim = self._limits_cache[key] = _limits(v_nom, acc, jerk)
+        if b.k0 != 0.0:                     # a curve's caps are its own: no reuse
+            lim = _limits(v_nom, acc, jerk)
+        else:                               # lines of one direction and feed share theirs
+            key = (v_nom, acc, jerk)
+            lim = self._limits_cache.get(key)
+            if lim is None:
+                if len(self._limits_cache) > 256:
+                    self._limits_cache.clear()
+                lim = self._limits_cache[key] = _limits(v_nom, acc, jerk)
         b.limits = lim
         b.acc, b.jerk = acc, jerk
         b.members = None
