@@ -168,42 +168,14 @@ class Runner:
         while True:
             frame = self._frames[-1]
             text = frame.tape.next()
-            if match is not None and text is not None:
-                if "[" not in text and "#" not in text:
-                    found = match(text)
-                    if found is not None:
-                        item = fast(found, frame.tape.line)
-                        if item is not None:
-                            if item is not True:
-                                yield item
-                            continue
-                elif "%" not in text and "O" not in text and "o" not in text:
-                    # a parameterised block (no tape mark, no control statement): by its
-                    # compiled shape, and on to the fast path when it is a plain move
-                    line = frame.tape.line
-                    code = clean(text, line)
-                    if "#" in code or "[" in code or "@" in code or "^" in code:
-                        statement = shapes.read(code, line, text,
-                                                partial(self._lookup, frame, text))
-                        if type(statement) is tuple:        # only N, G, X, Y, F words
-                            item = fast_move(*statement, line)
-                            if item is not None:
-                                if item is not True:
-                                    yield item
-                                continue
-                            statement = read_statement(code, line, text,
-                                                       self._lookup(frame, text),
-                                                       parameters.exists)
-                        block_words, assignments = statement.words, statement.assignments
-                    elif code.isspace():        # the # or [ was in a comment
+            if match is not None and text is not None and "[" not in text and "#" not in text:
+                found = match(text)
+                if found is not None:
+                    item = fast(found, frame.tape.line)
+                    if item is not None:
+                        if item is not True:
+                            yield item
                         continue
-                    else:
-                        block_words, assignments = words(code, line, text), ()
-                    if block_words:
-                        yield from self._execute(block_words, line, text, frame.file)
-                    for assignment in assignments:
-                        parameters.set(assignment.target, assignment.value)
-                    continue
             if text is None:
                 if len(self._frames) > 1:   # a body read to its end has no endsub: return
                     self._return(None)
@@ -214,7 +186,7 @@ class Runner:
             code = clean(text, line) if text else ""
             if not code or code.isspace():
                 continue
-            if len(self._frames) == 1 and code.lstrip(" \t").startswith("%"):
+            if "%" in code and len(self._frames) == 1 and code.lstrip(" \t").startswith("%"):
                 if not started() and not tape_opened:
                     tape_opened = True
                     continue
