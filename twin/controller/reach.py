@@ -21,6 +21,7 @@ is unique; the local minima of ``f`` lie at u_r and (S-curve) at ``A²/(2J)``, h
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
 
 from twin.controller.profiles import SHAPES, Limits, max_end_speed
 from twin.controller.profiles.laws import JERK_LIMITED, end_speed_function
@@ -122,7 +123,7 @@ def monotone_end_speed(law: str, v: float, distance: float, limits: Limits,
     return f
 
 
-def reach_function(law: str):
+def reach_function(law: str) -> Callable[[float, float, Limits, ReachFloor], float]:
     """``monotone_end_speed`` for one law, as one closure ``reach(v, distance, limits,
     floor)``: the same arithmetic without the law lookup and two call levels per call (the
     look-ahead passes call it several times per block). Arguments that are negative or NaN
