@@ -20,11 +20,17 @@ from typing import Any
 
 from twin.errors import ConfigError
 
-__all__ = ["LOCK_NAME", "folder_lock", "json_text", "output_dir", "plain", "record_id",
-           "write_json_atomic", "write_text_atomic"]
+__all__ = ["LOCK_NAME", "folder_lock", "json_text", "output_dir", "partial_path", "plain",
+           "record_id", "write_json_atomic", "write_text_atomic"]
 
 LOCK_NAME = ".job.lock"
 """The lock file a job holds in its output folder (``folder_lock``)."""
+
+
+def partial_path(path: Path) -> Path:
+    """The name ``path`` is written under until it is complete (``<name>.partial``), then
+    renamed to ``path`` in one step (summaries, recordings)."""
+    return path.with_name(path.name + ".partial")
 
 
 def record_id(prefix: str = "", *, suffix: int = 6) -> str:
@@ -97,7 +103,7 @@ def write_text_atomic(path: str | Path, text: str) -> Path:
     """Write ``text`` to ``path`` via a temporary file and ``os.replace``: a reader sees the
     old file or the whole new one, never half of it."""
     path = Path(path)
-    tmp = path.with_name(path.name + ".partial")
+    tmp = partial_path(path)
     try:
         tmp.write_text(text, encoding="utf-8")
         os.replace(tmp, path)

@@ -31,7 +31,7 @@ from twin.controller.metrics import OscillationMeter
 from twin.controller.record import Record
 from twin.errors import ConfigError, DeadlineFault, DriverError
 from twin.hardware.realtime import DeadlinePolicy, RealTimeLoop, TickStats, fifo_priority
-from twin.jsonio import output_dir, record_id, write_json_atomic
+from twin.jsonio import output_dir, partial_path, record_id, write_json_atomic
 from twin.model import mode_periods
 from twin.plant import FINE_FIELDS, FINE_WIDTH, TRUTH_FIELDS
 from twin.run_end import (
@@ -136,19 +136,18 @@ def run(spec: RunSpec, *, out_dir: str | Path = "runs", rerun: str = "file",
         # the loop leaves nothing behind (driver closed, no .partial) and is raised; in the
         # loop it takes the one shutdown path (safe stop, record written)
         with stop_signals(caught):
-            made = None
+            ours = sink is None         # the sink this run makes (and drops if it stops)
             try:
                 pending = [*(parse_command(c) for c in spec.commands), *commands]
-                if sink is None:
-                    made, recording = make_sink(rerun, out, run_id, notice=warn,
+                if ours:
+                    sink, recording = make_sink(rerun, out, run_id, notice=warn,
                                                 port=rerun_port)
-                    sink = made
                 loop = _Loop(p, sink, spec.time_limit(p.cfg), pending, progress,
                              spec.rt_priority, keep_fine, warn, keep_record, caught)
             except BaseException:
                 p.driver.close()        # whatever fails once the driver is open closes it
-                if made is not None or sink is None:
-                    _discard(made, rerun, out, run_id)
+                if ours:
+                    _discard(sink, rerun, out, run_id)
                 raise
             t_wall = time.perf_counter()
             loop.run_lockstep() if p.plant is not None else loop.run_paced()
@@ -175,15 +174,17 @@ def run(spec: RunSpec, *, out_dir: str | Path = "runs", rerun: str = "file",
 
 def _discard(sink: Sink | None, rerun: str, out: Path, run_id: str) -> None:
     """Drop the recording of a run stopped before its loop began: nothing was run, so
-    nothing is kept (the ``.partial`` is removed even when the signal came while the sink
-    was still being made)."""
-    discard = getattr(sink, "discard", None)
-    if discard is not None:
-        discard()
+    nothing is kept. Without a sink (the signal came while it was being made) its
+    ``.partial`` is removed by name."""
+    if sink is not None:
+        discard = getattr(sink, "discard", None)
+        if discard is not None:
+            discard()
+        return
     with contextlib.suppress(ConfigError, OSError):
         path = recording_path(rerun, out, run_id)
         if path is not None:
-            path.with_name(path.name + ".partial").unlink(missing_ok=True)
+            partial_path(path).unlink(missing_ok=True)
 
 
 class _Loop:

@@ -141,11 +141,6 @@ class RunMove:
         self._args = (law, distance, v_start, v_end, v_max, limits)
         self._profile: Profile | None = None
 
-    @property
-    def distance(self) -> float:
-        """The run's length (m): the profile's ``distance``."""
-        return self._args[1]
-
     def profile(self) -> Profile:
         if self._profile is None:
             law, distance, v_start, v_end, v_max, limits = self._args

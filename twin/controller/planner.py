@@ -106,7 +106,7 @@ from twin.controller.blocks import (
 )
 from twin.controller.corner import CornerModel, SeedCornerModel
 from twin.controller.gcode.items import Dwell, Move, PathControl, ProgramEnd
-from twin.controller.geometry import Arc, Line, Segment
+from twin.controller.geometry import Line, Segment
 from twin.controller.loop_defaults import default_corner_model
 from twin.controller.profiles import Limits, min_distance
 from twin.controller.profiles.laws import check_law
@@ -428,12 +428,7 @@ class Planner:
 
     def _block(self, seg: Segment, feed: float | None, line: int, blend: bool = False
                ) -> _Block:
-        if feed is None:                    # _full_speed, inline
-            v_cap = self.rapid_velocity
-        else:
-            v_cap = self.limits.max_velocity
-            if feed <= v_cap:
-                v_cap = feed
+        v_cap = self._full_speed(feed)
         b = _Block()
         b.segment, b.feed, b.line, b.blend = seg, feed, line, blend
         b.rapid = feed is None
@@ -446,14 +441,6 @@ class Planner:
             b.t0y = b.t1y = uy
             b.k0 = b.k1 = 0.0
             v_nom, acc, jerk = self._caps.line_caps(abs(ux), abs(uy), v_cap)
-        elif type(seg) is Arc:              # Arc.frame at both ends, inline
-            sign, k, theta0 = seg._sign, seg._k, seg._theta0
-            phi = theta0 + k * 0.0          # as frame(0.0) computes it (a signed zero)
-            b.t0x, b.t0y = -sign * math.sin(phi), sign * math.cos(phi)
-            phi = theta0 + k * seg.length
-            b.t1x, b.t1y = -sign * math.sin(phi), sign * math.cos(phi)
-            b.k0 = b.k1 = k
-            v_nom, acc, jerk = self._caps.curve_caps(seg, v_cap)
         else:
             _, _, b.t0x, b.t0y, b.k0, _ = seg.frame(0.0)
             _, _, b.t1x, b.t1y, b.k1, _ = seg.frame(seg.length)
@@ -583,7 +570,7 @@ class Planner:
         last = len(b.members) - 1
         out = self._out
         for k, m in enumerate(b.members):
-            d1 = run.distance if k == last else d0 + m.length   # the move's length is b's
+            d1 = b.length if k == last else d0 + m.length
             out.append(PlannedBlock(m.segment, m.feed, b.entry if k == 0 else None, b.v_nom,
                                     v_end if k == last else None, self.law, b.limits, m.line,
                                     m.index, m.blend, (run, d0, d1)))

@@ -114,25 +114,19 @@ def monotone_end_speed(law: str, v: float, distance: float, limits: Limits,
     floor : ReachFloor
         ``reach_floor(law, distance, limits)``, computed once per block.
     """
-    f = max_end_speed(law, v, distance, limits)
-    u1, f1, u2, f2 = floor
-    if v < u1 and f1 < f:
-        f = f1
-    if v < u2 and f2 < f:
-        f = f2
-    return f
+    return reach_function(law)(v, distance, limits, floor)
 
 
 def reach_function(law: str) -> Callable[[float, float, Limits, ReachFloor], float]:
     """``monotone_end_speed`` for one law, as one closure ``reach(v, distance, limits,
-    floor)``: the same arithmetic without the law lookup and two call levels per call (the
-    look-ahead passes call it several times per block). Arguments that are negative or NaN
-    go through ``monotone_end_speed``, which raises."""
+    floor)``: ``max_end_speed`` without the law lookup and its call level (the look-ahead
+    passes call it several times per block), then the floor. A negative or NaN speed or
+    distance is refused by ``max_end_speed`` (``PlanningError``)."""
     end_speed = end_speed_function(law)
 
     def reach(v: float, distance: float, limits: Limits, floor: ReachFloor) -> float:
         if not (v >= 0.0 and distance >= 0.0):
-            return monotone_end_speed(law, v, distance, limits, floor)
+            return max_end_speed(law, v, distance, limits)     # raises, naming them
         f = end_speed(v, distance, limits.max_acceleration, limits.max_jerk)
         cap = limits.max_velocity
         f = f if f < cap else cap

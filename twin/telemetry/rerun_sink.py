@@ -18,6 +18,7 @@ import numpy as np
 import rerun as rr
 import rerun.blueprint as rrb
 
+from twin.jsonio import partial_path
 from twin.telemetry.blueprint import PATH_TRANSFORM, default_blueprint
 from twin.telemetry.viewer import ViewerUnavailable, start_rerun
 
@@ -85,7 +86,7 @@ class RerunSink:
         self.url: str | None = None
         self.notices: list[str] = []
         self._notice = notice or (lambda text: print(f"warning: {text}", file=sys.stderr))
-        self._partial = self.path.with_name(self.path.name + ".partial") if self.path else None
+        self._partial = partial_path(self.path) if self.path else None
         self._rec: rr.RecordingStream | None = None
         self._live: rr.RecordingStream | None = None
         if live is not None:          # first: a refused port leaves no file behind

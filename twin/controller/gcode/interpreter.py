@@ -338,23 +338,16 @@ class Interpreter(Motion):
         if motion == "line" and not feed:
             return None
         start = self._position
+        incremental = modal.distance == "incremental"
         end_x, end_y = start
-        if modal.distance == "incremental":
-            ox = oy = None
-        else:                                       # _offset(0), _offset(1), inline
-            work = self._offsets.get(modal.coordinate_system, _NO_OFFSET)
-            if self._g92_on:
-                ox, oy = work[0] + self._g92[0], work[1] + self._g92[1]
-            else:
-                ox, oy = work[0] + 0.0, work[1] + 0.0
         if x is not None:
             if not -MAX_VALUE < x < MAX_VALUE:
                 return None
-            end_x = start[0] + x * unit if ox is None else x * unit + ox
+            end_x = start[0] + x * unit if incremental else x * unit + self._offset(0)
         if y is not None:
             if not -MAX_VALUE < y < MAX_VALUE:
                 return None
-            end_y = start[1] + y * unit if oy is None else y * unit + oy
+            end_y = start[1] + y * unit if incremental else y * unit + self._offset(1)
         if not (abs(end_x) <= WORKSPACE and abs(end_y) <= WORKSPACE):
             return None
         if number is not None:

@@ -30,18 +30,15 @@ from operator import itemgetter
 from typing import Any
 
 from twin.controller.gcode.expr import (
-    _FUNCTIONS,
     MAX_VALUE,
     Assignment,
-    BadValue,
     Lookup,
     Statement,
     _Reader,
-    binary,
-    parameter_index,
     read_statement,
 )
 from twin.controller.gcode.parameters import Parameters
+from twin.controller.gcode.values import FUNCTIONS, BadValue, binary, parameter_index
 from twin.errors import GCodeError
 
 __all__ = ["FastWords", "Shapes"]
@@ -88,13 +85,17 @@ class _Numbered:
         self.i = i
 
 
-def _numbered(parameters: Parameters, v: float) -> float:
-    """The value of numbered parameter ``#v`` (``Parameters.get`` for a whole ``v``)."""
-    number = int(v)
-    if number != v or not 1 <= number <= 5601:
+def _index(v: float) -> int:
+    """The parameter number ``#v`` names, as the reader takes it (``parameter_index``)."""
+    number = parameter_index(v)
+    if number is None:
         raise _Fallback
-    table = parameters.scopes[-1][0] if number <= Parameters.LOCAL else parameters.numbered
-    return table.get(number, 0.0)
+    return number
+
+
+def _numbered(parameters: Parameters, v: float) -> float:
+    """The value of numbered parameter ``#v``."""
+    return parameters.get(_index(v))  # type: ignore[return-value]  # numbered: never None
 
 
 def _fn(node: Any, parameters: Parameters | None = None) -> Node:
@@ -121,7 +122,6 @@ class _Compiler(_Reader):
         super().__init__(compact, columns, line, source, _no_lookup, _no_exists)
         self.spans: list[tuple[int, int]] = []
         self.parameters = parameters
-        self.get, self.has = parameters.get, parameters.exists
 
     def number(self) -> Any:
         start = self.pos
@@ -141,18 +141,12 @@ class _Compiler(_Reader):
         if type(value) is _Slot and not value.neg:
             return _SlotIndex(value.i)
         f = _fn(value, self.parameters)
-
-        def index(s: list[float]) -> int:
-            key = parameter_index(f(s))
-            if key is None:
-                raise _Fallback
-            return key
-        return index
+        return lambda s: _index(f(s))
 
     def read(self, key: Any, column: int) -> Any:
-        get = self.get
         if type(key) is _SlotIndex:              # #1: the commonest
             return _Numbered(key.i)
+        get = self.parameters.get
         index = key if callable(key) else None
 
         def named(s: list[float]) -> float:
@@ -163,7 +157,7 @@ class _Compiler(_Reader):
         return named
 
     def exists_value(self, name: str) -> Any:
-        has = self.has
+        has = self.parameters.exists
         return lambda s: 1.0 if has(name) else 0.0
 
     def atan(self, y: Any, x: Any) -> Any:
@@ -171,7 +165,7 @@ class _Compiler(_Reader):
         return lambda s: math.degrees(math.atan2(fy(s), fx(s)))
 
     def call(self, name: str, argument: Any, start: int) -> Any:
-        f, domain, _ = _FUNCTIONS[name]
+        f, domain, _ = FUNCTIONS[name]
         fa = _fn(argument, self.parameters)
 
         def call(s: list[float]) -> float:
@@ -188,13 +182,7 @@ class _Compiler(_Reader):
                 i, parameters = a.i, self.parameters
 
                 def offset(s: list[float]) -> float:
-                    v = s[i]                    # _numbered, inline
-                    number = int(v)
-                    if number != v or not 1 <= number <= 5601:
-                        raise _Fallback
-                    table = (parameters.scopes[-1][0] if number <= Parameters.LOCAL
-                             else parameters.numbered)
-                    r = table.get(number, 0.0) + s[j]
+                    r = _numbered(parameters, s[i]) + s[j]
                     if -1e300 < r < 1e300:
                         return r
                     raise _Fallback
@@ -274,14 +262,7 @@ def _fn_key(key: Any) -> Callable[[list[float]], int]:
     if type(key) is not _SlotIndex:
         return key
     i = key.i
-
-    def number(s: list[float]) -> int:
-        v = s[i]
-        index = int(v)
-        if index != v or not 1 <= index <= 5601:
-            raise _Fallback
-        return index
-    return number
+    return lambda s: _index(s[i])
 
 
 def _compile(code: str, line: int, source: str, parameters: Parameters) -> _Shape | None:
