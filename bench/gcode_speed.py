@@ -9,7 +9,8 @@ measures in the same run, best of ``--repeat``:
   ``make test-linuxcnc`` installs it);
 * ``read_file`` streaming the file (constant memory), items counted;
 * the same with expressions: every coordinate written as ``[#1 + …]``;
-* parse + plan: ``Planner.plan(read_file(...))`` on laser_belt with the look-ahead.
+* parse + plan: ``Planner.plan(read_file(...))`` on laser_belt with the look-ahead, with
+  laser_belt's own law and (``read_and_plan_lines_per_s_by_law``) with every law.
 
 Prints one JSON object: lines per second of each, and the ratio of ours to LinuxCNC's (on
 the plain file; the expressions also against LinuxCNC on the expression file).
@@ -33,6 +34,7 @@ import numpy as np
 from twin.config import load_machine
 from twin.controller.gcode import read_file
 from twin.controller.planner import Planner
+from twin.controller.profiles import LAWS
 
 
 def cam_program(lines: int, *, expressions: bool) -> str:
@@ -118,6 +120,13 @@ def main() -> None:
         seconds, _ = best(1, lambda: sum(1 for _ in planner.plan(
             read_file(plain, start=(0.01, 0.01)))))
         report["read_and_plan_lines_per_s"] = round(args.lines / seconds)
+        by_law = {}
+        for law in LAWS:
+            planner = Planner.from_settings(cfg.controller, cfg.axes, law=law, work_zone=None)
+            seconds, _ = best(1, lambda planner=planner: sum(1 for _ in planner.plan(
+                read_file(plain, start=(0.01, 0.01)))))
+            by_law[law] = round(args.lines / seconds)
+        report["read_and_plan_lines_per_s_by_law"] = by_law
         report["max_rss_mb"] = round(
             resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024, 1)
     if report["linuxcnc_lines_per_s"]:
