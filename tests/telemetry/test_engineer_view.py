@@ -93,3 +93,23 @@ def test_path_view_is_in_millimetres_with_y_up(square):
     mat = np.asarray(rb.column("Transform3D:mat3x3").to_pylist()[0][0]).reshape(3, 3)
     # column-major in rerun: the same matrix either way, it is diagonal
     np.testing.assert_array_equal(mat, np.diag([1e3, -1e3, 1.0]))
+
+
+def test_path_view_is_fitted_to_the_whole_programmed_path(square):
+    """rerun fits a 2-D view to the first frames it sees, which cut off the path's later
+    parts; the layout carries the programmed path's extent (mm, Y negated), with a margin."""
+    from twin.telemetry.channels import programmed_polyline
+
+    reader = rc.RrdReader(square.summary["recording"])
+    ranges = [rb.column("VisualBounds2D:range").to_pylist()[0][0]
+              for store in reader.blueprints()
+              for rb in (c.to_record_batch() for c in reader.stream(store=store).to_chunks())
+              if "VisualBounds2D:range" in rb.schema.names]
+    assert ranges, "the path view carries its bounds"
+    bounds = ranges[-1]                                   # the last blueprint is the active one
+    mm = programmed_polyline(square.path) * 1e3
+    (x0, x1), (y0, y1) = bounds["x_range"], bounds["y_range"]
+    assert x0 < mm[:, 0].min() and mm[:, 0].max() < x1
+    assert y0 < -mm[:, 1].max() and -mm[:, 1].min() < y1
+    span = max(np.ptp(mm[:, 0]), np.ptp(mm[:, 1]))
+    assert max(x1 - x0, y1 - y0) <= 1.1 * span           # a margin, not a zoomed-out view

@@ -16,11 +16,16 @@ m, velocity m/s, screw deflection µm).
 
 from __future__ import annotations
 
+from collections.abc import Sequence
+
+import numpy as np
 import rerun as rr
 import rerun.blueprint as rrb
 import rerun.encodings as rrd
 
-__all__ = ["PATH_TRANSFORM", "default_blueprint"]
+from twin.telemetry.sink import PROGRAMMED
+
+__all__ = ["PATH_TRANSFORM", "default_blueprint", "path_bounds"]
 
 PATH_TRANSFORM = rr.Transform3D(mat3x3=[[1e3, 0.0, 0.0], [0.0, -1e3, 0.0], [0.0, 0.0, 1.0]])
 """Logged on ``/path``: metres to millimetres, and Y up (rerun's 2-D views draw Y down). The
@@ -71,20 +76,41 @@ def _motion(axis: str) -> rrb.Container:
     )
 
 
-def path_view() -> rrb.Spatial2DView:
-    """The path in machine orientation (mm, Y up), actual path coloured by contour error."""
+def path_bounds(points: np.ndarray, margin: float = 0.04) -> tuple[Sequence[float],
+                                                                 Sequence[float]]:
+    """The path view's ranges, (x, y) in the view's coordinates (mm, Y negated as
+    `PATH_TRANSFORM` draws it), holding every point of ``points`` ((n, 2), m) with a
+    ``margin`` (share of the larger extent, at least 1 mm) on each side.
+
+    rerun fits a 2-D view to the data of the first frames it sees; a run's path starts
+    at one point and grows, so the view is told the whole programmed path instead."""
+    pts = np.asarray(points, dtype=np.float64).reshape(-1, 2) * 1e3
+    lo, hi = pts.min(axis=0), pts.max(axis=0)
+    pad = max(margin * float(np.max(hi - lo)), 1.0)
+    return ((lo[0] - pad, hi[0] + pad), (-hi[1] - pad, -lo[1] + pad))
+
+
+def path_view(points: np.ndarray | None = None) -> rrb.Spatial2DView:
+    """The path in machine orientation (mm, Y up), actual path coloured by contour error;
+    fitted to ``points`` ((n, 2), m: the programmed path) when given."""
+    bounds = None
+    if points is not None and len(points):
+        x_range, y_range = path_bounds(points)
+        bounds = rrb.VisualBounds2D(x_range=x_range, y_range=y_range)
     return rrb.Spatial2DView(
         name="Path (mm, Y up): programmed grey; actual green → yellow at the contour "
              "tolerance → red at twice it",
-        origin="/", contents=["/path/programmed", "/path/actual"], time_ranges=_WHOLE_RUN)
+        origin="/", contents=[f"/{PROGRAMMED}", "/path/actual"], time_ranges=_WHOLE_RUN,
+        visual_bounds=bounds)
 
 
-def default_blueprint() -> rrb.Blueprint:
+def default_blueprint(path: np.ndarray | None = None) -> rrb.Blueprint:
     """The "Run" tab (path, contour error, feed, following errors with the regulator's
-    terms, events), then the drive and motion tabs per axis."""
+    terms, events), then the drive and motion tabs per axis. ``path`` ((n, 2), m), the
+    programmed path, fits the path view to it."""
     run = rrb.Vertical(
         rrb.Horizontal(
-            path_view(),
+            path_view(path),
             rrb.Vertical(
                 _series("Contour error (µm)", "/errors/contour_um"),
                 _series("Feed (mm/min): programmed F, commanded, actual", "/feed/**"),

@@ -22,7 +22,7 @@ import numpy as np
 from twin.config import AXES
 from twin.controller.record import Record
 from twin.controller.regulator import TERMS
-from twin.telemetry.sink import Sink
+from twin.telemetry.sink import PROGRAMMED, Sink
 from twin.units import MM_PER_MIN
 
 __all__ = ["FEED_STYLE", "PathDistance", "TelemetryWriter", "error_colors",
@@ -176,7 +176,7 @@ class TelemetryWriter:
             col += width
         t0 = time.perf_counter()
         if self.path:
-            sink.static_path("path/programmed", programmed_polyline(self.path))
+            sink.static_path(PROGRAMMED, programmed_polyline(self.path))
             self._distance = PathDistance(self.path)
         style = getattr(sink, "style", None)
         if style is not None:

@@ -20,6 +20,7 @@ import rerun.blueprint as rrb
 
 from twin.jsonio import partial_path
 from twin.telemetry.blueprint import PATH_TRANSFORM, default_blueprint
+from twin.telemetry.sink import PROGRAMMED
 from twin.telemetry.viewer import ViewerUnavailable, start_rerun
 
 __all__ = ["APPLICATION_ID", "TIMELINE", "RerunSink"]
@@ -95,6 +96,7 @@ class RerunSink:
                 self._live = rr.RecordingStream(APPLICATION_ID, recording_id=recording_id)
                 self._live.set_sinks(rr.GrpcSink(self.url))
         self._closed = self._finished = False
+        self._layout = blueprint is True
         try:
             if self._partial is not None:
                 self._partial.parent.mkdir(parents=True, exist_ok=True)
@@ -152,10 +154,13 @@ class RerunSink:
     # -- Sink protocol ------------------------------------------------------------------
     def static_path(self, entity: str, points: np.ndarray, *,
                     color: tuple[int, int, int] = (160, 160, 160)) -> None:
-        """Log a polyline (m) that does not change with time."""
+        """Log a polyline (m) that does not change with time. The programmed path
+        (``path/programmed``) also fits the default layout's path view to itself."""
         pts = np.asarray(points, dtype=np.float64).reshape(-1, 2)
         for rec in self._streams():
             rec.log(entity, rr.LineStrips2D([pts], colors=[color]), static=True)
+            if self._layout and entity == PROGRAMMED and len(pts):
+                rec.send_blueprint(default_blueprint(pts))
 
     def scalars(self, t: np.ndarray, columns: Mapping[str, np.ndarray]) -> None:
         """Send scalar columns (float64, exact) for samples at times ``t`` (s); a value

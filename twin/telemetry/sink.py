@@ -11,7 +11,10 @@ from typing import Protocol, runtime_checkable
 
 import numpy as np
 
-__all__ = ["NullSink", "Sink"]
+__all__ = ["PROGRAMMED", "NullSink", "Sink"]
+
+PROGRAMMED = "path/programmed"
+"""The entity of the programmed path: a static polyline (m), logged by `Sink.static_path`."""
 
 
 @runtime_checkable
