@@ -57,9 +57,12 @@ For each node it keeps ``fw``, the forward envelope (the speed reachable from th
 fixed start, capped by the node limit), which never changes once computed, and the planned
 entry speed ``entry = min(fw, g(next entry, length))`` (g the monotone reach). Appending a
 block only *raises* entries (the window's end moves away), so the backward pass walks from the
-newest block and stops at the first entry that does not change: typically after one or two
-blocks. When a block leaves the window the next block's entry is committed; if that lowers
-a forward envelope the change is propagated forward until it stops mattering. A block leaves
+newest block and stops at the first entry that does not change: after a block or two at
+full speed, after the whole braking chain (a few to a few tens of blocks) on short chords at
+low speed. When a block leaves the window the next block's entry is committed; if that
+lowers a forward envelope the change is propagated forward until it stops mattering. Both
+passes run compiled, on the window's speeds kept in one array (`twin.controller.window`;
+its plain Python passes are the reference the tests hold it to, bit for bit). A block leaves
 the window when the window holds ``lookahead`` blocks, or as soon as twice the contour
 braking distance from the top feed lies behind it (its speeds can no longer change): the
 window is as long as the braking distance needs, however short the blocks, and
@@ -110,8 +113,8 @@ from twin.controller.geometry import Line, Segment
 from twin.controller.loop_defaults import default_corner_model
 from twin.controller.profiles import Limits, min_distance
 from twin.controller.profiles.laws import check_law
-from twin.controller.reach import reach_floor, reach_function
 from twin.controller.segment_limits import SegmentLimits
+from twin.controller.window import Window
 from twin.controller.workzone import WorkZone
 from twin.errors import ConfigError, PlanningError, TwinError
 
@@ -145,9 +148,8 @@ class _Block:
     length their sum, its caps their lowest (``acc``, ``jerk``: the tangential limits).
     """
 
-    __slots__ = ("acc", "blend", "entry", "feed", "floor", "fw", "index", "jerk", "k0", "k1",
-                 "length", "limits", "line", "members", "rapid", "segment", "t0x", "t0y",
-                 "t1x", "t1y", "v_nom")
+    __slots__ = ("acc", "blend", "feed", "index", "jerk", "k0", "k1", "length", "limits",
+                 "line", "members", "rapid", "segment", "t0x", "t0y", "t1x", "t1y", "v_nom")
 
 
 class Planner:
@@ -216,7 +218,7 @@ class Planner:
         self.rapid_velocity = float(rapid_velocity)
         self.tolerance = float(tolerance)
         self.law = law
-        self._reach = reach_function(law)   # monotone_end_speed for this law
+        self._window = Window                # the speed passes (PythonWindow: reference)
         self.lookahead = lookahead
         self.mode = mode
         self.corner_model: CornerModel = corner_model or SeedCornerModel()
@@ -289,6 +291,7 @@ class Planner:
             After the blocks planned before the fault (which end at rest) have been yielded.
         """
         window: deque[_Block] = deque()
+        self._speeds = self._window(self.law, self.lookahead)
         stream: Iterator[Any] = self._checked(items)
         if self.mode == "lookahead" and self.blend > 0.0:
             stream = Blender(self.blend * self.tolerance).blend(stream)
@@ -513,13 +516,12 @@ class Planner:
         self._append(window, _close(run))
 
     def _append(self, window: deque[_Block], b: _Block) -> None:
-        """Add ``b`` to the window (both passes); the blocks that leave it go to ``_out``."""
-        law = self.law
-        b.floor = reach_floor(law, b.length, b.limits)
+        """Add ``b`` to the window (both passes, `twin.controller.window`); the blocks that
+        leave it go to ``_out``."""
         self._length += b.length
         prev = window[-1] if window else None
         if prev is None or self.mode == "stop" or prev.rapid or b.rapid:
-            emax = 0.0
+            emax, linked = 0.0, False
         else:
             last = prev.members[-1] if prev.members else prev
             first = b.members[0] if b.members else b
@@ -528,22 +530,9 @@ class Planner:
                 emax = prev.v_nom
             if b.v_nom < emax:
                 emax = b.v_nom
-            reach = self._reach(prev.fw, prev.length, prev.limits, prev.floor)
-            if reach < emax:
-                emax = reach
-        b.fw = emax
-        b.entry = -1.0
+            linked = True
+        self._speeds.append(b.length, b.limits, emax, linked)
         window.append(b)
-        v = 0.0
-        reach_speed = self._reach
-        for r in reversed(window):          # backward pass, newest first
-            if r.entry == r.fw:             # at its forward cap (or committed): final
-                break
-            cand = reach_speed(v, r.length, r.limits, r.floor)
-            new = r.fw if r.fw < cand else cand
-            if new <= r.entry:
-                break
-            r.entry = v = new
         while len(window) >= self.lookahead or (
                 len(window) > 1 and self._length - window[0].length >= self._view):
             self._pop(window)
@@ -552,43 +541,23 @@ class Planner:
         """Commit the window's first block (or run); what it plans goes to ``_out``."""
         b = window.popleft()
         self._length -= b.length
-        v_end = 0.0
-        if window:
-            head = window[0]
-            v_end = head.entry
-            if head.fw > v_end:             # commit: the next block starts at v_end
-                head.fw = v_end
-                self._propagate(window)
+        entry, v_end = self._speeds.commit()
         if b.members is None:
-            self._out.append(PlannedBlock(b.segment, b.feed, b.entry, b.v_nom, v_end, self.law,
+            self._out.append(PlannedBlock(b.segment, b.feed, entry, b.v_nom, v_end, self.law,
                                           b.limits, b.line, b.index, b.blend))
             return
         # a run: one move over the members, each block its part of it (the move, and the
         # times and speeds inside it, are made when a block is used: RunMove)
-        run = RunMove(self.law, b.length, b.entry, v_end, b.v_nom, b.limits)
+        run = RunMove(self.law, b.length, entry, v_end, b.v_nom, b.limits)
         d0 = 0.0
         last = len(b.members) - 1
         out = self._out
         for k, m in enumerate(b.members):
             d1 = b.length if k == last else d0 + m.length
-            out.append(PlannedBlock(m.segment, m.feed, b.entry if k == 0 else None, b.v_nom,
+            out.append(PlannedBlock(m.segment, m.feed, entry if k == 0 else None, b.v_nom,
                                     v_end if k == last else None, self.law, b.limits, m.line,
                                     m.index, m.blend, (run, d0, d1)))
             d0 = d1
-
-    def _propagate(self, window: deque[_Block]) -> None:
-        """Forward pass after a lowered envelope at ``window[0]``; stops when nothing changes."""
-        reach_speed = self._reach
-        prev = None
-        for r in window:
-            if prev is not None:
-                cand = reach_speed(prev.fw, prev.length, prev.limits, prev.floor)
-                if cand >= r.fw:
-                    return
-                r.fw = cand
-                if r.entry > cand:
-                    r.entry = cand
-            prev = r
 
 
 READ_AHEAD = 64

@@ -81,11 +81,13 @@ def reach_floor(law: str, distance: float, limits: Limits) -> ReachFloor:
     if law == "trapezoid":
         return _NONE
     cap = limits.max_velocity
+    # the S-curve's other candidate, A²/(2J): a·a, not a ** 2, because the product is
+    # correctly rounded and CPython's pow is not always (the compiled passes,
+    # twin.controller.window, must give the same float)
+    u2 = limits.max_acceleration * limits.max_acceleration / (2.0 * limits.max_jerk)
     if 3.0 * min(_guesses(law, distance, limits.max_acceleration, limits.max_jerk)) >= cap \
             and max_end_speed(law, 0.0, distance, limits) >= cap and (
-            law != JERK_LIMITED or max_end_speed(
-                law, limits.max_acceleration ** 2 / (2.0 * limits.max_jerk), distance,
-                limits) >= cap):
+            law != JERK_LIMITED or max_end_speed(law, u2, distance, limits) >= cap):
         # f(0), every f(u_r) = 3·u_r ≥ 3·min(closed-form roots) and the S-curve's f(A²/2J)
         # all reach the cap: f is the constant cap, nothing to correct (long blocks)
         return _NONE
@@ -93,7 +95,6 @@ def reach_floor(law: str, distance: float, limits: Limits) -> ReachFloor:
     f1 = max_end_speed(law, u1, distance, limits)
     if law != JERK_LIMITED:            # the shape laws rise in their acceleration regime
         return (u1, f1, 0.0, 0.0)
-    u2 = limits.max_acceleration ** 2 / (2.0 * limits.max_jerk)
     return (u1, f1, u2, max_end_speed(law, u2, distance, limits))
 
 
