@@ -31,8 +31,8 @@ import time
 os.environ.setdefault("RERUN_ANALYTICS", "0")
 os.environ.setdefault("NUMBA_CACHE_DIR", os.path.join(os.getcwd(), ".cache", "numba"))
 
-from twin.cli_hil import fifo_priority, spawn_hil_server
-from twin.run import RunSpec, prepare, run
+from twin.cli.hil import fifo_priority, spawn_hil_server
+from twin.session.run import RunSpec, prepare, run
 
 
 def _errors(summary: dict) -> dict:

@@ -27,7 +27,7 @@ from twin.config.writer import machine_to_toml
 from twin.identify import identify
 from twin.identify.perturb import perturbed_machine
 from twin.identify.replay import axis_figures
-from twin.run import RunSpec, run
+from twin.session.run import RunSpec, run
 
 BASE = "tomsk_xy"
 

@@ -36,7 +36,7 @@ PASS_S = 37.7
 
 KEPT = """
 import resource, sys
-from twin.run import RunSpec, run
+from twin.session.run import RunSpec, run
 r = run(RunSpec(machine="tomsk_xy", program=sys.argv[1]), out_dir=sys.argv[2],
         keep_record=True)
 print(r.summary["sim_time_s"])

@@ -1,6 +1,6 @@
 """The look-ahead planner against the time-optimal bound, on CAM-like programs (issue 12).
 
-For each program of ``twin.studies.cam`` (a chorded nest of 32.6 m, lettering outlines, a
+For each program of ``twin.analysis.studies.cam`` (a chorded nest of 32.6 m, lettering outlines, a
 pocket zig-zag) on a machine (default ``laser_belt``, seed 001's laser table), and each
 acceleration law:
 
@@ -47,12 +47,12 @@ from pathlib import Path
 
 import numpy as np
 
+from twin.analysis.studies import cam
 from twin.config import load_machine
 from twin.controller.gcode import parse
 from twin.controller.geometry import Arc
 from twin.controller.planner import PlannedBlock, Planner
 from twin.controller.profiles import LAWS
-from twin.studies import cam
 
 GRID = 0.25e-3                 # m: the bound's largest grid step
 ARC_STEP = 0.05                # rad: the bound's largest grid step on arcs

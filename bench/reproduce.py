@@ -5,7 +5,7 @@
     python bench/reproduce.py --quick               # the short versions (tests use them)
 
 Full-size results are written to ``docs/results/<study>.json`` and ``docs/RESULTS.md`` is
-re-rendered from every JSON there (``twin.studies.results``). ``--quick`` writes nothing
+re-rendered from every JSON there (``twin.analysis.studies.results``). ``--quick`` writes nothing
 unless ``--out`` is given. Stdout: ``{"studies": {name: result, ...}, "quick": bool}``.
 """
 
@@ -20,9 +20,9 @@ from pathlib import Path
 os.environ.setdefault("RERUN_ANALYTICS", "0")
 os.environ.setdefault("MPLBACKEND", "Agg")
 
-from twin.jsonio import write_json_atomic
-from twin.studies import STUDIES, run_study
-from twin.studies.results import load_results, render
+from twin.analysis.studies import STUDIES, run_study
+from twin.analysis.studies.results import load_results, render
+from twin.system.jsonio import write_json_atomic
 
 ROOT = Path(__file__).resolve().parent.parent
 

@@ -29,7 +29,7 @@ os.environ.setdefault("NUMBA_CACHE_DIR", os.path.join(os.getcwd(), ".cache", "nu
 import mujoco
 import numpy as np
 
-from twin.run import RunSpec, prepare, run
+from twin.session.run import RunSpec, prepare, run
 
 
 def _full(machine: str, out: str) -> tuple[float, float, float, np.ndarray]:

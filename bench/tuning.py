@@ -52,7 +52,7 @@ def _bare_mujoco(machine: str, sim_time: float) -> float:
     """Wall seconds per simulated second of bare mj_step of the machine's model."""
     import mujoco
 
-    from twin.run import RunSpec, prepare
+    from twin.session.run import RunSpec, prepare
 
     p = prepare(RunSpec(machine=machine))
     m = p.plant.model

@@ -22,7 +22,7 @@ from envs.randomize import MachineRandomizer
 from envs.space import DIM, TuningSettings, TuningSpace, check_action
 from twin.config import MachineConfig, load_machine
 from twin.errors import ConfigError, SimulationError
-from twin.run import axis_models
+from twin.session.run import axis_models
 
 __all__ = ["GainTuningEnv", "Tuning"]
 

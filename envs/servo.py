@@ -16,7 +16,7 @@ from twin.controller.io import Outputs
 from twin.errors import ConfigError, SimulationError
 from twin.hardware.sim import SimDriver
 from twin.plant import Plant
-from twin.run import axis_models
+from twin.session.run import axis_models
 
 __all__ = ["ServoEnv"]
 

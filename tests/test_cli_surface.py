@@ -68,8 +68,8 @@ def _twin(args, cwd) -> subprocess.CompletedProcess:
 
 def test_the_choices_are_the_libraries_own():
     from tuning.jobs import METHODS
-    from twin.cli_common import LAW_NAMES, PROGRAM_NAMES
-    from twin.cli_tune import Method
+    from twin.cli.common import LAW_NAMES, PROGRAM_NAMES
+    from twin.cli.tune import Method
     from twin.controller.library import PROGRAMS
     from twin.controller.profiles.laws import LAWS
 

@@ -15,7 +15,7 @@ import numpy as np
 import pytest
 import rerun.chunk as rc
 
-from twin.compare import elastic_oscillation, junction_speed_jump, junctions, mode_periods
+from twin.analysis.compare import elastic_oscillation, junction_speed_jump, junctions, mode_periods
 from twin.config import load_machine
 
 TWIN = [sys.executable, "-m", "twin.cli"]
@@ -130,7 +130,7 @@ def test_compare_json_has_one_summary_per_law_and_the_report(compared):
 
 
 def test_the_verdict_names_the_winner_of_every_figure_and_its_margin(compared):
-    from twin.compare import FIGURES, figure_value
+    from twin.analysis.compare import FIGURES, figure_value
 
     verdict = {e["label"]: e for e in compared["verdict"]}
     assert set(verdict) == {label for label, _, _ in FIGURES}
@@ -156,7 +156,7 @@ def test_the_verdict_names_the_winner_of_every_figure_and_its_margin(compared):
 
 
 def test_verdict_ties_and_margins():
-    from twin.compare import verdict
+    from twin.analysis.compare import verdict
 
     rows = [("a", "a_s", "s"), ("b", ("b_um", "x"), "µm")]
     out = verdict({"fast": {"a_s": 1.0, "b_um": {"x": 5.0}},

@@ -11,7 +11,7 @@ import sys
 import pytest
 
 from twin.config import diff_machines, field_unit, load_machine, machine_identity
-from twin.run import RunSpec, prepare, run
+from twin.session.run import RunSpec, prepare, run
 
 TOMSK = load_machine("tomsk_xy")
 

@@ -10,9 +10,9 @@ import numpy as np
 import pytest
 
 from tests.rrd import assert_verified
-from twin.dry_run import dry_run
-from twin.run import RunSpec, run
-from twin.run_setup import shipped_program
+from twin.session.dry_run import dry_run
+from twin.session.run import RunSpec, run
+from twin.session.setup import shipped_program
 
 ENV = {**os.environ, "RERUN_ANALYTICS": "0"}
 

@@ -10,10 +10,10 @@ import sys
 import pytest
 
 from twin.config import load_machine, read_toml
+from twin.config.overrides import set_file_overrides
 from twin.controller.gcode import decode_program, parse
 from twin.errors import ConfigError, GCodeError
 from twin.hardware.register_map import load_register_map
-from twin.overrides import set_file_overrides
 
 
 def test_a_latin1_comment_is_read_and_its_place_reported():

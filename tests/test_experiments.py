@@ -11,9 +11,9 @@ import pytest
 from twin.config import load_machine
 from twin.controller.controller import Controller
 from twin.drive import velocity_gain
-from twin.experiments import run_experiment
-from twin.model import axis_mechanics
-from twin.run import model_options
+from twin.plant.model import axis_mechanics
+from twin.session.experiments import run_experiment
+from twin.session.run import model_options
 
 CFG = load_machine("tomsk_xy")
 

@@ -13,7 +13,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from twin.jsonio import json_text, write_json_atomic
+from twin.system.jsonio import json_text, write_json_atomic
 
 
 def _strict(text: str):

@@ -13,7 +13,7 @@ import sys
 import pytest
 
 from twin.errors import ConfigError
-from twin.jsonio import folder_lock, output_dir, write_text_atomic
+from twin.system.jsonio import folder_lock, output_dir, write_text_atomic
 
 
 def _twin(*args: str, limit_file_size: bool = False) -> subprocess.CompletedProcess:

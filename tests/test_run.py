@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 import rerun.chunk as rc
 
-from twin.run import RunSpec, run
+from twin.session.run import RunSpec, run
 
 
 def _rrd_scalars(path) -> dict[str, tuple[np.ndarray, np.ndarray]]:
@@ -59,7 +59,7 @@ def test_default_program_finishes_and_writes_both_records(default_run):
 def test_the_streamed_summary_is_the_whole_record_summary(default_run):
     """The summary is computed while the run goes, from the rows the telemetry sends; it is
     what the metrics give on the whole kept record."""
-    from twin.runrecord import run_summary
+    from twin.session.record import run_summary
 
     want = run_summary(default_run.record, default_run.path)
     got = default_run.summary
@@ -74,7 +74,7 @@ def test_a_run_that_does_not_keep_its_record_releases_it_and_says_the_same(
         default_run, tmp_path):
     """``twin run``'s way: the record is released as it is consumed, so memory does not
     grow with the run; the summary is the same as the kept run's."""
-    from twin.run_setup import RECORD_CHUNK
+    from twin.session.setup import RECORD_CHUNK
 
     machine = default_run.summary["machine"]
     lean = run(RunSpec(machine=machine), out_dir=tmp_path, run_id="lean", keep_record=False)
@@ -109,7 +109,7 @@ def test_rrd_matches_the_simulation_record_sample_for_sample(default_run):
 
 
 def test_the_summary_has_the_elastic_oscillation_of_the_drive_rate_deflection(default_run):
-    from twin.compare import elastic_oscillation, mode_periods
+    from twin.analysis.compare import elastic_oscillation, mode_periods
 
     fine, s = default_run.fine, default_run.summary
     batch = elastic_oscillation(fine["t"], fine["screw_deflection"],

@@ -12,8 +12,8 @@ import time
 
 import pytest
 
-from twin.run import RunSpec, run
-from twin.run_folder import LIVE_S, clean, inventory
+from twin.session.folder import LIVE_S, clean, inventory
+from twin.session.run import RunSpec, run
 
 
 def _twin(*args: str, stdin: str | None = None) -> subprocess.CompletedProcess:

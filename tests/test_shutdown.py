@@ -20,9 +20,9 @@ import rerun.chunk as rc
 
 from tests.rrd import assert_verified
 from twin.controller.controller import ControllerStatus
-from twin.jsonio import json_text
-from twin.run import RunSpec, run
-from twin.run_end import RunInterrupted, Terminated, final_status
+from twin.session.run import RunSpec, run
+from twin.session.run_end import RunInterrupted, Terminated, final_status
+from twin.system.jsonio import json_text
 from twin.telemetry.sink import NullSink
 
 # a long dwell: the run is still going when the signal comes (the twin simulates it)
@@ -90,7 +90,7 @@ def _loop_under_way(out: Path) -> bool:
 
 
 def test_a_stop_signal_before_the_loop_leaves_nothing_behind(tmp_path, monkeypatch):
-    import twin.run as run_module
+    import twin.session.run as run_module
 
     made = []
 

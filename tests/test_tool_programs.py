@@ -11,7 +11,7 @@ import rerun.chunk as rc
 
 from twin.controller.gcode import Event, ReaderOptions, parse
 from twin.errors import GCodeError
-from twin.run import RunSpec, run
+from twin.session.run import RunSpec, run
 
 PROGRAMS = Path(__file__).resolve().parents[1] / "twin" / "programs"
 TOOL = {"controller.gcode.z": "tool"}

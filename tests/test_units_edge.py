@@ -11,10 +11,10 @@ import pytest
 
 from tuning.report import read_overrides, write_overrides
 from twin.config import load_machine
+from twin.config.overrides import SHORT_KEYS, key_units, parse_sets, set_file_overrides
 from twin.config.quantities import display_unit, to_si
 from twin.config.schema import field_meta
 from twin.errors import ConfigError
-from twin.overrides import SHORT_KEYS, key_units, parse_sets, set_file_overrides
 
 TWIN = [sys.executable, "-m", "twin.cli"]
 ENV = {**os.environ, "RERUN_ANALYTICS": "0", "COLUMNS": "400"}

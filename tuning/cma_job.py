@@ -27,7 +27,7 @@ import numpy as np
 
 from tuning.evaluator import Evaluator, Trial
 from twin.errors import ConfigError
-from twin.jsonio import json_text
+from twin.system.jsonio import json_text
 
 __all__ = ["run_cma"]
 

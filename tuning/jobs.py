@@ -36,7 +36,7 @@ from tuning.report import (
 )
 from twin.config import MachineConfig, load_machine
 from twin.errors import ConfigError
-from twin.jsonio import folder_lock, output_dir, write_json_atomic, write_text_atomic
+from twin.system.jsonio import folder_lock, output_dir, write_json_atomic, write_text_atomic
 
 __all__ = ["JOBS_ROOT", "METHODS", "TuneResult", "TuneSpec", "job_folder", "tune"]
 

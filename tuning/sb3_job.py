@@ -38,7 +38,7 @@ from envs.gain_tuning import GainTuningEnv
 from tuning.evaluator import Trial, baseline_trial
 from twin.config import MachineConfig
 from twin.errors import ConfigError
-from twin.jsonio import write_json_atomic
+from twin.system.jsonio import write_json_atomic
 
 __all__ = ["ALGORITHMS", "MANIFEST", "apply_policy", "latest_checkpoint", "train"]
 

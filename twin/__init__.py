@@ -1,8 +1,13 @@
 """xy-twin: a digital twin of a two-axis CNC cross table.
 
-Packages: ``twin.drive`` (thyristor/PWM DC drives, numerics only), ``twin.plant`` (MuJoCo
-mechanics + drives), ``twin.controller`` (the CNC stack, hardware independent),
-``twin.hardware`` (drivers implementing ``MachineIO``), ``twin.telemetry`` (rerun).
+Packages (``docs/ARCHITECTURE.md`` draws who imports whom):
+``twin.config`` (machine files, overrides), ``twin.drive`` (thyristor/PWM DC drives,
+numerics only), ``twin.plant`` (MuJoCo mechanics + drives: the only MuJoCo user),
+``twin.controller`` (the CNC stack, hardware independent), ``twin.hardware`` (drivers
+implementing ``MachineIO``), ``twin.telemetry`` (rerun), ``twin.identify`` (fitting a machine
+file to a machine's I/O), ``twin.session`` (a run from request to record), ``twin.analysis``
+(comparisons and the seeds' studies), ``twin.system`` (atomic files, process groups) and
+``twin.cli`` (the ``twin`` command). ``units`` and ``errors`` are the leaves.
 
 Importing the package points numba's on-disk cache at a folder named by a hash of the
 compiled modules' sources. Numba checks only the timestamp of the file that holds a cached
@@ -19,8 +24,8 @@ from pathlib import Path
 
 __version__ = "0.1.0"
 
-_COMPILED = ("drive", "plant_loop.py", "plant.py", "controller/cyclic.py",
-             "controller/regulator.py", "controller/_spline_curve.py")
+_COMPILED = ("drive", "plant", "controller/cyclic.py", "controller/regulator.py",
+             "controller/_spline_curve.py", "controller/window.py")
 """Parts of the package that hold numba-compiled code, or constants a kernel compiles in
 (folders or files)."""
 

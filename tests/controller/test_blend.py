@@ -11,6 +11,7 @@ import os
 import numpy as np
 import pytest
 
+from twin.analysis.studies import cam
 from twin.config import load_machine
 from twin.controller.blend import BlendedBlock, Blender, blend_radius
 from twin.controller.controller import Controller
@@ -20,7 +21,6 @@ from twin.controller.interpolator import Interpolator, InterpolatorStatus
 from twin.controller.loop_defaults import default_corner_model
 from twin.controller.planner import PlannedBlock, Planner
 from twin.controller.profiles import LAWS
-from twin.studies import cam
 
 LASER = load_machine("laser_belt")
 TOMSK = load_machine("tomsk_xy")

@@ -21,7 +21,7 @@ from twin.controller.cyclic import steady_tick
 from twin.controller.geometry import Line
 from twin.controller.io import Inputs
 from twin.controller.planner import MotionBlock
-from twin.run import RunSpec, run
+from twin.session.run import RunSpec, run
 
 LAWS = ("trapezoid", "parabolic", "cosine", "cubic", "jerk-limited")
 

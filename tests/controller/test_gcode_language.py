@@ -368,7 +368,7 @@ def test_g64_q_keeps_corners_feeds_and_reversals():
 
 def test_work_offsets_from_the_machine_file_and_from_the_program():
     from twin.config import load_machine
-    from twin.run_setup import reader_options
+    from twin.session.setup import reader_options
 
     cfg = load_machine("laser_belt").with_overrides(
         {"controller.gcode.work_offsets": {"G55": [0.01, 0.02], "G59.3": [-0.005, 0.0]}})

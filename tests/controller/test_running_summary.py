@@ -139,7 +139,7 @@ def test_the_run_summary_derives_velocity_across_feeds_like_numpy(seed):
     """Behind real I/O the velocity is the derivative of the measured position; fed in
     pieces (down to one sample), it is numpy's gradient of the whole record."""
     from twin.controller.summary import summarize
-    from twin.runrecord import RunSummary
+    from twin.session.record import RunSummary
 
     rng = np.random.default_rng(seed)
     t, ref, ref_vel, act, _, path = two_moves(rng, dwell=50, rest=200)

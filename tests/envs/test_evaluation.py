@@ -19,7 +19,7 @@ from envs.space import TuningSettings, TuningSpace
 from twin.config import load_machine
 from twin.errors import ConfigError, SimulationError
 from twin.plant import Plant
-from twin.run import RunSpec, axis_models, prepare, run_summary
+from twin.session.run import RunSpec, axis_models, prepare, run_summary
 
 
 @pytest.fixture(scope="module")

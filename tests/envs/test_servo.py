@@ -18,7 +18,7 @@ from twin.controller.controller import Controller
 from twin.errors import ConfigError, SimulationError
 from twin.hardware.sim import SimDriver
 from twin.plant import Plant
-from twin.run import axis_models
+from twin.session.run import axis_models
 
 
 def _episode(env, action_fn, seed=0):

@@ -12,7 +12,7 @@ from envs.space import ALPHA_SPAN, KI_DECADES, TuningSettings, TuningSpace, chec
 from twin.config import load_machine
 from twin.controller.regulator import default_gains
 from twin.errors import ConfigError
-from twin.run import axis_models
+from twin.session.run import axis_models
 
 
 @pytest.fixture(scope="module", params=["tomsk_xy", "laser_belt"])

@@ -19,8 +19,8 @@ import pytest
 import rerun.chunk as rc
 from pymodbus.client import ModbusTcpClient
 
-from twin.cli_hil import fifo_priority, spawn_hil_server
-from twin.run import RunSpec, prepare, run
+from twin.cli.hil import fifo_priority, spawn_hil_server
+from twin.session.run import RunSpec, prepare, run
 
 UNIT = 1
 TRUTH_ONLY = {*(f"/axes/{a}/{n}" for a in "xy" for n in

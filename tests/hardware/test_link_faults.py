@@ -14,7 +14,7 @@ import sys
 import pytest
 
 from tests.hardware.link_proxy import LinkProxy
-from twin.cli_hil import spawn_hil_server
+from twin.cli.hil import spawn_hil_server
 from twin.errors import DeadlineFault
 from twin.hardware.realtime import DeadlinePolicy, RealTimeLoop
 

@@ -21,8 +21,8 @@ from twin.errors import ConfigError, DriverError
 from twin.hardware.drivers import open_driver, parse_driver_url
 from twin.hardware.modbus import ModbusDriver
 from twin.hardware.register_map import DEFAULT_MAP, volts_to_word
-from twin.jsonio import json_text
-from twin.run import RunSpec, run
+from twin.session.run import RunSpec, run
+from twin.system.jsonio import json_text
 
 
 class FakeModule:

@@ -10,7 +10,7 @@ import pytest
 from twin.config import TimingConfig, load_machine
 from twin.errors import ConfigError
 from twin.hardware.timing import SEED000_SOFTWARE_TIMER, TickSchedule
-from twin.run import RunSpec, run
+from twin.session.run import RunSpec, run
 
 # seed 000: ticks that fired in 1 s and in 10 s at periods 100, 50, 10, 5 ms
 SOFTWARE = {0.1: (9, 91), 0.05: (15, 160), 0.01: (62, 632), 0.005: (63, 635)}

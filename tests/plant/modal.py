@@ -16,7 +16,7 @@ import mujoco
 import numpy as np
 
 from twin.config import MachineConfig
-from twin.model import load_model
+from twin.plant.model import load_model
 
 __all__ = ["mid_travel", "peak_frequency", "step_response_rate"]
 

@@ -17,7 +17,7 @@ import pytest
 
 from twin.config import load_machine
 from twin.plant import FINE_FIELDS, Plant
-from twin.run import RunSpec, run
+from twin.session.run import RunSpec, run
 
 CIRCLE = """G21 G90 G17
 G1 X10 Y20 F300

@@ -55,8 +55,8 @@ _FAULTY = {"axes.*.tacho.noise": 0.002, "axes.*.tacho.ripple": [[1.0, 2.0], [8.0
 
 @pytest.mark.parametrize("machine", ["tomsk_xy", "laser_belt", "faulty"])
 def test_compiled_loop_is_bit_identical_to_the_python_loop(machine):
-    from twin import plant_loop
     from twin.config import load_machine
+    from twin.plant import loop as plant_loop
 
     assert plant_loop.available()
     cfg = load_machine("tomsk_xy").with_overrides(_FAULTY) if machine == "faulty" \

@@ -12,8 +12,8 @@ import pytest
 
 from twin.config import MACHINES_DIR, load_machine, machine_from_toml_dict
 from twin.errors import ConfigError
-from twin.model import MODEL_XML, build_spec, load_model, main
 from twin.plant import Plant
+from twin.plant.model import MODEL_XML, build_spec, load_model, main
 
 MACHINES = ["tomsk_xy", "laser_belt"]
 

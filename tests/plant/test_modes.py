@@ -1,6 +1,6 @@
 """Issue 2, test 2: the elastic modes of the MuJoCo model against the analytic two-mass model.
 
-The analytic numbers come from ``twin.model.axis_mechanics``, the function that
+The analytic numbers come from ``twin.plant.model.axis_mechanics``, the function that
 ``models/README.md`` tabulates; the measurement is the spectral peak of the screw
 deflection's second derivative after a step (see ``tests/plant/modal.py``).
 """
@@ -14,8 +14,8 @@ import pytest
 
 from tests.plant.modal import mid_travel, peak_frequency, step_response_rate
 from twin.config import load_machine
-from twin.model import MODELS_DIR, axis_mechanics
 from twin.plant import Plant
+from twin.plant.model import MODELS_DIR, axis_mechanics
 
 CASES = [(machine, axis) for machine in ("tomsk_xy", "laser_belt") for axis in ("x", "y")]
 TOLERANCE = 0.05  # the issue's bound; the measured error is below 1 % (README)

@@ -209,7 +209,7 @@ def test_tacho_ripple_rides_on_the_tacho_signal_at_its_harmonic():
 
 
 def test_the_machines_tacho_noise_reaches_a_twin_run(tmp_path):
-    from twin.run import RunSpec, run
+    from twin.session.run import RunSpec, run
 
     def tacho(noise, seed=0):
         spec = RunSpec(builtin="spline_line", overrides={"axes.*.tacho.noise": noise,

@@ -85,7 +85,7 @@ def test_quick_path_agrees_with_the_sample_rule_over_random_walks():
     an edge or a pending change is near) gives the same outputs as applying the debounce
     rule (``update``) to every period's samples, on random walks that cross every switch
     edge and both ends of travel."""
-    from twin.plant_records import AxisMonitor
+    from twin.plant.records import AxisMonitor
 
     sw = load_machine("tomsk_xy").axes["x"].switches
     rng = np.random.default_rng(7)

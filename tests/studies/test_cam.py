@@ -1,4 +1,4 @@
-"""CAM-like programs (twin.studies.cam) as the twin runs them: what they are, and the
+"""CAM-like programs (twin.analysis.studies.cam) as the twin runs them: what they are, and the
 accuracy of the look-ahead on them (issue 12)."""
 
 from __future__ import annotations
@@ -9,10 +9,10 @@ import os
 
 import pytest
 
+from twin.analysis.studies import cam
 from twin.controller.gcode import parse
 from twin.controller.gcode.items import Move
-from twin.run import RunSpec, run
-from twin.studies import cam
+from twin.session.run import RunSpec, run
 
 FULL = not os.environ.get("CI")
 FRICTIONLESS = {"axes.*.mechanics.slide_coulomb": 0.0, "axes.*.mechanics.rotor_coulomb": 0.0}

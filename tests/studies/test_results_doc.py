@@ -4,8 +4,8 @@ from __future__ import annotations
 
 from pathlib import Path
 
-from twin.studies import STUDIES
-from twin.studies.results import load_results, render
+from twin.analysis.studies import STUDIES
+from twin.analysis.studies.results import load_results, render
 
 DOCS = Path(__file__).resolve().parents[2] / "docs"
 

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import pytest
 
-from twin.studies import seed000_dcu, seed000_laws
+from twin.analysis.studies import seed000_dcu, seed000_laws
 
 
 @pytest.fixture(scope="module")

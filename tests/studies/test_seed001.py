@@ -7,10 +7,10 @@ import math
 import numpy as np
 import pytest
 
+from twin.analysis.studies import seed001_corner, seed001_laser
+from twin.analysis.studies.nest import nest
 from twin.controller.gcode import parse
 from twin.controller.planner import segment_of
-from twin.studies import seed001_corner, seed001_laser
-from twin.studies.nest import nest
 
 
 @pytest.fixture(scope="module")

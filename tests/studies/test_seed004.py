@@ -6,7 +6,7 @@ import math
 
 import pytest
 
-from twin.studies.seed004_feed import COUNTS_PER_METRE, RATE, feed_errors
+from twin.analysis.studies.seed004_feed import COUNTS_PER_METRE, RATE, feed_errors
 
 
 @pytest.mark.parametrize("feed", [10.0, 100.0, 1000.0, 5000.0])

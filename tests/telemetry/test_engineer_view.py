@@ -7,8 +7,8 @@ import pytest
 import rerun.chunk as rc
 
 from tests.test_run import _rrd_scalars
-from twin.run import RunSpec, run
-from twin.run_setup import shipped_program
+from twin.session.run import RunSpec, run
+from twin.session.setup import shipped_program
 from twin.telemetry.channels import error_colors
 from twin.units import MM_PER_MIN
 

@@ -13,10 +13,10 @@ from tuning.evaluator import Evaluator
 from tuning.jobs import TuneSpec, tune
 from tuning.report import read_overrides, write_overrides
 from twin.config import load_machine
+from twin.config.overrides import set_file_overrides
 from twin.controller.controller import Controller
 from twin.errors import ConfigError
-from twin.overrides import set_file_overrides
-from twin.run import axis_models
+from twin.session.run import axis_models
 
 CI = os.environ.get("CI") == "true"
 

@@ -102,7 +102,7 @@ def spline_line(cfg: MachineConfig, start: Sequence[float], *, length: float | N
 
 TABLE2_FEED = 0.44e-3
 """Seed 000, Table 2's straight X move at about 26 mm/min (m/s): the feed of a rig whose
-position loop lagged it by 30 µm (``twin.studies.seed000_dcu`` sizes it from the twin's own
+position loop lagged it by 30 µm (``twin.analysis.studies.seed000_dcu`` sizes it from the twin's own
 velocity gain; this is the figure for the rig's)."""
 
 

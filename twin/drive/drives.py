@@ -298,7 +298,7 @@ class Drives:
     def kernel_arrays(self) -> tuple[np.ndarray, ...]:
         """(params, state, tables, noise, log, sub_torque, scratch): the live arrays
         ``kernel.drive_step`` works on, for a caller that runs the kernel itself in a
-        compiled loop (``twin.plant_loop``). Such a caller must count the intervals it ran
+        compiled loop (``twin.plant.loop``). Such a caller must count the intervals it ran
         with :meth:`advance`."""
         return (self._params, self._state, self._tables, self._noise, self._log, self._sub,
                 self._scratch)

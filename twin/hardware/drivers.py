@@ -9,7 +9,7 @@ opens a ``ModbusDriver`` on a Modbus/TCP I/O module (or on ``twin hil-server``):
 * ``reconnects``: attempts to re-establish a lost connection before failing (default 0);
 * ``connect_timeout``: how long opening keeps trying to connect (s; default 2).
 
-The twin itself (``"sim"``) is not opened here: ``twin.run.prepare`` builds it in lock-step.
+The twin itself (``"sim"``) is not opened here: ``twin.session.run.prepare`` builds it in lock-step.
 """
 
 from __future__ import annotations

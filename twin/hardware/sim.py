@@ -29,7 +29,7 @@ class SimDriver:
     drives_off : bool
         Run the controller without driving the motors (what seed 001 calls a dry run): the
         drives stay disabled whatever the controller asks. (``twin run --dry-run`` is
-        another thing: the plan alone, ``twin.dry_run``.)
+        another thing: the plan alone, ``twin.session.dry_run``.)
     timing : TimingConfig, optional
         When the ticks really come (``[controller.timing]``): each ``write`` then advances
         the plant to the next tick of that timer instead of by exactly one period (the

@@ -22,7 +22,7 @@ from typing import Any
 
 from twin.config import AXES, MachineConfig, load_machine, machine_from_toml_dict
 from twin.errors import ConfigError, ExperimentAborted
-from twin.jsonio import output_dir, record_id, write_json_atomic, write_text_atomic
+from twin.system.jsonio import output_dir, record_id, write_json_atomic, write_text_atomic
 
 __all__ = ["identify", "open_identification_driver"]
 

@@ -33,7 +33,7 @@ from twin.errors import ConfigError, ExperimentAborted
 from twin.hardware.realtime import RealTimeLoop
 from twin.identify.log import COLUMNS, IdentLog, io_signature
 from twin.identify.plan import Piece, excursion, phases
-from twin.run import axis_models, measured_position, model_options
+from twin.session.run import axis_models, measured_position, model_options
 
 __all__ = ["HOLD", "MARGIN", "run_plan"]
 

@@ -21,7 +21,7 @@ import numpy as np
 from twin.config import AXES, MachineConfig
 from twin.errors import ConfigError
 from twin.identify.plan import EXPERIMENTS, Piece
-from twin.jsonio import write_json_atomic
+from twin.system.jsonio import write_json_atomic
 
 __all__ = ["COLUMNS", "FORMAT", "IdentLog", "io_signature"]
 

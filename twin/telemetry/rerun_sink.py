@@ -18,7 +18,7 @@ import numpy as np
 import rerun as rr
 import rerun.blueprint as rrb
 
-from twin.jsonio import partial_path
+from twin.system.jsonio import partial_path
 from twin.telemetry.blueprint import PATH_TRANSFORM, default_blueprint
 from twin.telemetry.sink import PROGRAMMED
 from twin.telemetry.viewer import ViewerUnavailable, start_rerun

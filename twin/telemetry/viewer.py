@@ -2,7 +2,7 @@
 (``start_rerun``), a viewer for a recording (``open_recording``, ``twin view``).
 
 Every one is bound to loopback, runs in a process group of its own and is stopped with the
-whole group (``twin.processes.stop_process``): the ``rerun`` entry point runs the real
+whole group (``twin.system.processes.stop_process``): the ``rerun`` entry point runs the real
 server as its child, which would otherwise outlive it, still listening. A port something
 already listens on is refused, never streamed into.
 """
@@ -20,7 +20,7 @@ from pathlib import Path
 from urllib.parse import quote
 
 from twin.errors import ViewerError
-from twin.processes import stop_process
+from twin.system.processes import stop_process
 
 __all__ = ["ViewerUnavailable", "has_display", "listening", "open_recording", "running_rerun",
            "start_rerun", "stop_rerun", "web_viewer_url"]
@@ -115,7 +115,7 @@ def open_recording(recording: str | Path, *, web: bool = False, web_port: int = 
                    timeout: float = 20.0) -> int:
     """Show a recording in the native viewer, or (``web``) serve it to the web viewer, until
     the viewer closes or a KeyboardInterrupt arrives (the caller raises one for SIGTERM and
-    SIGHUP too: ``twin.run_end.stop_signals``); then stop the viewer's whole process group.
+    SIGHUP too: ``twin.session.run_end.stop_signals``); then stop the viewer's whole process group.
     Every listener binds ``host``; ports already in use are refused. Returns the viewer's
     exit code (0 after a stop signal).
 

@@ -1,0 +1,89 @@
+"""What every reproduction study shares: running a program built in memory on the twin
+(optionally keeping the twin's drive-rate samples), and the small numeric helpers of
+the reports.
+
+A study builds its program as planner items (``MotionBlock``s of lines and splines) from the
+table's start position, so ``run_items`` wires a run the way ``twin.session.run.prepare`` does and
+swaps in a controller for those items: the same plant, driver, controller and metrics as
+``twin run``, nothing re-implemented.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+import tempfile
+from collections.abc import Callable, Sequence
+from typing import Any
+
+import numpy as np
+
+from twin.config import MachineConfig
+from twin.controller.controller import Controller
+from twin.controller.library import program_path
+from twin.session.run import RunResult, RunSpec, model_options, prepare, run
+
+__all__ = ["ProgramBuilder", "fit_line", "percent", "run_items"]
+
+ProgramBuilder = Callable[[MachineConfig, np.ndarray], list[Any]]
+"""``build(cfg, start) -> items``: a program (planner items) from the table position (m)."""
+
+
+def run_items(spec: RunSpec, build: ProgramBuilder, *, keep_fine: bool = False,
+              out_dir: str | None = None, **controller_options: Any) -> RunResult:
+    """Run an in-memory program on the twin through the full controller.
+
+    Parameters
+    ----------
+    spec : RunSpec
+        Machine, law, planner, DCU order and overrides (its program fields are ignored).
+    build : callable(cfg, start) -> list
+        The program, from the machine configuration and the table's start position (m).
+    keep_fine : bool
+        Keep the twin's drive-rate samples in ``RunResult.fine``.
+    out_dir : str, optional
+        Where ``run`` writes its summary JSON; default a temporary directory.
+    **controller_options
+        Passed to ``Controller.from_machine`` (e.g. ``corner_model``); the axis models and
+        axes default to the controller's model of the machine (``spec.controller_model``,
+        or the machine itself: ``twin.session.run.model_options``).
+
+    Returns
+    -------
+    RunResult
+    """
+    spec = dataclasses.replace(spec, program=None, builtin="none")
+    p = prepare(spec)
+    start = p.plant.truth().table_position
+    items = build(p.cfg, start)
+    for key, value in model_options(p.belief or p.cfg).items():
+        controller_options.setdefault(key, value)
+    controller = Controller.from_machine(p.cfg, items, mode=spec.mode, start=start,
+                                         **controller_options)
+    p = dataclasses.replace(p, items=items, path=program_path(items), controller=controller)
+    with tempfile.TemporaryDirectory(prefix="xy-twin-study-") as tmp:
+        return run(spec, out_dir=out_dir or tmp, rerun="none", prepared=p,
+                   keep_fine=keep_fine)
+
+
+def percent(value: float, reference: float) -> float:
+    """``100·value/reference`` (%); NaN when the reference is 0."""
+    return 100.0 * value / reference if reference else math.nan
+
+
+def fit_line(x: Sequence[float], y: Sequence[float]) -> dict[str, float]:
+    """Least-squares line ``y = slope·x + intercept`` and its coefficient of determination.
+
+    Returns
+    -------
+    dict
+        ``slope``, ``intercept``, ``r2`` (1 for a perfect fit) and ``intercept_share``:
+        ``|intercept| / max|y|`` (how far the line is from proportional).
+    """
+    xs, ys = np.asarray(x, dtype=float), np.asarray(y, dtype=float)
+    slope, intercept = np.polyfit(xs, ys, 1)
+    resid = ys - (slope * xs + intercept)
+    total = float(np.sum((ys - ys.mean()) ** 2))
+    r2 = 1.0 - float(np.sum(resid**2)) / total if total > 0 else 1.0
+    return {"slope": float(slope), "intercept": float(intercept), "r2": r2,
+            "intercept_share": abs(float(intercept)) / float(np.max(np.abs(ys)))}

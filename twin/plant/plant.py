@@ -1,0 +1,444 @@
+"""The physical twin: the MuJoCo cross table driven by the two axis drives.
+
+:class:`Plant` advances the drives (``twin.drive``) and the mechanics (``twin.plant.model``) in
+lock-step: every drive update interval ``dt_drive = simulation.timestep ·
+simulation.drive_substeps`` the drives turn the quantised speed references and the rotor
+speeds into an interval-average motor torque, which MuJoCo then applies to the rotor hinges
+(``qfrc_applied``) for ``drive_substeps`` physics steps. :meth:`Plant.read` gives what real
+I/O hardware gives (encoder counters, tacho voltages, debounced switches);
+:meth:`Plant.truth` what only a twin knows.
+
+Typical use::
+
+    plant = Plant.from_machine("tomsk_xy")
+    plant.reset()                                   # keyframe "home", drives enabled
+    status = plant.step(np.array([1.0, 0.0]), 5e-3)  # 1 V on X for one 5 ms period
+    counts = plant.read().encoder_counts
+
+Sensors and switches
+    Encoders sit on the motor shafts: ``counts = floor(θ·cpr/2π) + offset`` wrapped to the
+    counter width (``encoder.bits``); at reset the offset is 0 (counts are then the table
+    position in counts while the screw is relaxed) or set so the counter reads a preset.
+    The switches are sampled at the end of every drive interval and debounced over
+    ``switches.debounce``: a raw change must persist that long before the output follows.
+    ``limit_min`` is closed for x ≤ limit_min, ``limit_max`` for x ≥ limit_max and ``home``
+    for |x − home| ≤ home_width/2.
+"""
+
+from __future__ import annotations
+
+import math
+from pathlib import Path
+from typing import Any
+
+import mujoco
+import numpy as np
+
+from twin.config import AXES, MachineConfig
+from twin.drive import Drives
+from twin.errors import ConfigError, SimulationError
+from twin.plant import loop as plant_loop
+from twin.plant.model import load_model, passive_parameters, resolve_machine
+from twin.plant.records import (
+    FINE_FIELDS,
+    FINE_WIDTH,
+    FLAGS,
+    TRUTH_FIELDS,
+    AxisMonitor,
+    Reading,
+    StepStatus,
+    Truth,
+)
+
+__all__ = ["FINE_FIELDS", "FINE_WIDTH", "TRUTH_FIELDS", "Plant", "Reading", "StepStatus",
+           "Truth"]
+
+_BAD_STATE = ("mjWARN_BADQPOS", "mjWARN_BADQVEL", "mjWARN_BADQACC")
+FINE_RING = 1 << 16
+"""Rows of the plant's ring buffer of drive-rate samples (65 s of tomsk_xy, 16 s of
+laser_belt; 5.8 MB)."""
+_WARNING_NAMES = tuple(mujoco.mjtWarning(i).name for i in range(mujoco.mjtWarning.mjNWARNING))
+
+
+class Plant:
+    """The cross table with its drives (see the module docstring).
+
+    Parameters
+    ----------
+    config : MachineConfig
+        The machine.
+    noise : bool
+        Sensor noise as the machine file gives it (``encoder.noise_counts``,
+        ``tacho.noise``); on by default, seeded, so a run is still reproducible. False
+        silences it (the presets have none).
+    seed : int, optional
+        Seed of the noise generator; default ``simulation.seed``.
+
+    Attributes
+    ----------
+    config : MachineConfig
+    model : mujoco.MjModel
+    data : mujoco.MjData
+    drives : twin.drive.Drives
+    drive_dt : float
+        Drive update interval (s): ``simulation.timestep · simulation.drive_substeps``;
+        :meth:`step` durations are multiples of it.
+    """
+
+    def __init__(self, config: MachineConfig, *, noise: bool = True, seed: int | None = None):
+        self.config = config
+        self.noise = bool(noise)
+        self._rng = np.random.default_rng(config.simulation.seed if seed is None else seed)
+        if not self.noise:  # the drives model the tacho noise: silence it at the source
+            config = config.with_overrides({"axes.*.tacho.noise": 0.0})
+        self.model = load_model(config)
+        self.data = mujoco.MjData(self.model)
+        self.drive_dt = config.simulation.timestep * config.simulation.drive_substeps
+        self.drives = Drives.from_machine(config, dt=self.drive_dt, rng=self._rng)
+        self._substeps = config.simulation.drive_substeps
+        self._key_ids = {self.model.key(i).name: i for i in range(self.model.nkey)}
+
+        m, d = self.model, self.data
+        table = _pair_slices(m, AXES)
+        rotor = _pair_slices(m, [f"{a}_rotor" for a in AXES])
+        self._table_pos, self._table_vel = d.qpos[table[0]], d.qvel[table[1]]
+        self._rotor_pos, self._rotor_vel = d.qpos[rotor[0]], d.qvel[rotor[1]]
+        self._torque = d.qfrc_applied[rotor[1]]
+        self._slide_force = d.qfrc_applied[table[1]]
+        self._warning_count = d.warning.number  # a live view of the counters
+
+        axes = [config.axes[a] for a in AXES]
+        self._ratio = np.array([ax.transmission.ratio for ax in axes])
+        self._dac = np.array([(2.0 * ax.dac.full_scale / 2**ax.dac.bits,
+                               -(2 ** (ax.dac.bits - 1)), 2 ** (ax.dac.bits - 1) - 1,
+                               1.0 + ax.dac.gain_error, ax.dac.offset)
+                              for ax in axes])  # (LSB (V), code range, gain, offset (V))
+        self._counts_per_rad = np.array([ax.encoder.counts_per_rev / (2.0 * math.pi)
+                                         for ax in axes])
+        # two's complement masks: -1 & (2³² − 1) = 2³² − 1; a 64-bit counter stays signed
+        self._counter_mask = np.array([(1 << ax.encoder.bits) - 1 if ax.encoder.bits < 64
+                                       else -1 for ax in axes], dtype=np.int64)
+        self._encoder_noise = np.array([ax.encoder.noise_counts for ax in axes])
+        self._noisy_counts = bool(self.noise and self._encoder_noise.any())
+        """The counters are read with noise (the tacho's is drawn by the drives)."""
+        self._travel = [ax.mechanics.travel for ax in axes]
+        self._monitors = [AxisMonitor(ax.switches, ax.mechanics.travel) for ax in axes]
+        self._intervals: dict[float, int] = {}
+        self._samples = np.empty((0, FINE_WIDTH))
+        self._fine = self._samples
+        self._ring = np.full((FINE_RING, FINE_WIDTH), np.nan)
+        self._ring_n = 0      # rows ever written to the ring
+        self._ring_read = 0   # rows drained
+        self._passive = passive_parameters(config)
+        self._has_passive = bool(np.any(self._passive))
+        self._drive_torque = np.zeros(2)  # the drives' interval-average torque
+        self._noise_block = np.zeros((1, *self.drives.kernel_arrays()[3].shape))
+        self._encoder_offset = np.zeros(2, dtype=np.int64)
+        self._cpr = self._counts_per_rad.tolist()          # scalar copies for read_into
+        self._mask = self._counter_mask.tolist()
+        self._offset = [0, 0]
+        self._ratio_f = self._ratio.tolist()
+        self._out = np.zeros(plant_loop.NREADOUT)
+        self._ro: list[float] = [0.0] * plant_loop.NREADOUT
+        """The drive state this period's readers need (``plant_loop.readout``), as floats."""
+        self._compiled = plant_loop.available()
+        """Run drive intervals in the compiled loop (``twin.plant.loop``)."""
+        if self._compiled:
+            self._addresses = plant_loop.addresses(self.model, self.data)
+        self._extent = np.zeros(4)  # lowest and highest table sample of each axis in a step
+        self._u = np.zeros(2)
+        self.reset()
+        if self._compiled:
+            self._warm_up()
+
+    def _warm_up(self) -> None:
+        """Compile the drive loop now, not in a run's first period: it calls MuJoCo through
+        a C pointer, so numba cannot cache it, and compiling takes 0.6 s (seconds on a
+        loaded machine): a paced loop would miss its deadlines, and a stop signal would
+        land inside LLVM. The call is the real one with no interval (``n = 0``), so the
+        types match and nothing moves; it only quantises a zero request into ``u``, which
+        every step writes anew."""
+        params, state, tables, _, log, sub, scratch = self.drives.kernel_arrays()
+        plant_loop.step_intervals(
+            *self._addresses, 0, self._substeps, params, state, tables, np.zeros(2), self._dac,
+            self._u, self._noise_block, log, self.drives.n_step, self.drives.dt,
+            self.drives.enabled, self._passive, self._has_passive, self._drive_torque, sub,
+            scratch, self._torque, self._slide_force, self._table_pos, self._table_vel,
+            self._rotor_pos, self._rotor_vel, self._ratio, self._samples[:0], self._extent,
+            self._ring, self._ring_n, self._out)
+        self._u[:] = 0.0
+
+    @classmethod
+    def from_machine(cls, machine: str | Path | MachineConfig, *, noise: bool = True,
+                     seed: int | None = None) -> Plant:
+        """A plant of a preset name, a machine TOML path or a config."""
+        return cls(resolve_machine(machine), noise=noise, seed=seed)
+
+    # ------------------------------------------------------------------ control
+    @property
+    def time(self) -> float:
+        """Plant time (s)."""
+        return float(self.data.time)
+
+    def reset(self, keyframe: str = "home", *, positions: np.ndarray | None = None,
+              encoder_preset: np.ndarray | None = None, seed: int | None = None) -> None:
+        """Back to rest at time 0: mechanics at a keyframe, drives reset and enabled.
+
+        Parameters
+        ----------
+        keyframe : str
+            Model keyframe ("home": tables at the home switches, screws relaxed).
+        positions : ndarray, shape (2,), optional
+            Table positions instead (m), within the travel; rotors at positions/r.
+        encoder_preset : ndarray, shape (2,), optional
+            Counter values to preload (counts); default: offset 0.
+        seed : int, optional
+            Reseed the noise generator (default: keep its stream).
+
+        Raises
+        ------
+        ValueError
+            Unknown keyframe, or positions of the wrong shape or outside the travel.
+        """
+        m, d = self.model, self.data
+        if keyframe not in self._key_ids:
+            raise ValueError(f"keyframe must be one of {sorted(self._key_ids)}, got {keyframe!r}")
+        mujoco.mj_resetDataKeyframe(m, d, self._key_ids[keyframe])
+        if positions is not None:
+            x = np.asarray(positions, dtype=float)
+            if x.shape != (2,) or not all(lo <= xi <= hi for xi, (lo, hi)
+                                          in zip(x.tolist(), self._travel, strict=True)):
+                travel = ", ".join(f"{a} {lo * 1e3:g} … {hi * 1e3:g} mm" for a, (lo, hi)
+                                   in zip("XY", self._travel, strict=True))
+                got = ", ".join(f"{v * 1e3:g}" for v in x.ravel().tolist())
+                raise ConfigError("start", f"must be 2 positions within the travel ({travel}), "
+                                  f"got {got} mm")
+            self._table_pos[:] = x
+            self._rotor_pos[:] = x / self._ratio
+            d.qvel[:] = 0.0
+        mujoco.mj_forward(m, d)
+        if seed is not None:
+            self._rng.bit_generator.state = np.random.default_rng(seed).bit_generator.state
+        self.drives.reset()
+        plant_loop.readout(self.drives.kernel_arrays()[1], self._out)
+        self._ro = self._out.tolist()
+        self._encoder_offset[:] = 0
+        self._ring_read = self._ring_n  # samples from before the reset are not drained
+        if encoder_preset is not None:
+            self._encoder_offset[:] = np.asarray(encoder_preset, np.int64) - self._raw_counts()
+        self._offset = self._encoder_offset.tolist()
+        self._warnings_seen = self._warning_count.tobytes()
+        for sw, x in zip(self._monitors, self._table_pos.tolist(), strict=True):
+            sw.settle(x)
+
+    def enable(self, flag: bool) -> None:
+        """Drive enable; ``False`` blocks both converters (and acknowledges a fault)."""
+        self.drives.enable(flag)
+
+    def step(self, dac_volts: np.ndarray, duration: float) -> StepStatus:
+        """Apply DAC voltages for ``duration`` and advance drives and mechanics.
+
+        Parameters
+        ----------
+        dac_volts : ndarray, shape (2,)
+            Requested speed references (V); quantised to the DAC's codes and clipped to its
+            range (flagged in the status).
+        duration : float
+            Time to advance (s): a positive multiple of :attr:`drive_dt`.
+
+        Returns
+        -------
+        StepStatus
+
+        Raises
+        ------
+        SimulationError
+            If ``dac_volts`` is not finite, or the state diverges (not finite).
+        ValueError
+            If the shapes or ``duration`` are wrong.
+        """
+        dac_in = dac_volts if type(dac_volts) is np.ndarray and dac_volts.dtype == np.float64 \
+            else np.asarray(dac_volts, dtype=np.float64)
+        if dac_in.shape != (2,):
+            raise ValueError(f"dac_volts must have 2 entries, got shape {dac_in.shape}")
+        n = self._intervals.get(duration) or self._count_intervals(duration)
+        if len(self._samples) < n:
+            self._samples = np.empty((n, FINE_WIDTH))
+        samples = self._samples[:n]
+        m, d, k, u, x = self.model, self.data, self._substeps, self._u, self._table_pos
+        omega, theta, drives, extent = self._rotor_vel, self._rotor_pos, self.drives, self._extent
+        t0 = d.time
+        params, state, tables, noise, log, sub, scratch = drives.kernel_arrays()
+        if self._compiled:
+            block = self._noise_block
+            if drives.noisy:
+                block = self._rng.standard_normal((n, *noise.shape))
+            done, status, clip = plant_loop.step_intervals(
+                *self._addresses, n, k, params, state, tables, dac_in, self._dac, u, block,
+                log, drives.n_step, drives.dt, drives.enabled, self._passive,
+                self._has_passive, self._drive_torque, sub, scratch, self._torque,
+                self._slide_force, x, self._table_vel, theta, omega, self._ratio, samples,
+                extent, self._ring, self._ring_n, self._out)
+            if clip < 0:
+                self._not_finite(dac_in)
+            drives.advance(done)
+            self._ring_n += done
+            if status:
+                drives.step(u, omega, theta)  # the checked path raises the named error
+        else:
+            clip = plant_loop.quantise(dac_in, self._dac, u)
+            if clip < 0:
+                self._not_finite(dac_in)
+            mj_step = mujoco.mj_step
+            for i in range(n):
+                drives.step_into(u, omega, self._drive_torque, theta)
+                for s in range(k):
+                    plant_loop.apply_forces(self._passive, self._has_passive, sub, s,
+                                            self._torque, self._slide_force, x,
+                                            self._table_vel, theta, omega)
+                    mj_step(m, d)
+                plant_loop.record_interval(i, drives.time, state, x, theta, self._ratio,
+                                           samples, extent, self._ring, self._ring_n)
+            self._ring_n += n
+            plant_loop.readout(state, self._out)
+        saturated = FLAGS[2 * (clip & 1) + (clip >> 1 & 1)]  # x then y
+        self._ro = ro = self._out.tolist()
+        self._fine = samples
+        warnings = () if self._warning_count.tobytes() == self._warnings_seen \
+            else self._new_warnings()
+        lo_x, hi_x, lo_y, hi_y = extent.tolist()
+        if not math.isfinite(lo_x + hi_x + lo_y + hi_y) or any(w in _BAD_STATE
+                                                              for w in warnings):
+            raise SimulationError(f"the plant state diverged by t = {d.time:.6f} s: "
+                                  f"{self._diverged(extent)} (MuJoCo warnings: "
+                                  f"{', '.join(warnings) or 'none'})")
+        fault_x, fault_y = ro[2] != 0.0, ro[3] != 0.0
+        mon_x, mon_y = self._monitors
+        hit_x, end_x = mon_x.quick(lo_x, hi_x) or mon_x.update(samples[:, 0].tolist(), t0,
+                                                               self.drive_dt)
+        hit_y, end_y = mon_y.quick(lo_y, hi_y) or mon_y.update(samples[:, 1].tolist(), t0,
+                                                               self.drive_dt)
+        return StepStatus(saturated, FLAGS[2 * hit_x + hit_y], FLAGS[2 * end_x + end_y],
+                          FLAGS[2 * fault_x + fault_y], warnings, d.time)
+
+    def _diverged(self, extent: np.ndarray) -> str:
+        """Which axis and which quantity left the finite numbers first (for the message)."""
+        m, d = self.model, self.data
+        for ax, (lo, hi) in zip(AXES, extent.reshape(2, 2).tolist(), strict=True):
+            if not math.isfinite(lo + hi):
+                return f"axis {ax}: the table position is not finite"
+        for j in range(m.njnt):
+            name = m.joint(j).name
+            q, v = d.qpos[m.jnt_qposadr[j]], d.qvel[m.jnt_dofadr[j]]
+            for what, value in (("position", q), ("velocity", v)):
+                if not math.isfinite(value) or abs(value) > 1e9:
+                    axis = name.split("_", 1)[0]
+                    return f"axis {axis}: the {what} of joint {name} is {value:g}"
+        return "a MuJoCo state warning (no state is yet non-finite)"
+
+    # ------------------------------------------------------------------ sensing
+    def read_into(self, inputs: Any) -> None:
+        """Write the I/O sample into ``inputs`` in place (any object with the
+        :class:`Reading` attributes as arrays, e.g. ``controller.io.Inputs``): the cheap path
+        of :meth:`read` for a driver's every period (same values, scalar arithmetic)."""
+        if self._noisy_counts:
+            inputs.encoder_counts[:] = self.read().encoder_counts
+        else:
+            theta = self._rotor_pos.tolist()
+            for k in (0, 1):
+                c = math.floor(theta[k] * self._cpr[k]) + self._offset[k]
+                inputs.encoder_counts[k] = c & self._mask[k]
+        ro = self._ro
+        tacho = inputs.tacho_volts
+        tacho[0], tacho[1] = ro[0], ro[1]
+        for k, mon in enumerate(self._monitors):
+            inputs.limit_min[k], inputs.limit_max[k], inputs.home[k] = mon.state
+        inputs.drive_ready = ro[2] == 0.0 and ro[3] == 0.0
+        inputs.time = self.data.time
+
+    def read(self) -> Reading:
+        """Sample the I/O: encoder counters, tacho voltages, switches (see :class:`Reading`)."""
+        counts = self._raw_counts() + self._encoder_offset
+        if self.noise and self._encoder_noise.any():
+            counts += np.rint(self._rng.standard_normal(2) * self._encoder_noise).astype(np.int64)
+        states = np.array([mon.state for mon in self._monitors])  # (axis, channel)
+        return Reading(encoder_counts=np.bitwise_and(counts, self._counter_mask),
+                       tacho_volts=self.drives.tacho_volts, limit_min=states[:, 0],
+                       limit_max=states[:, 1], home=states[:, 2],
+                       drive_ready=not self.drives.fault.any(), time=self.time)
+
+    @property
+    def fine(self) -> np.ndarray:
+        """The last :meth:`step`'s drive-rate samples, shape (intervals, ``FINE_WIDTH``),
+        columns ``FINE_FIELDS`` (x then y each), one row at the end of every drive interval:
+        what a scope on the drive would show (the converter's pulses, discontinuous
+        current, the screw's elastic oscillation). A view, valid until the next step."""
+        return self._fine
+
+    def drain_fine(self) -> np.ndarray:
+        """The drive-rate samples (rows of ``FINE_FIELDS``) written since the last drain, in
+        order: at most the ring's ``FINE_RING`` rows (older ones are overwritten if nobody
+        drains; the run loop drains every few dozen periods)."""
+        n = self._ring_n - self._ring_read
+        cap = len(self._ring)
+        n = min(n, cap)
+        start = (self._ring_n - n) % cap
+        self._ring_read = self._ring_n
+        if start + n <= cap:
+            return self._ring[start:start + n].copy()
+        return np.concatenate((self._ring[start:], self._ring[:start + n - cap]))
+
+    def truth_row(self) -> tuple[float, ...]:
+        """The ``TRUTH_FIELDS`` of now as one flat row of floats (cheap: for per-tick
+        recording)."""
+        x, v, th = self._table_pos.tolist(), self._table_vel.tolist(), self._rotor_pos.tolist()
+        r, ro = self._ratio_f, self._ro
+        return (x[0], x[1], v[0], v[1], r[0] * th[0] - x[0], r[1] * th[1] - x[1],
+                ro[4], ro[5], ro[6], ro[7])
+
+    def truth(self) -> Truth:
+        """The full state of the twin (see :class:`Truth`)."""
+        dr = self.drives
+        return Truth(table_position=self._table_pos.copy(),
+                     table_velocity=self._table_vel.copy(),
+                     rotor_angle=self._rotor_pos.copy(), rotor_speed=self._rotor_vel.copy(),
+                     screw_deflection=self._ratio * self._rotor_pos - self._table_pos,
+                     armature_current=dr.current, converter_voltage=dr.output_voltage,
+                     firing_angle=dr.firing_angle, bridge=dr.bridge,
+                     speed_reference=dr.speed_reference, time=self.time)
+
+    # ------------------------------------------------------------------ internals
+    def _not_finite(self, dac_volts: np.ndarray) -> None:
+        """Raise the ``SimulationError`` that names the axis whose request is not finite."""
+        for a in (0, 1):
+            v = float(dac_volts[a])
+            if not math.isfinite(v):
+                raise SimulationError(f"dac_volts[{a}] ({AXES[a]}) must be finite, got {v} at "
+                                      f"t = {self.time:.6f} s")
+
+    def _count_intervals(self, duration: float) -> int:
+        """Drive intervals in ``duration`` (cached), which must be a positive multiple."""
+        n = round(duration / self.drive_dt) if math.isfinite(duration) else 0
+        if n < 1 or abs(n * self.drive_dt - duration) > 1e-9 * self.drive_dt:
+            raise ValueError(f"duration must be a positive multiple of the drive interval "
+                             f"{self.drive_dt} s, got {duration!r}")
+        self._intervals[duration] = n
+        return n
+
+    def _raw_counts(self) -> np.ndarray:
+        return np.floor(self._rotor_pos * self._counts_per_rad).astype(np.int64)
+
+    def _new_warnings(self) -> tuple[str, ...]:
+        """Names of the MuJoCo warnings whose counters moved since the last call."""
+        before = np.frombuffer(self._warnings_seen, dtype=self._warning_count.dtype)
+        self._warnings_seen = self._warning_count.tobytes()
+        return tuple(_WARNING_NAMES[i] for i in np.flatnonzero(self._warning_count != before))
+
+
+def _pair_slices(m: mujoco.MjModel, joints: list[str] | tuple[str, ...]) -> tuple[slice, slice]:
+    """qpos and dof slices of two adjacent one-dof joints (zero-copy views of the data)."""
+    qadr = [int(m.joint(j).qposadr[0]) for j in joints]
+    dadr = [int(m.joint(j).dofadr[0]) for j in joints]
+    if qadr[1] != qadr[0] + 1 or dadr[1] != dadr[0] + 1:
+        raise SimulationError(f"joints {joints} must be adjacent in the model")
+    return slice(qadr[0], qadr[0] + 2), slice(dadr[0], dadr[0] + 2)

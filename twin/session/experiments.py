@@ -1,0 +1,272 @@
+"""Typical experiments (seed 000's rig had a mode for them): a step or a ramp applied to the
+position loop of one axis, or with ``open_loop`` straight to the drive's speed reference,
+and the figures of the response: rise time, overshoot, settling time, steady-state error, and
+the elastic mode seen in the screw deflection.
+
+The closed-loop experiment uses the controller's own encoder unwrapper and position regulator
+(with the machine's gains and DCU order, derived from the controller's model of the machine)
+against the twin, with the controller's timing: the output computed from the sample of
+tick k reaches the drive at tick k + 1 (compute ahead, the one-period delay the gains and the
+DCU are derived for). So it shows the loop the controller really closes — but with a raw
+step or ramp as the reference, which the planner would never produce. Each record row holds
+what the regulator compared at its tick: the reference and the encoder position of the same
+sample. The screw deflection is sampled every drive interval (not every controller period),
+so elastic modes above the controller's Nyquist rate still show.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import asdict, dataclass
+
+import numpy as np
+
+from twin.config import AXES, MachineConfig
+from twin.controller.controller import Controller
+from twin.controller.encoder import EncoderUnwrapper
+from twin.controller.regulator import PositionRegulator
+from twin.errors import ConfigError
+from twin.plant import FINE_FIELDS, Plant
+from twin.session.run import model_options
+from twin.telemetry.sink import NullSink, Sink
+
+__all__ = ["ExperimentResult", "converter_lines", "dominant_frequency", "response_figures",
+           "run_experiment"]
+
+FINE_FIELDS_INDEX = tuple((name, k) for k, (name, _) in enumerate(FINE_FIELDS))
+"""(field, index of its x column / 2) of the plant's drive-rate samples."""
+
+
+@dataclass(frozen=True)
+class ExperimentResult:
+    """Figures of a step or ramp response (SI; ``to_report`` gives µm, ms, Hz).
+
+    Attributes
+    ----------
+    kind, axis : str
+        "step" or "ramp"; "x" or "y".
+    open_loop : bool
+        True: applied to the drive reference (response = table speed); False: to the
+        position loop (response = table position).
+    amplitude : float
+        Step height (m, or V open-loop) or ramp rate (m/s, or V/s open-loop).
+    final_value : float
+        Mean response over the last 10 % of the record (m or m/s).
+    rise_time : float
+        10 % → 90 % of the final value (s); NaN for a ramp.
+    overshoot : float
+        Peak beyond the final value over the final value's magnitude (1).
+    settling_time : float
+        Last time outside ±2 % of the final value (s).
+    steady_state_error : float
+        Reference minus response at the end (m or m/s; for a closed-loop ramp the
+        following error).
+    elastic_mode : float
+        Dominant frequency of the screw deflection after the input (Hz).
+    """
+
+    kind: str
+    axis: str
+    open_loop: bool
+    amplitude: float
+    final_value: float
+    rise_time: float
+    overshoot: float
+    settling_time: float
+    steady_state_error: float
+    elastic_mode: float
+
+    def to_report(self) -> dict:
+        """JSON-ready figures in engineering units."""
+        unit = 1e6  # m → µm, m/s → µm/s
+        return {**asdict(self), "final_value": self.final_value * unit,
+                "steady_state_error": self.steady_state_error * unit,
+                "rise_time_ms": self.rise_time * 1e3, "settling_time_ms":
+                self.settling_time * 1e3, "overshoot_percent": self.overshoot * 100.0,
+                "elastic_mode_hz": self.elastic_mode, "units": "µm or µm/s"}
+
+
+def dominant_frequency(t: np.ndarray, signal: np.ndarray, *, f_min: float = 8.0,
+                       exclude: tuple[float, ...] = (), width: float = 5.0) -> float:
+    """Frequency (Hz) of the largest spectral peak above ``f_min`` of a uniformly sampled
+    signal's derivative (detrended), refined by parabolic interpolation of the
+    log-magnitude.
+
+    ``f_min`` keeps the slow position-loop response (a few Hz) out of the search; both
+    presets' first elastic modes (16 Hz belt, 90-160 Hz screws) lie well above it. Lines of
+    a known forced excitation are left out within ``width`` (Hz) of each frequency in
+    ``exclude``: a thyristor converter's torque pulses at p·f_mains and its harmonics drive
+    the screw harder than the ringing of its mode, but they are not the mode."""
+    dt = float(t[1] - t[0])
+    x = np.diff(signal) / dt     # weights the spectrum by f: the slow loop response fades
+    x = x - np.polyval(np.polyfit(t[1:], x, 1), t[1:])
+    x = x * np.hanning(len(x))
+    n = 1 << (math.ceil(math.log2(len(x))) + 2)
+    spec = np.abs(np.fft.rfft(x, n))
+    freqs = np.fft.rfftfreq(n, dt)
+    band = freqs >= f_min
+    for f in exclude:
+        band &= np.abs(freqs - f) > width
+    k = int(np.argmax(np.where(band, spec, 0.0)))
+    if 0 < k < len(spec) - 1:
+        a, b, c = np.log(spec[k - 1:k + 2] + 1e-300)
+        shift = 0.5 * (a - c) / (a - 2 * b + c) if (a - 2 * b + c) != 0 else 0.0
+        return float((k + shift) * (freqs[1] - freqs[0]))
+    return float(freqs[k])
+
+
+def converter_lines(cfg: MachineConfig, axis: str, dt: float) -> tuple[float, ...]:
+    """The frequencies (Hz) at which a pulse-level thyristor converter's torque pulses
+    (p·f_mains and its harmonics), folded into the band a sample interval ``dt`` (s)
+    resolves; none for a mean-value or PWM converter."""
+    conv = cfg.axes[axis].converter
+    if conv.kind != "thyristor" or conv.model != "pulse":
+        return ()
+    nyquist = 0.5 / dt
+    base = conv.pulse_number * conv.mains_frequency
+    lines = set()
+    for h in range(1, 64):
+        f = (h * base) % (2.0 * nyquist)
+        lines.add(round(min(f, 2.0 * nyquist - f), 9))
+    return tuple(sorted(lines))
+
+
+def response_figures(t: np.ndarray, response: np.ndarray, reference: np.ndarray, *,
+                     kind: str) -> dict[str, float]:
+    """Rise time, overshoot, settling time (±2 %) and steady-state error of a response
+    that starts at 0 (time from the input instant t[0] = 0)."""
+    tail = max(1, len(t) // 10)
+    final = float(np.mean(response[-tail:]))
+    err = float(reference[-1] - response[-1])
+    if kind == "ramp" or final == 0.0:
+        return {"final_value": final, "rise_time": math.nan, "overshoot": 0.0,
+                "settling_time": math.nan, "steady_state_error": err}
+    y = response / final
+    rise = math.nan
+    i10 = np.flatnonzero(y >= 0.1)
+    i90 = np.flatnonzero(y >= 0.9)
+    if i10.size and i90.size:
+        rise = float(t[i90[0]] - t[i10[0]])
+    overshoot = max(0.0, float(np.max(y) - 1.0))
+    outside = np.flatnonzero(np.abs(y - 1.0) > 0.02)
+    settling = float(t[outside[-1] + 1]) if outside.size and outside[-1] + 1 < len(t) \
+        else (0.0 if not outside.size else math.nan)
+    return {"final_value": final, "rise_time": rise, "overshoot": overshoot,
+            "settling_time": settling, "steady_state_error": err}
+
+
+def run_experiment(cfg: MachineConfig, *, kind: str, axis: str, amplitude: float,
+                   duration: float = 1.0, open_loop: bool = False,
+                   sink: Sink | None = None, belief: MachineConfig | None = None
+                   ) -> tuple[ExperimentResult, dict[str, np.ndarray]]:
+    """Apply a step or ramp to one axis of the twin and measure the response.
+
+    Parameters
+    ----------
+    cfg : MachineConfig
+        The machine (the plant, and the controller's settings).
+    kind : {"step", "ramp"}
+    axis : {"x", "y"}
+    amplitude : float
+        Closed loop: step height (m) or ramp rate (m/s). Open loop: DAC step (V) or ramp
+        rate (V/s).
+    duration : float
+        Length of the record after the input (s).
+    open_loop : bool
+        Drive reference instead of the position loop.
+    sink : Sink, optional
+        Telemetry (scalars on ``axes/<axis>/...``).
+    belief : MachineConfig, optional
+        The controller's model of the machine (its gains and DCU come from it); default
+        ``cfg``.
+
+    Returns
+    -------
+    (ExperimentResult, record)
+        ``record`` has, per controller tick, ``t`` (the sample instant), ``reference`` and
+        the encoder ``position`` the regulator compared then, the table's true
+        ``velocity``, the ``dac_volts`` written at that tick and the ``armature_current``;
+        and ``fine_t``, ``screw_deflection`` per drive interval (fine enough for the elastic
+        mode), for the axis (SI).
+    """
+    if kind not in ("step", "ramp"):
+        raise ConfigError("kind", f"must be 'step' or 'ramp', got {kind!r}")
+    if axis not in AXES:
+        raise ConfigError("axis", f"must be one of {AXES}, got {axis!r}")
+    if not (math.isfinite(amplitude) and amplitude != 0.0):
+        raise ConfigError("amplitude", f"must be a non-zero number, got {amplitude!r}")
+    if not (math.isfinite(duration) and 0.0 < duration <= 600.0):
+        raise ConfigError("duration", f"must be a time in (0, 600] s, got {duration!r}")
+    k = AXES.index(axis)
+    period = cfg.controller.period
+    plant = Plant.from_machine(cfg)
+    lo, hi = cfg.axes[axis].switches.limit_min, cfg.axes[axis].switches.limit_max
+    start = np.array([0.5 * (ax.switches.limit_min + ax.switches.limit_max)
+                      for ax in cfg.axes.values()])
+    plant.reset(positions=start)
+    ctrl = Controller.from_machine(cfg, None, **model_options(belief or cfg))
+    regulator = PositionRegulator(ctrl.gains, period)
+    encoder = EncoderUnwrapper([a.counts_per_metre for a in cfg.axes.values()],
+                               bits=[a.encoder.bits for a in cfg.axes.values()])
+    n = round(duration / period)
+    rows = np.zeros((n, 6))
+    fine = []
+    held = np.zeros(2)   # the output computed last tick: written at this one
+    dac = np.zeros(2)
+    zero = (0.0, 0.0)
+    i_col = 2 * dict(FINE_FIELDS_INDEX)["screw_deflection"] + k
+    encoder.reset(plant.read().encoder_counts, position=start.tolist())
+    regulator.reset(start.tolist())
+    for i in range(n):
+        t = i * period
+        pos = encoder.update(plant.read().encoder_counts)
+        ref = start.tolist()
+        if open_loop:
+            dac[:] = 0.0
+            dac[k] = reference = amplitude if kind == "step" else amplitude * t
+            measured = float(plant.truth().table_velocity[k])
+        else:
+            ref[k] += amplitude if kind == "step" else amplitude * t
+            vel = [0.0, 0.0]
+            vel[k] = 0.0 if kind == "step" else amplitude
+            regulator.update(ref, vel, zero, zero, pos)
+            dac[:] = held
+            held[:] = regulator.output
+            reference = ref[k] - start[k]
+            measured = float(pos[k]) - start[k]
+        if not lo < ref[k] < hi:
+            raise ConfigError("amplitude", f"the reference leaves the travel between the "
+                              f"limit switches ({lo} … {hi} m)")
+        tr = plant.truth()
+        rows[i] = (t, reference, measured, tr.table_velocity[k], dac[k],
+                   tr.armature_current[k])
+        t0 = plant.time
+        plant.step(dac, period)
+        f = plant.fine
+        fine.append(np.column_stack((t0 + plant.drive_dt * np.arange(1, len(f) + 1),
+                                     f[:, i_col])))
+    plant.enable(False)
+    rec = dict(zip(("t", "reference", "position", "velocity", "dac_volts",
+                    "armature_current"), rows.T, strict=True))
+    rec["fine_t"], rec["screw_deflection"] = np.concatenate(fine).T
+    response = rec["velocity"] if open_loop else rec["position"]
+    if open_loop:  # the steady speed the drive should reach: U/K_C·r
+        ratio = cfg.axes[axis].transmission.ratio / cfg.axes[axis].tacho.gain
+        ref_speed = rec["reference"] * ratio
+    else:
+        ref_speed = rec["reference"]
+    figs = response_figures(rec["t"], response, ref_speed, kind=kind)
+    mode = dominant_frequency(rec["fine_t"], rec["screw_deflection"],
+                              exclude=converter_lines(cfg, axis, plant.drive_dt))
+    result = ExperimentResult(kind=kind, axis=axis, open_loop=open_loop,
+                              amplitude=float(amplitude), elastic_mode=mode, **figs)
+    if sink is not None and not isinstance(sink, NullSink):
+        base = f"axes/{axis}"
+        sink.scalars(rec["t"], {
+            f"{base}/position/reference": rec["reference"], f"{base}/position/actual":
+            rec["position"], f"{base}/velocity/actual": rec["velocity"],
+            f"{base}/drive/dac_volts": rec["dac_volts"], f"{base}/drive/armature_current":
+            rec["armature_current"]})
+        sink.scalars(rec["fine_t"], {f"{base}/screw_deflection_um":
+                                     rec["screw_deflection"] * 1e6})
+    return result, rec
