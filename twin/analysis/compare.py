@@ -323,7 +323,7 @@ class _LawSink:
 
 
 def _shared_sink(path: Path, laws: Sequence[str], run_id: str) -> Sink:
-    from twin.analysis.report import overlay_blueprint
+    from twin.telemetry.blueprint import overlay_blueprint
     from twin.telemetry.rerun_sink import RerunSink
 
     return RerunSink(path, recording_id=run_id, recording_name=run_id,

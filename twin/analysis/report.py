@@ -21,7 +21,7 @@ import numpy as np
 from twin.analysis.compare import FIGURES, LAW_COLOURS, Comparison, verdict, widest_difference
 from twin.telemetry.channels import programmed_polyline
 
-__all__ = ["figure_unit", "margin_text", "overlay_blueprint", "write_report",
+__all__ = ["figure_unit", "margin_text", "write_report",
            "write_sweep_report"]
 
 
@@ -190,32 +190,3 @@ def write_sweep_report(key: str, values: Sequence[float], figure: str,
     out = Path(path)
     fig.savefig(out, dpi=110)
     return out
-
-
-def overlay_blueprint(laws: Sequence[str]):
-    """A rerun blueprint that overlays the laws: the paths, the contour error, the contour
-    speed of each axis and the screw deflection, one entity subtree per law."""
-    import rerun.blueprint as rrb
-
-    def series(entity: str) -> list[str]:
-        return [f"/laws/{law}/{entity}" for law in laws]
-
-    return rrb.Blueprint(
-        rrb.Horizontal(
-            rrb.Spatial2DView(name="Paths (m)", origin="/laws"),
-            rrb.Vertical(
-                rrb.TimeSeriesView(name="Contour error (µm)",
-                                   contents=series("errors/contour_um")),
-                rrb.TimeSeriesView(name="X velocity (m/s)",
-                                   contents=series("axes/x/velocity/actual")),
-                rrb.TimeSeriesView(name="Y velocity (m/s)",
-                                   contents=series("axes/y/velocity/actual")),
-                rrb.TimeSeriesView(name="Screw deflection (µm)",
-                                   contents=series("axes/x/screw_deflection_um")
-                                   + series("axes/y/screw_deflection_um")),
-                rrb.TextLogView(name="Events", origin="/events"),
-            ),
-            column_shares=[2, 3],
-        ),
-        collapse_panels=True,
-    )

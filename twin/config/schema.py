@@ -29,6 +29,7 @@ from twin.config.axis import (
     TachoConfig,
     TransmissionConfig,
 )
+from twin.config.build import from_dict, set_path, to_raw
 from twin.config.fields import Validated, choice, flag, num, range_text, spec
 from twin.errors import ConfigError
 
@@ -54,6 +55,7 @@ __all__ = [
     "TransmissionConfig",
     "field_meta",
     "field_unit",
+    "machine_from_raw",
     "range_text",
 ]
 
@@ -312,17 +314,22 @@ class MachineConfig(Validated):
         ``axes.*.x`` style keys apply to both axes. Unknown keys raise ``ConfigError``
         listing the valid keys at that level.
         """
-        from twin.config.loader import _build, _set_path, _to_raw
-
-        raw = copy.deepcopy(_to_raw(self))
+        raw = copy.deepcopy(to_raw(self))
         for key, value in overrides.items():
             parts = key.split(".")
             if parts[0] == "axes" and len(parts) > 1 and parts[1] == "*":
                 for ax in AXES:
-                    _set_path(raw, ["axes", ax, *parts[2:]], value, key)
+                    set_path(raw, ["axes", ax, *parts[2:]], value, key)
             else:
-                _set_path(raw, parts, value, key)
-        return _build(raw, self.source)
+                set_path(raw, parts, value, key)
+        return machine_from_raw(raw, self.source)
+
+
+def machine_from_raw(raw: dict[str, Any], source: str) -> MachineConfig:
+    """A validated machine from its plain dict (the TOML's tables, axes merged), units in
+    strings converted by the schema's own units."""
+    cfg = from_dict(MachineConfig, raw, unit_of=field_unit)
+    return dataclasses.replace(cfg, source=source)
 
 
 def field_meta(path: str) -> dict[str, Any]:

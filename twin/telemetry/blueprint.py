@@ -25,7 +25,7 @@ import rerun.encodings as rrd
 
 from twin.telemetry.sink import PROGRAMMED
 
-__all__ = ["PATH_TRANSFORM", "default_blueprint", "path_bounds"]
+__all__ = ["PATH_TRANSFORM", "default_blueprint", "overlay_blueprint", "path_bounds"]
 
 PATH_TRANSFORM = rr.Transform3D(mat3x3=[[1e3, 0.0, 0.0], [0.0, -1e3, 0.0], [0.0, 0.0, 1.0]])
 """Logged on ``/path``: metres to millimetres, and Y up (rerun's 2-D views draw Y down). The
@@ -125,5 +125,32 @@ def default_blueprint(path: np.ndarray | None = None) -> rrb.Blueprint:
     )
     return rrb.Blueprint(
         rrb.Tabs(run, _drive("x"), _drive("y"), _motion("x"), _motion("y"), active_tab=0),
+        collapse_panels=True,
+    )
+
+
+def overlay_blueprint(laws: Sequence[str]) -> rrb.Blueprint:
+    """A rerun blueprint that overlays the laws: the paths, the contour error, the contour
+    speed of each axis and the screw deflection, one entity subtree per law."""
+    def series(entity: str) -> list[str]:
+        return [f"/laws/{law}/{entity}" for law in laws]
+
+    return rrb.Blueprint(
+        rrb.Horizontal(
+            rrb.Spatial2DView(name="Paths (m)", origin="/laws"),
+            rrb.Vertical(
+                rrb.TimeSeriesView(name="Contour error (µm)",
+                                   contents=series("errors/contour_um")),
+                rrb.TimeSeriesView(name="X velocity (m/s)",
+                                   contents=series("axes/x/velocity/actual")),
+                rrb.TimeSeriesView(name="Y velocity (m/s)",
+                                   contents=series("axes/y/velocity/actual")),
+                rrb.TimeSeriesView(name="Screw deflection (µm)",
+                                   contents=series("axes/x/screw_deflection_um")
+                                   + series("axes/y/screw_deflection_um")),
+                rrb.TextLogView(name="Events", origin="/events"),
+            ),
+            column_shares=[2, 3],
+        ),
         collapse_panels=True,
     )
