@@ -31,7 +31,8 @@ import time
 os.environ.setdefault("RERUN_ANALYTICS", "0")
 os.environ.setdefault("NUMBA_CACHE_DIR", os.path.join(os.getcwd(), ".cache", "numba"))
 
-from twin.cli.hil import fifo_priority, spawn_hil_server
+from twin.hardware.hil_process import spawn_hil_server
+from twin.hardware.realtime import fifo_priority
 from twin.session.run import RunSpec, prepare, run
 
 

@@ -14,8 +14,8 @@ import sys
 import pytest
 
 from tests.hardware.link_proxy import LinkProxy
-from twin.cli.hil import spawn_hil_server
 from twin.errors import DeadlineFault
+from twin.hardware.hil_process import spawn_hil_server
 from twin.hardware.realtime import DeadlinePolicy, RealTimeLoop
 
 PERIOD = 5e-3

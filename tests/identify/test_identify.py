@@ -27,10 +27,10 @@ import numpy as np
 import pytest
 import rerun.chunk as rc
 
-from twin.cli.hil import spawn_hil_server
 from twin.config import AXES, load_machine
 from twin.config.writer import machine_to_toml
 from twin.errors import ConfigError
+from twin.hardware.hil_process import spawn_hil_server
 from twin.identify import identify
 from twin.identify.perturb import perturbed_machine
 from twin.identify.replay import axis_figures

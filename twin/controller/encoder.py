@@ -9,11 +9,13 @@ The reference rig counts encoder pulses in 32-bit hardware counters that wrap ar
 which is correct as long as the axis moves less than half the counter range (2^31 counts,
 about 430 m on the rig) in one period. Counts become metres exactly once, here.
 
-Typical use::
+Typical use (y's 32-bit counter wraps between the two samples, and is unwrapped)::
 
-    enc = EncoderUnwrapper(counts_per_metre=(5e6, 5e6), bits=32)
-    enc.reset(inputs.encoder_counts, position=(0.0, 0.0))
-    position = enc.update(inputs.encoder_counts)      # (2,) m, every period
+    >>> import numpy as np
+    >>> enc = EncoderUnwrapper(counts_per_metre=(5e6, 5e6), bits=32)
+    >>> enc.reset(np.array([100, 2**32 - 50]), position=(0.0, 0.0))
+    >>> enc.update(np.array([600, 50])).tolist()     # (2,) m, every period
+    [0.0001, 2e-05]
 """
 
 from __future__ import annotations

@@ -26,11 +26,22 @@ Cyclic cost: the next block is fetched from the planner and its profile planned 
 *before* it is needed, one step per tick (``prepare``), so a block change costs a tick about
 as much as any other tick. The status follows Ruckig: ``WORKING`` … ``FINISHED``.
 
-Typical use::
+Typical use (a 10 mm line at 600 mm/min on tomsk_xy, from the origin, outside its work
+zone: no soft limits; the reference ends exactly on the programmed end point, at rest)::
 
-    interp = Interpolator(planner.plan(program), period=5e-3)
-    while interp.update() < InterpolatorStatus.FINISHED:
-        ref = interp.reference          # .position, .velocity, .acceleration, .jerk (2,)
+    >>> from twin.config import load_machine
+    >>> from twin.controller.gcode import parse
+    >>> from twin.controller.planner import Planner
+    >>> cfg = load_machine("tomsk_xy")
+    >>> planner = Planner.from_settings(cfg.controller, cfg.axes, work_zone=None)  # no soft limits
+    >>> program = parse("G21 G90 G1 X10 Y0 F600", start=(0.0, 0.0))
+    >>> interp = Interpolator(planner.plan(program), period=5e-3)
+    >>> ticks = 0
+    >>> while interp.update() < InterpolatorStatus.FINISHED:
+    ...     ref = interp.reference      # .position, .velocity, .acceleration, .jerk (2,)
+    ...     ticks += 1
+    >>> ticks, interp.reference.position.tolist(), interp.reference.velocity.tolist()
+    (221, [0.01, 0.0], [0.0, 0.0])
 """
 
 from __future__ import annotations

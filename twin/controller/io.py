@@ -14,9 +14,9 @@ from typing import Protocol, runtime_checkable
 
 import numpy as np
 
-__all__ = ["AXES", "Inputs", "MachineIO", "Outputs"]
+from twin.config.schema import AXES
 
-AXES = ("x", "y")
+__all__ = ["AXES", "Inputs", "MachineIO", "Outputs"]
 
 
 def _zeros_i64() -> np.ndarray:

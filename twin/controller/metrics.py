@@ -10,11 +10,13 @@ Everything is SI (m, s, m/s), positions are arrays ``(n, 2)`` with columns x, y;
 ``twin.controller.summary`` gathers them into one ``RunMetrics`` and converts to µm and
 mm/min in one place.
 
-Typical use::
+Typical use (a run gives ``path`` and the record's positions and segment numbers)::
 
-    err = contour_error(path, rec["position"], hint=rec["segment"])      # (n,) m
-    m = summary.summarize(t, ref_pos, ref_vel, pos, vel, path, segment=rec["segment"])
-    print(m.to_report()["max_contour_error_um"])
+    >>> import numpy as np
+    >>> from twin.controller.geometry import Line
+    >>> path = [Line((0.0, 0.0), (0.01, 0.0))]
+    >>> contour_error(path, np.array([[0.005, 2e-6], [0.01, -1e-6]])).tolist()   # m
+    [2e-06, 1e-06]
 """
 
 from __future__ import annotations

@@ -9,10 +9,12 @@ the chunks once, at the end, into named arrays.
 
 Typical use::
 
-    rec = Record([("t", 1), ("position", 2), ("terms", (2, 5)), ("status", 1)],
-                 integer=("status",))
-    rec.append((0.005, 1e-6, 2e-6, *range(10), 0))
-    arrays = rec.as_arrays()   # t (n,), position (n, 2), terms (n, 2, 5), status (n,) int64
+    >>> rec = Record([("t", 1), ("position", 2), ("terms", (2, 5)), ("status", 1)],
+    ...              integer=("status",))
+    >>> rec.append((0.005, 1e-6, 2e-6, *range(10), 0))
+    >>> arrays = rec.as_arrays()
+    >>> {name: a.shape for name, a in arrays.items()}, arrays["status"].dtype.name
+    ({'t': (1,), 'position': (1, 2), 'terms': (1, 2, 5), 'status': (1,)}, 'int64')
 """
 
 from __future__ import annotations

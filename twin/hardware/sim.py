@@ -43,7 +43,6 @@ class SimDriver:
         self.plant = plant
         self.period = period
         self.drives_off = drives_off
-        self.last_status = None
         self._zero = np.zeros(2)
         self._inputs = Inputs()
         self._enabled: bool | None = None  # unknown: the first write sets it
@@ -68,8 +67,7 @@ class SimDriver:
         if self.schedule is not None:
             t = self.schedule.next()
             duration, self._now = t - self._now, t
-        self.last_status = self.plant.step(outputs.dac_volts if enable else self._zero,
-                                           duration)
+        self.plant.step(outputs.dac_volts if enable else self._zero, duration)
 
     def close(self) -> None:
         """Disable the drives (the plant keeps its state for inspection)."""

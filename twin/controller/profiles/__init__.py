@@ -7,10 +7,16 @@ S-curve computed by ruckig. `twin.controller.profiles.laws` defines each one exa
 
 Typical use::
 
-    limits = Limits(max_velocity=0.015, max_acceleration=0.2, max_jerk=5.0)
-    move = plan_move("parabolic", 0.01, v_start=0.0, v_end=0.0, v_max=0.015, limits=limits)
-    s, v, a, j = move.at(0.1)                   # one controller tick
-    s, v, a, j = move.sample(np.linspace(0.0, move.duration, 1000))
+    >>> import numpy as np
+    >>> limits = Limits(max_velocity=0.015, max_acceleration=0.2, max_jerk=5.0)
+    >>> move = plan_move("parabolic", 0.01, v_start=0.0, v_end=0.0, v_max=0.015,
+    ...                  limits=limits)
+    >>> round(move.duration, 4)                 # s
+    0.8008
+    >>> s, v, a, j = move.at(0.1)               # one controller tick: m, m/s, m/s², m/s³
+    >>> s, v, a, j = move.sample(np.linspace(0.0, move.duration, 1000))
+    >>> float(s[-1]), float(v.max())            # the whole 10 mm, cruising at v_max
+    (0.01, 0.015)
 
 The look-ahead planner uses the closed forms `max_end_speed` and `min_distance` per block.
 """
