@@ -188,6 +188,12 @@ def test_rrd_holds_one_subtree_per_law_with_every_tick(compared):
             counts[path] = counts.get(path, 0) + chunk.num_rows
     for law, s in compared["profiles"].items():
         assert counts[f"laws/{law}/errors/contour_um"] == s["ticks"]["due"]
+    # the overlaid paths are drawn as in a run's layout: mm, Y up (the data stay in metres)
+    (frame,) = [rb for rb in (c.to_record_batch() for c in reader.stream().to_chunks()
+                              if c.entity_path == "/laws")
+                if "Transform3D:mat3x3" in rb.schema.names]
+    mat = np.asarray(frame.column("Transform3D:mat3x3").to_pylist()[0][0]).reshape(3, 3)
+    np.testing.assert_array_equal(mat, np.diag([1e3, -1e3, 1.0]))
 
 
 def test_sweep_plots_a_figure_against_the_parameter(tmp_path):

@@ -326,8 +326,10 @@ def _shared_sink(path: Path, laws: Sequence[str], run_id: str) -> Sink:
     from twin.telemetry.blueprint import overlay_blueprint
     from twin.telemetry.rerun_sink import RerunSink
 
-    return RerunSink(path, recording_id=run_id, recording_name=run_id,
+    sink = RerunSink(path, recording_id=run_id, recording_name=run_id,
                      blueprint=overlay_blueprint(laws))
+    sink.machine_frame("laws")          # the paths in mm, Y up, as in a run's layout
+    return sink
 
 
 def compare(spec: RunSpec, laws: Sequence[str], *, out_dir: str | Path = "runs",

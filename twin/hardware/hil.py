@@ -64,9 +64,10 @@ from pymodbus.constants import ExcCodes
 from pymodbus.simulator import DataType, SimData, SimDevice
 
 from twin.config import AXES
+from twin.controller.io import Inputs
 from twin.errors import ConfigError, SimulationError
 from twin.hardware.register_map import RegisterMap, counter_to_words, volts_to_word, word_to_volts
-from twin.plant import Plant, Reading
+from twin.plant import Plant
 
 __all__ = ["CLIENT", "OUTPUT_WINDOW", "HilModule", "HilStats", "Refused"]
 
@@ -335,7 +336,7 @@ class HilModule:
             bits[self.map.module.watchdog_tripped] = self.tripped
         return bits
 
-    def _reading(self) -> Reading:
+    def _reading(self) -> Inputs:
         """The plant's sensor reading, sampled once per drive interval (the counter and
         switch reads of one tick share it)."""
         if self._sampled != self._steps:

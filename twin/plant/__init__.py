@@ -12,10 +12,9 @@ from twin.plant.plant import (
     FINE_WIDTH,
     TRUTH_FIELDS,
     Plant,
-    Reading,
     StepStatus,
     Truth,
 )
 
-__all__ = ["FINE_FIELDS", "FINE_WIDTH", "TRUTH_FIELDS", "Plant", "Reading", "StepStatus",
+__all__ = ["FINE_FIELDS", "FINE_WIDTH", "TRUTH_FIELDS", "Plant", "StepStatus",
            "Truth"]

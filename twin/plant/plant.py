@@ -29,12 +29,12 @@ from __future__ import annotations
 
 import math
 from pathlib import Path
-from typing import Any
 
 import mujoco
 import numpy as np
 
 from twin.config import AXES, MachineConfig
+from twin.controller.io import Inputs
 from twin.drive import Drives
 from twin.errors import ConfigError, SimulationError
 from twin.plant import loop as plant_loop
@@ -45,12 +45,11 @@ from twin.plant.records import (
     FLAGS,
     TRUTH_FIELDS,
     AxisMonitor,
-    Reading,
     StepStatus,
     Truth,
 )
 
-__all__ = ["FINE_FIELDS", "FINE_WIDTH", "TRUTH_FIELDS", "Plant", "Reading", "StepStatus",
+__all__ = ["FINE_FIELDS", "FINE_WIDTH", "TRUTH_FIELDS", "Plant", "StepStatus",
            "Truth"]
 
 _BAD_STATE = ("mjWARN_BADQPOS", "mjWARN_BADQVEL", "mjWARN_BADQACC")
@@ -337,10 +336,9 @@ class Plant:
         return "a MuJoCo state warning (no state is yet non-finite)"
 
     # ------------------------------------------------------------------ sensing
-    def read_into(self, inputs: Any) -> None:
-        """Write the I/O sample into ``inputs`` in place (any object with the
-        :class:`Reading` attributes as arrays, e.g. ``controller.io.Inputs``): the cheap path
-        of :meth:`read` for a driver's every period (same values, scalar arithmetic)."""
+    def read_into(self, inputs: Inputs) -> None:
+        """Write the I/O sample into ``inputs`` in place: the cheap path of :meth:`read`
+        for a driver's every period (same values, scalar arithmetic)."""
         if self._noisy_counts:
             inputs.encoder_counts[:] = self.read().encoder_counts
         else:
@@ -356,13 +354,15 @@ class Plant:
         inputs.drive_ready = ro[2] == 0.0 and ro[3] == 0.0
         inputs.time = self.data.time
 
-    def read(self) -> Reading:
-        """Sample the I/O: encoder counters, tacho voltages, switches (see :class:`Reading`)."""
+    def read(self) -> Inputs:
+        """Sample the I/O as the machine's I/O hardware delivers it: encoder counters
+        (wrapped to the counter's bits), tacho voltages at the ADC, debounced switches,
+        drive ready, the plant time (`twin.controller.io.Inputs`)."""
         counts = self._raw_counts() + self._encoder_offset
         if self.noise and self._encoder_noise.any():
             counts += np.rint(self._rng.standard_normal(2) * self._encoder_noise).astype(np.int64)
         states = np.array([mon.state for mon in self._monitors])  # (axis, channel)
-        return Reading(encoder_counts=np.bitwise_and(counts, self._counter_mask),
+        return Inputs(encoder_counts=np.bitwise_and(counts, self._counter_mask),
                        tacho_volts=self.drives.tacho_volts, limit_min=states[:, 0],
                        limit_max=states[:, 1], home=states[:, 2],
                        drive_ready=not self.drives.fault.any(), time=self.time)

@@ -1,6 +1,7 @@
 """The plant's per-period records and its switch monitor: what a step reports
-(``StepStatus``), what I/O hardware reads (``Reading``), what only a twin knows (``Truth``,
-``TRUTH_FIELDS``), and the debounced limit and home switches of one axis."""
+(``StepStatus``), what only a twin knows (``Truth``, ``TRUTH_FIELDS``), and the debounced
+limit and home switches of one axis. What I/O hardware reads is the controller's own
+``Inputs`` (`twin.controller.io`): one sample type on both sides of the port."""
 
 from __future__ import annotations
 
@@ -12,8 +13,8 @@ import numpy as np
 
 from twin.config import SwitchConfig
 
-__all__ = ["FINE_FIELDS", "FINE_WIDTH", "FLAGS", "TRUTH_FIELDS", "AxisMonitor", "Reading",
-           "StepStatus", "Truth"]
+__all__ = ["FINE_FIELDS", "FINE_WIDTH", "FLAGS", "TRUTH_FIELDS", "AxisMonitor", "StepStatus",
+           "Truth"]
 
 TRUTH_FIELDS = (("table_position", 2), ("table_velocity", 2), ("screw_deflection", 2),
                 ("armature_current", 2), ("converter_voltage", 2))
@@ -76,33 +77,6 @@ class StepStatus(NamedTuple):
         """Nothing to report: no saturation, limit, end stop, fault or warning."""
         return not (self.saturated.any() or self.limit_hit.any() or self.end_stop.any()
                     or self.drive_fault.any() or self.warnings)
-
-
-@dataclass(frozen=True, slots=True)
-class Reading:
-    """What the machine's I/O hardware delivers (arrays indexed by axis x, y).
-
-    Attributes
-    ----------
-    encoder_counts : ndarray, shape (2,), int64
-        Hardware counters (counts), wrapped to 0 … 2^bits − 1.
-    tacho_volts : ndarray, shape (2,)
-        Tachogenerator voltage at the ADC (V).
-    limit_min, limit_max, home : ndarray, shape (2,), bool
-        Debounced switch states, True = closed.
-    drive_ready : bool
-        No drive reports a fault.
-    time : float
-        Plant time of the sample (s).
-    """
-
-    encoder_counts: np.ndarray
-    tacho_volts: np.ndarray
-    limit_min: np.ndarray
-    limit_max: np.ndarray
-    home: np.ndarray
-    drive_ready: bool
-    time: float
 
 
 @dataclass(frozen=True, slots=True)

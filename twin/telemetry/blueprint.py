@@ -137,7 +137,7 @@ def overlay_blueprint(laws: Sequence[str]) -> rrb.Blueprint:
 
     return rrb.Blueprint(
         rrb.Horizontal(
-            rrb.Spatial2DView(name="Paths (m)", origin="/laws"),
+            rrb.Spatial2DView(name="Paths (mm, Y up)", origin="/laws"),
             rrb.Vertical(
                 rrb.TimeSeriesView(name="Contour error (µm)",
                                    contents=series("errors/contour_um")),

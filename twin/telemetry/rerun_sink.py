@@ -107,9 +107,10 @@ class RerunSink:
                     rec.send_recording_name(recording_name)
                 if blueprint is True:
                     rec.send_blueprint(default_blueprint())
-                    rec.log("path", PATH_TRANSFORM, static=True)
                 elif blueprint:
                     rec.send_blueprint(blueprint)
+            if blueprint is True:
+                self.machine_frame("path")
         except BaseException:   # a Ctrl-C while the file is begun leaves no .partial
             self.discard()
             raise
@@ -152,6 +153,12 @@ class RerunSink:
                    f"recording to {self.path} only")
 
     # -- Sink protocol ------------------------------------------------------------------
+    def machine_frame(self, entity: str) -> None:
+        """Draw the 2-D data under ``entity`` in machine orientation: millimetres, Y up
+        (`PATH_TRANSFORM`; the data stay in metres)."""
+        for rec in self._streams():
+            rec.log(entity, PATH_TRANSFORM, static=True)
+
     def static_path(self, entity: str, points: np.ndarray, *,
                     color: tuple[int, int, int] = (160, 160, 160)) -> None:
         """Log a polyline (m) that does not change with time. The programmed path
