@@ -1,0 +1,68 @@
+"""Unseen machines for the ``twin identify`` tests: BASE (tomsk_xy) with its physical
+parameters drawn at random (``twin.identify.perturb``), the check of what was identified
+against the machine's own file, and the sim-to-real table."""
+
+from __future__ import annotations
+
+import os
+import subprocess
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from twin.config import AXES, load_machine
+from twin.config.writer import machine_to_toml
+from twin.identify.perturb import perturbed_machine
+from twin.identify.replay import axis_figures
+from twin.session.run import RunSpec, run
+
+CI = os.environ.get("CI") == "true"
+BASE = "tomsk_xy"
+
+
+def unseen(seed: int, where: Path):
+    cfg = perturbed_machine(load_machine(BASE), np.random.default_rng(seed),
+                            name=f"unseen_{seed}")
+    path = where / f"unseen_{seed}.toml"
+    path.write_text(machine_to_toml(cfg), encoding="utf-8")
+    return cfg, path
+
+
+def twin_cli(*args: str, timeout: float = 900.0) -> subprocess.CompletedProcess:
+    return subprocess.run([sys.executable, "-m", "twin.cli", *args], capture_output=True,
+                          text=True, timeout=timeout,
+                          env={**os.environ, "RERUN_ANALYTICS": "0"})
+
+
+def assert_identified(result: dict, true) -> None:
+    truth = axis_figures(true)
+    for a in AXES:
+        d, e, t = result["derived"][a], result["estimates"][a], truth[a]
+        where = f"axis {a} of {true.name}"
+        assert d["K_H"] == pytest.approx(t["K_H"], rel=0.01), where
+        assert e["inertia"]["value"] == pytest.approx(t["inertia"], rel=0.10), where
+        assert d["coulomb_at_motor"] == pytest.approx(t["coulomb_at_motor"], rel=0.20), where
+        assert abs(e["backlash"]["value"] - t["backlash"]) <= 2e-6, where
+        for name in ("tacho_gain", "inertia", "coulomb", "backlash"):
+            assert e[name]["identifiable"], (where, name)
+    assert max(max(v.values()) for v in result["nrmse"].values()) <= 0.02
+
+
+def _max_coordinate_error(machine: Path, model: str, builtin: str, out: Path) -> float:
+    spec = RunSpec(machine=str(machine), controller_model=model, builtin=builtin, dcu_order=3)
+    summary = run(spec, out_dir=out, rerun="none").summary
+    assert summary["status"] == "FINISHED"
+    return max(summary["max_coordinate_error_um"].values())
+
+
+def sim_to_real(true_path: Path, calibrated: Path, out: Path) -> dict[str, dict[str, float]]:
+    """Max coordinate error (µm) of the machine run with the calibrated model, its own file
+    (the oracle) and the nominal BASE as the controller's model."""
+    table = {}
+    for builtin in ("spline_line", "default"):
+        table[builtin] = {name: _max_coordinate_error(true_path, model, builtin, out)
+                          for name, model in (("calibrated", str(calibrated)),
+                                              ("oracle", str(true_path)), ("nominal", BASE))}
+    return table
