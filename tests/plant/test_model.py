@@ -141,3 +141,17 @@ def test_switch_outside_the_travel_is_rejected_by_the_machine_file(switch):
 def test_bad_timestep_override_is_rejected(timestep):
     with pytest.raises(ConfigError, match=r"simulation\.timestep"):
         build_spec("tomsk_xy", timestep=timestep)
+
+
+def test_python_m_twin_plant_exports_a_machine_without_a_warning(tmp_path):
+    """``python -m twin.plant`` (the MJCF export for MuJoCo's viewer) runs clean: no
+    runpy warning about a module imported twice, the same file as ``main``."""
+    import subprocess
+    import sys
+
+    out = tmp_path / "cli.xml"
+    done = subprocess.run([sys.executable, "-m", "twin.plant", "tomsk_xy", "-o", str(out)],
+                          capture_output=True, text=True, timeout=120)
+    assert done.returncode == 0 and done.stderr == "", done.stderr
+    main(["tomsk_xy", "-o", str(tmp_path / "direct.xml")])
+    assert out.read_text() == (tmp_path / "direct.xml").read_text()

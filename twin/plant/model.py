@@ -13,7 +13,7 @@ Typical use::
     modes = axis_mechanics(load_machine("tomsk_xy"), "y")
     modes.locked_rotor_frequency                     # rad/s
 
-Export a machine for the MuJoCo viewer: ``python -m twin.plant.model tomsk_xy -o tomsk.xml``.
+Export a machine for the MuJoCo viewer: ``python -m twin.plant tomsk_xy -o tomsk.xml``.
 """
 
 from __future__ import annotations
@@ -248,7 +248,7 @@ def passive_parameters(machine: str | Path | MachineConfig) -> np.ndarray:
 
 def main(argv: list[str] | None = None) -> None:
     """Write the compiled-parameter MJCF of a machine, e.g. for the MuJoCo viewer."""
-    parser = argparse.ArgumentParser(prog="python -m twin.plant.model", description=main.__doc__)
+    parser = argparse.ArgumentParser(prog="python -m twin.plant", description=main.__doc__)
     parser.add_argument("machine", help="preset name or TOML path")
     parser.add_argument("-o", "--output", type=Path, required=True, help="MJCF file to write")
     parser.add_argument("--scene", action="store_true", help="include floor, light, cameras")
@@ -256,7 +256,3 @@ def main(argv: list[str] | None = None) -> None:
     spec = build_spec(args.machine, scene=args.scene)
     spec.compile()
     args.output.write_text(spec.to_xml(), encoding="utf-8")
-
-
-if __name__ == "__main__":
-    main()
