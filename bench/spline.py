@@ -24,8 +24,8 @@ from functools import partial
 import numpy as np
 from scipy.interpolate import CubicSpline
 
-from twin.controller.geometry import SplinePath
 from twin.controller.spline import METHODS, natural_cubic
+from twin.controller.spline_path import SplinePath
 
 SIZES = (1_000, 100_000)
 

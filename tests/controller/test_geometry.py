@@ -12,7 +12,8 @@ from hypothesis import strategies as st
 from scipy.integrate import quad
 from scipy.interpolate import CubicSpline
 
-from twin.controller.geometry import Arc, Line, Segment, SplinePath
+from twin.controller.geometry import Arc, Line, Segment
+from twin.controller.spline_path import SplinePath
 from twin.errors import PlanningError
 
 RNG_SEED = 20240611

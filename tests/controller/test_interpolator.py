@@ -8,10 +8,10 @@ import pytest
 from twin.config import load_machine
 from twin.controller.gcode import parse
 from twin.controller.gcode.items import Dwell, Event, Move, ProgramEnd
-from twin.controller.geometry import SplinePath
 from twin.controller.interpolator import Interpolator, InterpolatorStatus
 from twin.controller.planner import MotionBlock, PlannedBlock, Planner
 from twin.controller.profiles import Limits, Polynomial
+from twin.controller.spline_path import SplinePath
 from twin.errors import ConfigError, PlanningError
 
 CFG = load_machine("tomsk_xy")

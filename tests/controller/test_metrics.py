@@ -8,7 +8,7 @@ import math
 import numpy as np
 import pytest
 
-from twin.controller.geometry import Arc, Line, SplinePath
+from twin.controller.geometry import Arc, Line
 from twin.controller.metrics import (
     CornerError,
     contour_error,
@@ -21,6 +21,7 @@ from twin.controller.metrics import (
     vector_error,
     velocity_error,
 )
+from twin.controller.spline_path import SplinePath
 from twin.controller.summary import RunMetrics, summarize
 from twin.errors import ConfigError
 

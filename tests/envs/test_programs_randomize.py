@@ -8,9 +8,10 @@ import pytest
 from envs.programs import COMPACT_SCALE, PROGRAMS, scaled_program, tuning_program
 from envs.randomize import RANGES, MachineRandomizer
 from twin.config import load_machine
-from twin.controller.geometry import Arc, Line, SplinePath
+from twin.controller.geometry import Arc, Line
 from twin.controller.library import build_program, program_path
 from twin.controller.planner import MotionBlock
+from twin.controller.spline_path import SplinePath
 from twin.errors import ConfigError
 
 START = (0.01, 0.01)

@@ -4,9 +4,10 @@ import numpy as np
 import pytest
 
 from twin.config import load_machine
-from twin.controller.geometry import Arc, Line, SplinePath
+from twin.controller.geometry import Arc, Line
 from twin.controller.library import default_program, program_path
 from twin.controller.metrics import contour_error
+from twin.controller.spline_path import SplinePath
 from twin.telemetry.channels import PathDistance
 
 

@@ -1,4 +1,5 @@
-"""Path segments parameterised by arc length: straight line, circular arc, cubic spline.
+"""Path segments parameterised by arc length: straight line and circular arc here, the
+cubic spline in `twin.controller.spline_path`.
 
 Every segment maps an arc length ``s`` in ``[0, length]`` (m) to a point (m), a unit tangent
 and a signed curvature (1/m, positive turning left / counter-clockwise), and answers the
@@ -18,10 +19,9 @@ from abc import ABC, abstractmethod
 
 import numpy as np
 
-from twin.controller._spline_curve import SplineCurve
 from twin.errors import PlanningError
 
-__all__ = ["Arc", "Line", "Segment", "SplinePath"]
+__all__ = ["Arc", "Line", "Segment", "frozen"]
 
 TAU = 2.0 * math.pi
 
@@ -196,8 +196,8 @@ class Line(Segment):
 
     def _array(self, k: int) -> np.ndarray:
         if self._arrays is None:
-            self._arrays = (_frozen(self._ends[0]), _frozen(self._ends[1]),
-                            _frozen([self._ux, self._uy]))
+            self._arrays = (frozen(self._ends[0]), frozen(self._ends[1]),
+                            frozen([self._ux, self._uy]))
         return self._arrays[k]
 
     def frame(self, s):
@@ -324,7 +324,7 @@ class Arc(Segment):
     def _array(self, k: int) -> np.ndarray:
         if self._arrays is None:
             cx, cy, x0, y0, x1, y1 = self._xy
-            self._arrays = (_frozen((x0, y0)), _frozen((x1, y1)), _frozen((cx, cy)))
+            self._arrays = (frozen((x0, y0)), frozen((x1, y1)), frozen((cx, cy)))
         return self._arrays[k]
 
     def frame(self, s):
@@ -385,85 +385,12 @@ class Arc(Segment):
         return pts.min(axis=0), pts.max(axis=0)
 
 
-class SplinePath(Segment):
-    """Parametric natural cubic spline through points, parameterised by arc length.
-
-    ``x(u)`` and ``y(u)`` are natural cubic splines (:mod:`twin.controller.spline`) of the
-    cumulative chord length ``u``. Arc length is integrated per piece by adaptive
-    Gauss–Legendre quadrature (8 nodes, sub-intervals refined until 1e-13 relative);
-    ``s → u`` is inverted by safeguarded Newton from a fitted initial guess; the exact
-    distance minimises the squared distance per piece through the real roots of its
-    derivative, a quintic. See ``twin.controller._spline_curve``.
-
-    Parameters
-    ----------
-    points : array_like, shape (n, 2)
-        Points to pass through (m), n ≥ 2, consecutive points distinct.
-    method : {"tridiagonal", "blocks4"}
-        Solver of the spline coefficients (same spline either way).
-
-    Attributes
-    ----------
-    points : ndarray, shape (n, 2)
-        The points (m).
-    pieces : int
-        Number of cubic pieces, n − 1.
-    knot_s : ndarray, shape (n,)
-        Arc length at each point (m).
-    """
-
-    def __init__(self, points, *, method: str = "tridiagonal"):
-        pts = np.array(points, dtype=float)
-        if pts.ndim != 2 or pts.shape[1] != 2 or pts.shape[0] < 2:
-            raise PlanningError(f"points must have shape (n ≥ 2, 2), got {pts.shape}")
-        bad = np.flatnonzero(~np.isfinite(pts).all(axis=1))
-        if bad.size:
-            raise PlanningError(f"points[{bad[0]}] is not finite: {pts[bad[0]].tolist()}")
-        same = np.flatnonzero((np.diff(pts, axis=0) == 0.0).all(axis=1))
-        if same.size:
-            k = same[0] + 1
-            raise PlanningError(f"points[{k}] repeats points[{k - 1}] = {pts[k].tolist()}: "
-                                "consecutive points must differ")
-        self.points = _frozen(pts)
-        self._curve = SplineCurve(pts, method=method)
-        self.pieces = pts.shape[0] - 1
-        self.knot_s = self._curve.knot_s
-        self.length = float(self.knot_s[-1])
-        self.start = _frozen(pts[0])
-        self.end = _frozen(pts[-1])
-
-    def frame(self, s):
-        s = min(max(s, 0.0), self.length)
-        x, y, tx, ty, k, rate = self._curve.frame_at(s)
-        if s == 0.0 or s == self.length:
-            x, y = (self.start if s == 0.0 else self.end).tolist()
-        return x, y, tx, ty, k, rate
-
-    def kernel_tables(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        """The curve's tables for the compiled tick (``SplineCurve.kernel_tables``)."""
-        return self._curve.kernel_tables()
-
-    def _points(self, s):
-        return self._curve.points_at(s)
-
-    def _tangents(self, s):
-        return self._curve.tangents_at(s)
-
-    def _curvatures(self, s):
-        return self._curve.curvatures_at(s)
-
-    def _closest(self, pts):
-        return self._curve.closest(pts)
-
-    def bounding_box(self):
-        return self._curve.box_lower.min(axis=0), self._curve.box_upper.max(axis=0)
-
-
 def _is_scalar(s) -> bool:
     return isinstance(s, float | int | np.floating | np.integer)
 
 
-def _frozen(values) -> np.ndarray:
+def frozen(values) -> np.ndarray:
+    """A float array that cannot be written (a segment's points are shared, not copied)."""
     arr = np.array(values, dtype=float)
     arr.setflags(write=False)
     return arr
@@ -482,7 +409,7 @@ def _pair(value, name: str) -> tuple[float, float]:
 
 
 def _point(value, name: str) -> np.ndarray:
-    arr = _frozen(value)
+    arr = frozen(value)
     if arr.shape != (2,) or not np.isfinite(arr).all():
         raise PlanningError(f"{name} must be a finite point of shape (2,), got {value!r}")
     return arr

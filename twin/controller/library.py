@@ -18,8 +18,9 @@ import numpy as np
 
 from twin.config import MachineConfig
 from twin.controller.gcode import Dwell
-from twin.controller.geometry import Arc, Line, Segment, SplinePath
+from twin.controller.geometry import Arc, Line, Segment
 from twin.controller.planner import MotionBlock, segments_from_program
+from twin.controller.spline_path import SplinePath
 from twin.errors import ConfigError
 
 __all__ = [

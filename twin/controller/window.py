@@ -92,16 +92,20 @@ def _capped(kind: int, ka: float, kj: float, v0: float, d: float, cap: float, a:
     return v if v < cap else cap
 
 
-@numba.njit(cache=True)
-def _root_3u(kind: int, ka: float, kj: float, d: float, cap: float, a: float,
-             j: float) -> float:
-    """`twin.controller.reach._root_3u`."""
+@numba.njit(cache=True, inline="always")
+def _guesses(kind: int, ka: float, kj: float, d: float, a: float,
+             j: float) -> tuple[float, float]:
+    """`twin.controller.reach._guesses`: the closed-form roots of f(u) = 3u."""
     if kind == _SCURVE:
-        g1 = (j * d * d / 32.0) ** (1.0 / 3.0)
-        g2 = 0.125 * a * (math.sqrt(4.0 * a * a / (j * j) + 16.0 * d / a) - 2.0 * a / j)
-    else:
-        g1 = (j * d * d / (8.0 * kj)) ** (1.0 / 3.0)
-        g2 = math.sqrt(a * d / (4.0 * ka))
+        return ((j * d * d / 32.0) ** (1.0 / 3.0),
+                0.125 * a * (math.sqrt(4.0 * a * a / (j * j) + 16.0 * d / a) - 2.0 * a / j))
+    return (j * d * d / (8.0 * kj)) ** (1.0 / 3.0), math.sqrt(a * d / (4.0 * ka))
+
+
+@numba.njit(cache=True)
+def _root_3u(kind: int, ka: float, kj: float, d: float, cap: float, a: float, j: float,
+             g1: float, g2: float) -> float:
+    """`twin.controller.reach._root_3u`, given the guesses ``g1``, ``g2``."""
     if abs(_capped(kind, ka, kj, g1, d, cap, a, j) - 3.0 * g1) <= 1e-12 * g1:
         return g1
     if abs(_capped(kind, ka, kj, g2, d, cap, a, j) - 3.0 * g2) <= 1e-12 * g2:
@@ -138,17 +142,12 @@ def _floor(w: np.ndarray, s: int, kind: int, ka: float, kj: float) -> None:
     if kind == _TRAPEZOID:
         return
     d, cap, a, j = w[s, LEN], w[s, VMAX], w[s, ACC], w[s, JERK]
-    if kind == _SCURVE:
-        g1 = (j * d * d / 32.0) ** (1.0 / 3.0)
-        g2 = 0.125 * a * (math.sqrt(4.0 * a * a / (j * j) + 16.0 * d / a) - 2.0 * a / j)
-    else:
-        g1 = (j * d * d / (8.0 * kj)) ** (1.0 / 3.0)
-        g2 = math.sqrt(a * d / (4.0 * ka))
+    g1, g2 = _guesses(kind, ka, kj, d, a, j)
     u2 = a * a / (2.0 * j)
     if 3.0 * min(g1, g2) >= cap and _capped(kind, ka, kj, 0.0, d, cap, a, j) >= cap and (
             kind != _SCURVE or _capped(kind, ka, kj, u2, d, cap, a, j) >= cap):
         return
-    u1 = _root_3u(kind, ka, kj, d, cap, a, j)
+    u1 = _root_3u(kind, ka, kj, d, cap, a, j, g1, g2)
     w[s, U1] = u1
     w[s, F1] = _capped(kind, ka, kj, u1, d, cap, a, j)
     if kind == _SCURVE:

@@ -109,7 +109,7 @@ class RerunSink:
                     rec.send_blueprint(default_blueprint())
                 elif blueprint:
                     rec.send_blueprint(blueprint)
-            if blueprint is True:
+            if self._layout:
                 self.machine_frame("path")
         except BaseException:   # a Ctrl-C while the file is begun leaves no .partial
             self.discard()
