@@ -25,13 +25,12 @@ import numpy as np
 from envs.programs import tuning_program
 from envs.space import TuningSettings
 from twin.config import MachineConfig
-from twin.controller.controller import Controller, ControllerStatus
-from twin.controller.library import program_path
+from twin.controller.controller import ControllerStatus
 from twin.controller.linear import LinearAxisModel
 from twin.controller.summary import summarize
 from twin.errors import ConfigError, SimulationError
-from twin.hardware.sim import SimDriver
-from twin.plant import Plant
+from twin.session.loop import TickLoop
+from twin.session.setup import wire
 
 __all__ = ["METRICS", "RunOutcome", "Weights", "cost_terms", "measure", "metric_scales",
            "tuning_run"]
@@ -157,31 +156,24 @@ def tuning_run(cfg: MachineConfig, settings: TuningSettings, *,
     """
     wall = time.perf_counter()
     cfg = cfg.with_overrides({"controller.limits.max_jerk": float(settings.max_jerk)})
-    plant = Plant.from_machine(cfg)
-    plant.reset()
-    start = plant.truth().table_position
-    items = tuning_program(program, cfg, start)
-    ctrl = Controller.from_machine(cfg, items, gains=settings.gains, axis_models=list(models),
-                                   model_axes=model_axes, start=start)
-    driver = SimDriver(plant, cfg.controller.period)
-    limit = round(max_time / cfg.controller.period)
-    ticks = 0
+    p = wire(cfg, lambda start: tuning_program(program, cfg, start), gains=settings.gains,
+             axis_models=list(models), model_axes=model_axes)
+    ctrl = p.controller
+    loop = TickLoop(ctrl, p.driver)
     try:
-        while not ctrl.done and ticks < limit:
-            driver.write(ctrl.tick(driver.read()))
-            ticks += 1
+        loop.run(round(max_time / cfg.controller.period))
     except (SimulationError, FloatingPointError) as exc:
         return _failed("DIVERGED", diverged=True, message=str(exc),
-                       sim_time=ticks * cfg.controller.period,
+                       sim_time=loop.ticks * cfg.controller.period,
                        wall=time.perf_counter() - wall)
-    sim_time = ticks * cfg.controller.period
+    sim_time = loop.ticks * cfg.controller.period
     status = ctrl.status
     if status != ControllerStatus.FINISHED:
         why = "did not finish within max_time" if not ctrl.done else f"stopped: {status.name}"
         return _failed("DIVERGED" if status in _DIVERGED else status.name,
                        diverged=status in _DIVERGED, message=why, sim_time=sim_time,
                        wall=time.perf_counter() - wall)
-    metrics = measure(ctrl.record.as_arrays(), program_path(items), settings)
+    metrics = measure(ctrl.record.as_arrays(), p.path, settings)
     bad = [m for m, v in metrics.items() if not math.isfinite(v)]
     if bad:
         return _failed("DIVERGED", diverged=True, message=f"{bad[0]} is not finite",

@@ -14,9 +14,7 @@ from twin.config import MachineConfig, load_machine
 from twin.controller.controller import Controller, ControllerStatus
 from twin.controller.io import Outputs
 from twin.errors import ConfigError, SimulationError
-from twin.hardware.sim import SimDriver
-from twin.plant import Plant
-from twin.session.run import axis_models
+from twin.session.setup import wire
 
 __all__ = ["ServoEnv"]
 
@@ -124,13 +122,9 @@ class ServoEnv(gym.Env):
               ) -> tuple[np.ndarray, dict[str, Any]]:
         super().reset(seed=seed)
         cfg = self._randomizer.sample(self.np_random) if self._randomizer else self._base
-        plant = Plant.from_machine(cfg)
-        plant.reset()
-        start = plant.truth().table_position
-        items = tuning_program(self._program, cfg, start)
-        self._ctrl = Controller.from_machine(cfg, items, axis_models=axis_models(cfg),
-                                             dcu_order=self._dcu_order, start=start)
-        self._driver = SimDriver(plant, cfg.controller.period)
+        wired = wire(cfg, lambda start: tuning_program(self._program, cfg, start),
+                     dcu_order=self._dcu_order)
+        self._ctrl, self._driver = wired.controller, wired.driver
         lim = cfg.controller.limits
         self._scale = np.array([self.error_scale] * 2 + [lim.max_velocity] * 2
                                + [lim.max_acceleration] * 2 + [lim.max_jerk] * 2

@@ -11,6 +11,9 @@ import pytest
 from twin.config import load_machine
 from twin.controller.controller import Controller
 from twin.drive import velocity_gain
+from twin.errors import ConfigError
+from twin.hardware.sim import SimDriver
+from twin.plant import Plant
 from twin.plant.model import axis_mechanics
 from twin.session.experiments import run_experiment
 from twin.session.run import model_options
@@ -46,3 +49,35 @@ def test_the_elastic_mode_is_found_beside_the_converter_pulses(axis):
     mech = axis_mechanics(CFG, axis)
     expected = mech.locked_rotor_frequency / (2 * math.pi)
     assert result.elastic_mode == pytest.approx(expected, rel=0.03)
+
+
+@pytest.mark.parametrize(("kind", "amplitude"), [("step", 0.2e-3), ("ramp", 4e-3)])
+def test_a_closed_loop_experiment_is_the_controllers_own_loop_sample_for_sample(kind,
+                                                                                amplitude):
+    n = 160
+    _, rec = run_experiment(CFG, kind=kind, axis="x", amplitude=amplitude,
+                            duration=n * CFG.controller.period)
+    # by hand: the twin behind SimDriver, the controller's test signal, Controller.run
+    start = np.array([0.5 * (a.switches.limit_min + a.switches.limit_max)
+                      for a in CFG.axes.values()])
+    plant = Plant.from_machine(CFG)
+    plant.reset(positions=start)
+    ctrl = Controller.from_machine(CFG, None, start=start, **model_options(CFG))
+    ctrl.test_signal("x", kind, amplitude)
+    ctrl.run(SimDriver(plant, CFG.controller.period), max_time=n * CFG.controller.period)
+    r = ctrl.record.as_arrays()
+    assert len(r["t"]) == n
+    assert np.array_equal(rec["position"], r["position"][:, 0] - start[0])
+    assert np.array_equal(rec["reference"], r["ref_position"][:, 0] - start[0])
+    assert np.array_equal(rec["dac_volts"], r["dac_volts"][:, 0])
+    # compute ahead: the output of sample k is written at tick k + 1
+    out = r["terms"][:, 0, :].sum(axis=1)
+    assert rec["dac_volts"][0] == 0.0
+    dac = CFG.axes["x"].dac
+    lsb = 2.0 * dac.full_scale / 2 ** dac.bits
+    np.testing.assert_allclose(rec["dac_volts"][1:], out[:-1], atol=lsb)
+
+
+def test_a_step_that_trips_the_following_error_limit_is_refused_by_name():
+    with pytest.raises(ConfigError, match=r"FOLLOWING_ERROR.*following_error_limit"):
+        run_experiment(CFG, kind="step", axis="x", amplitude=5e-3, duration=0.2)

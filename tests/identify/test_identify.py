@@ -33,13 +33,22 @@ def over_modbus(tmp_path_factory):
     true, path = unseen(11, where)
     out = where / "calibrated.toml"
     # both ends under SCHED_FIFO where the OS grants it, as on a real-time controller
-    with spawn_hil_server("--machine", str(path), "--rt-priority", "10") as server:
-        # one re-send of a request unanswered within its 20 ms: a 2-core CI machine running
-        # the suite's other worker beside both ends once left the server silent that long
-        proc = twin_cli("identify", "--machine", BASE, "--driver",
-                        f"modbus://127.0.0.1:{server.info['port']}?retries=1",
-                        "--rt-priority", "10", "-o", str(out), "--out", str(where / "runs"),
-                        "--json")
+    for attempt in range(2):
+        with spawn_hil_server("--machine", str(path), "--rt-priority", "10") as server:
+            # one re-send of a request unanswered within its 20 ms: a 2-core CI machine
+            # running the suite's other worker beside both ends once left the server silent
+            # that long
+            proc = twin_cli("identify", "--machine", BASE, "--driver",
+                            f"modbus://127.0.0.1:{server.info['port']}?retries=1",
+                            "--rt-priority", "10", "-o", str(out), "--out",
+                            str(where / "runs"), "--json")
+        # The client repeats a phase its own loop saw disturbed; a stall of the server
+        # process alone (both ends and the other test worker on two cores) it cannot see.
+        # Once, on CI, that left a fit the command refused; the whole identification is
+        # then run once more (a real machine's controller and I/O do not share a CPU).
+        if proc.returncode == 0 or attempt or "did not converge" not in proc.stderr:
+            break
+        print(f"\nidentification over Modbus refused, run again: {proc.stderr}")
     assert proc.returncode == 0, proc.stderr
     return true, path, out, json.loads(proc.stdout)
 

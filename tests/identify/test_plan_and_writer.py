@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import dataclasses
 import math
+import time
 
 import numpy as np
 import pytest
@@ -12,8 +13,9 @@ import pytest
 from twin.config import AXES, available_machines, load_machine
 from twin.config.writer import machine_to_toml
 from twin.errors import ConfigError, ExperimentAborted
+from twin.hardware.realtime import TickStats
 from twin.hardware.sim import SimDriver
-from twin.identify.experiments import run_plan
+from twin.identify.experiments import disturbed, run_plan, timing
 from twin.identify.plan import (
     EXPERIMENTS,
     Piece,
@@ -100,3 +102,41 @@ def test_the_axes_option_names_the_axes_in_machine_order(text, axes):
 def test_a_bad_axes_option_names_the_option(text):
     with pytest.raises(ConfigError, match="axes"):
         parse_axes(text)
+
+
+class _Stalling(SimDriver):
+    """The twin behind a loop that stalls once, 15 ms (three periods) inside one read."""
+
+    reads = 0
+
+    def read(self):
+        self.reads += 1
+        if self.reads == 30:
+            time.sleep(0.015)
+        return super().read()
+
+
+def test_a_paced_phase_disturbed_by_a_stall_is_measured_again():
+    base = load_machine("tomsk_xy")
+    plant = Plant(base, noise=False)
+    plant.reset()
+    period = base.controller.period
+    plan = [Piece("steps", "speed", 0.3, 1e-3), Piece("steps", "speed", 0.1, 0.0)]
+    log = run_plan(_Stalling(plant, period), base, plan, paced=True)
+    reports = log.notes["deadlines"]
+    first = reports[0]
+    assert first["attempt"] == 0 and first["skipped"] >= 2   # the stall lost its slots
+    assert log.notes["repeated"][0].startswith("phase 0: ")
+    assert [r["attempt"] for r in reports] == list(range(len(reports)))
+    # the log holds one attempt, the least disturbed: every due slot of it that ran
+    kept = min(reports, key=lambda r: (r["skipped"], r["jitter_max_us"]))
+    assert log.ticks == kept["due"] - kept["skipped"] and kept["due"] == round(0.4 / period)
+    assert "repeated for timing: phase 0" in timing(log.notes)
+
+
+@pytest.mark.parametrize(("skipped", "late_us", "want"), [(0, 2400.0, False), (0, 2500.0, True),
+                                                          (1, 10.0, True), (0, 0.0, False)])
+def test_a_phase_is_disturbed_by_a_lost_slot_or_a_tick_half_a_period_late(skipped, late_us,
+                                                                           want):
+    stats = TickStats(5e-3, 100, 100 - skipped, 0, skipped, 1.0, 2.0, late_us, 5e-4)
+    assert disturbed(stats) is want

@@ -63,6 +63,7 @@ from twin.controller.regulator import (
     RegulatorGains,
     RegulatorStatus,
 )
+from twin.controller.signals import TestSignal
 from twin.errors import ConfigError, PlanningError, TwinError
 
 __all__ = ["RECORD_FIELDS", "Controller", "ControllerStatus"]
@@ -475,6 +476,23 @@ class Controller:
         block = MotionBlock(line, feed)
         self.planner.check([block])
         self._start_motion(self.planner.plan([block]), ControllerStatus.RUNNING)
+
+    def test_signal(self, axis: str, kind: str, amplitude: float) -> None:
+        """Follow a raw step (``amplitude`` m) or ramp (``amplitude`` m/s) of ``axis`` from
+        the present reference, instead of a planned program (``signals.TestSignal``), until
+        ``interpolator.stop()``; the other axis holds. The soft limits are not checked:
+        the caller keeps the signal inside the travel (the limit switches still trip)."""
+        if axis not in AXES:
+            raise ConfigError("axis", f"must be one of {AXES}, got {axis!r}")
+        if self.status not in (ControllerStatus.IDLE, ControllerStatus.FINISHED):
+            raise PlanningError(f"cannot start a test signal while {self.status.name}; "
+                                "wait for FINISHED or call reset()")
+        here = self.position_reference
+        self.interpolator = TestSignal(here, axis=AXES.index(axis), kind=kind,  # type: ignore
+                                       amplitude=amplitude, period=self.period)
+        self.regulator.reset(here)
+        self._held[0] = self._held[1] = 0.0
+        self.status = ControllerStatus.RUNNING
 
     def home(self, axis: str, *, feed: float | None = None, direction: int | None = None
              ) -> None:

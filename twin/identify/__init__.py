@@ -21,7 +21,7 @@ from pathlib import Path
 from typing import Any
 
 from twin.config import AXES, MachineConfig, load_machine, machine_from_toml_dict
-from twin.errors import ConfigError, ExperimentAborted
+from twin.errors import ConfigError, ExperimentAborted, FitError
 from twin.system.jsonio import output_dir, record_id, write_json_atomic, write_text_atomic
 
 __all__ = ["identify", "open_identification_driver"]
@@ -100,7 +100,7 @@ def identify(machine: str, output: str | Path, *, driver: str = "sim",
     """
     from twin.hardware.realtime import fifo_priority
     from twin.identify import report
-    from twin.identify.experiments import run_plan
+    from twin.identify.experiments import run_plan, timing
     from twin.identify.fit import fit
     from twin.identify.log import IdentLog
     from twin.identify.plan import default_plan, parse_axes
@@ -151,6 +151,9 @@ def identify(machine: str, output: str | Path, *, driver: str = "sim",
     result = None
     try:
         result = fit(base, log, progress=say)
+    except FitError as exc:
+        when = timing(log.notes)
+        raise FitError(f"{exc} ({when})" if when else str(exc)) from exc
     finally:
         if from_log is None:   # the experiments' recording, with the fitted twin if it fit
             report.record(log, base, where / "experiments.rrd", result)

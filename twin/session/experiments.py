@@ -23,11 +23,11 @@ import numpy as np
 
 from twin.config import AXES, MachineConfig
 from twin.controller.controller import Controller
-from twin.controller.encoder import EncoderUnwrapper
-from twin.controller.regulator import PositionRegulator
+from twin.controller.io import Inputs, Outputs
 from twin.errors import ConfigError
-from twin.plant import FINE_FIELDS, Plant
-from twin.session.run import model_options
+from twin.plant import FINE_FIELDS, TRUTH_FIELDS
+from twin.session.loop import TickLoop
+from twin.session.setup import wire
 from twin.telemetry.sink import NullSink, Sink
 
 __all__ = ["ExperimentResult", "converter_lines", "dominant_frequency", "response_figures",
@@ -35,6 +35,32 @@ __all__ = ["ExperimentResult", "converter_lines", "dominant_frequency", "respons
 
 FINE_FIELDS_INDEX = tuple((name, k) for k, (name, _) in enumerate(FINE_FIELDS))
 """(field, index of its x column / 2) of the plant's drive-rate samples."""
+
+
+FINE_DRAIN = 50
+"""Ticks between drains of the twin's drive-rate samples (well inside its ring)."""
+
+
+class _OpenLoop:
+    """An open-loop test signal in the controller's place: the DAC volts of one axis, a
+    step or a ramp from the first tick, written in the tick they are computed (no position
+    loop, so no loop delay to keep), the drives enabled."""
+
+    done = False
+
+    def __init__(self, axis: int, kind: str, amplitude: float, period: float):
+        self.axis, self.kind, self.amplitude, self.period = axis, kind, amplitude, period
+        self.out = Outputs()
+        self.out.enable = True
+        self.reference: list[float] = []
+        """The volts written, one per tick."""
+
+    def tick(self, _inputs: Inputs) -> Outputs:
+        t = len(self.reference) * self.period
+        u = self.amplitude if self.kind == "step" else self.amplitude * t
+        self.out.dac_volts[self.axis] = u
+        self.reference.append(u)
+        return self.out
 
 
 @dataclass(frozen=True)
@@ -199,56 +225,56 @@ def run_experiment(cfg: MachineConfig, *, kind: str, axis: str, amplitude: float
         raise ConfigError("duration", f"must be a time in (0, 600] s, got {duration!r}")
     k = AXES.index(axis)
     period = cfg.controller.period
-    plant = Plant.from_machine(cfg)
-    lo, hi = cfg.axes[axis].switches.limit_min, cfg.axes[axis].switches.limit_max
+    n = round(duration / period)
     start = np.array([0.5 * (ax.switches.limit_min + ax.switches.limit_max)
                       for ax in cfg.axes.values()])
-    plant.reset(positions=start)
-    ctrl = Controller.from_machine(cfg, None, **model_options(belief or cfg))
-    regulator = PositionRegulator(ctrl.gains, period)
-    encoder = EncoderUnwrapper([a.counts_per_metre for a in cfg.axes.values()],
-                               bits=[a.encoder.bits for a in cfg.axes.values()])
-    n = round(duration / period)
-    rows = np.zeros((n, 6))
-    fine = []
-    held = np.zeros(2)   # the output computed last tick: written at this one
-    dac = np.zeros(2)
-    zero = (0.0, 0.0)
-    i_col = 2 * dict(FINE_FIELDS_INDEX)["screw_deflection"] + k
-    encoder.reset(plant.read().encoder_counts, position=start.tolist())
-    regulator.reset(start.tolist())
-    for i in range(n):
-        t = i * period
-        pos = encoder.update(plant.read().encoder_counts)
-        ref = start.tolist()
-        if open_loop:
-            dac[:] = 0.0
-            dac[k] = reference = amplitude if kind == "step" else amplitude * t
-            measured = float(plant.truth().table_velocity[k])
-        else:
-            ref[k] += amplitude if kind == "step" else amplitude * t
-            vel = [0.0, 0.0]
-            vel[k] = 0.0 if kind == "step" else amplitude
-            regulator.update(ref, vel, zero, zero, pos)
-            dac[:] = held
-            held[:] = regulator.output
-            reference = ref[k] - start[k]
-            measured = float(pos[k]) - start[k]
-        if not lo < ref[k] < hi:
+    lo, hi = cfg.axes[axis].switches.limit_min, cfg.axes[axis].switches.limit_max
+    if not open_loop:
+        far = start[k] + (amplitude if kind == "step" else amplitude * (n - 1) * period)
+        if not lo < far < hi:
             raise ConfigError("amplitude", f"the reference leaves the travel between the "
                               f"limit switches ({lo} … {hi} m)")
-        tr = plant.truth()
-        rows[i] = (t, reference, measured, tr.table_velocity[k], dac[k],
-                   tr.armature_current[k])
-        t0 = plant.time
-        plant.step(dac, period)
-        f = plant.fine
-        fine.append(np.column_stack((t0 + plant.drive_dt * np.arange(1, len(f) + 1),
-                                     f[:, i_col])))
+    wired = wire(cfg, None, belief=belief, start=start)
+    plant = wired.plant
+    assert plant is not None
+    if open_loop:
+        source: Controller | _OpenLoop = _OpenLoop(k, kind, amplitude, period)
+    else:
+        source = wired.controller
+        source.test_signal(axis, kind, amplitude)
+    truth = [plant.truth_row()]          # the state at each sample instant
+    fine: list[np.ndarray] = []
+    t_fine = plant.time
+    loop = TickLoop(source, wired.driver, after_tick=lambda: truth.append(plant.truth_row()),
+                    every=FINE_DRAIN, checkpoint=lambda: fine.append(plant.drain_fine()))
+    loop.run(n)
+    fine.append(plant.drain_fine())
     plant.enable(False)
-    rec = dict(zip(("t", "reference", "position", "velocity", "dac_volts",
-                    "armature_current"), rows.T, strict=True))
-    rec["fine_t"], rec["screw_deflection"] = np.concatenate(fine).T
+    if loop.ticks < n:  # the controller stopped the machine: a fault latched
+        status = source.status.name  # type: ignore[union-attr]
+        raise ConfigError("amplitude", f"the controller stopped the {kind} on axis {axis} "
+                          f"with {status} after {loop.ticks * period:.3f} s (following "
+                          f"error limit controller.regulator.following_error_limit = "
+                          f"{cfg.controller.regulator.following_error_limit * 1e3:g} mm): "
+                          "choose a smaller amplitude")
+    state = np.array(truth[:n])
+    col = {name: 2 * i + k for i, (name, _) in enumerate(TRUTH_FIELDS)}
+    t = period * np.arange(n)
+    if open_loop:
+        reference = np.array(source.reference[:n])
+        measured = state[:, col["table_velocity"]]
+        dac = reference
+    else:
+        r = source.record.as_arrays()
+        reference = r["ref_position"][:n, k] - start[k]
+        measured = r["position"][:n, k] - start[k]
+        dac = r["dac_volts"][:n, k]
+    rec = {"t": t, "reference": reference, "position": measured,
+           "velocity": state[:, col["table_velocity"]], "dac_volts": np.array(dac),
+           "armature_current": state[:, col["armature_current"]]}
+    rows = np.concatenate(fine)
+    rec["fine_t"] = t_fine + plant.drive_dt * np.arange(1, len(rows) + 1)
+    rec["screw_deflection"] = rows[:, 2 * dict(FINE_FIELDS_INDEX)["screw_deflection"] + k]
     response = rec["velocity"] if open_loop else rec["position"]
     if open_loop:  # the steady speed the drive should reach: U/K_C·r
         ratio = cfg.axes[axis].transmission.ratio / cfg.axes[axis].tacho.gain

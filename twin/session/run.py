@@ -14,7 +14,6 @@ from __future__ import annotations
 
 import contextlib
 import dataclasses
-import gc
 import math
 import time
 from collections.abc import Callable, Sequence
@@ -30,9 +29,10 @@ from twin.controller.gcode import Move
 from twin.controller.metrics import OscillationMeter
 from twin.controller.record import Record
 from twin.errors import ConfigError, DeadlineFault, DriverError
-from twin.hardware.realtime import DeadlinePolicy, RealTimeLoop, TickStats, fifo_priority
+from twin.hardware.realtime import DeadlinePolicy, TickStats
 from twin.plant import FINE_FIELDS, FINE_WIDTH, TRUTH_FIELDS
 from twin.plant.model import mode_periods
+from twin.session.loop import TickLoop
 from twin.session.record import (
     RunSummary,
     make_sink,
@@ -221,7 +221,7 @@ class _Loop:
             motor_ratio=[p.cfg.axes[ax].transmission.ratio for ax in AXES],
             contour_tolerance=p.cfg.controller.contour_tolerance)
         self.names = {int(s): s.name for s in ControllerStatus}
-        self.ticks = 0
+        self.tick_loop: TickLoop | None = None
         self.stats: TickStats | None = None
         # the twin's drive-rate samples: to the telemetry, into the elastic oscillation
         # (streamed: memory does not grow with the run), and kept only when asked
@@ -234,6 +234,11 @@ class _Loop:
         # reaches them: on the recording's event log, counted in the summary
         self.events: dict[str, int] = {}
         p.controller.interpolator.on_event = self._event
+
+    @property
+    def ticks(self) -> int:
+        """Ticks run so far."""
+        return 0 if self.tick_loop is None else self.tick_loop.ticks
 
     def _event(self, t: float, item: Any) -> None:
         kind = getattr(item, "kind", None)
@@ -290,37 +295,25 @@ class _Loop:
             if self.truth is not None:
                 self.truth.release(len(record))
 
+    def _checkpoint(self) -> None:
+        """Every ``every`` ticks: stop signals, the twin's fine samples, a telemetry batch."""
+        raise_caught(self.caught)
+        self.drain()
+        self._batch()
+
     def run_lockstep(self) -> None:
-        """The twin: as fast as the machine allows (the hot loop: locals only, and the
-        cyclic garbage collector paused: the loop makes no reference cycles, only short-lived
-        tuples, so a collection would scan the whole heap for nothing)."""
-        ctrl, drv, plant, truth = self.p.controller, self.p.driver, self.p.plant, self.truth
-        tick, read, write = ctrl.tick, drv.read, drv.write
-        append, row = truth.append, plant.truth_row
-        every, limit = self.every, self.limit
-        paused = gc.isenabled()
-        gc.disable()
-        try:
-            while self.ticks < limit:
-                if ctrl.done and not self._next_command():
-                    break
-                write(tick(read()))
-                append(row())
-                self.ticks += 1
-                if self.ticks % every == 0:
-                    raise_caught(self.caught)
-                    self.drain()
-                    self._batch()
-        finally:
-            if paused:
-                gc.enable()
+        """The twin: as fast as the machine allows; the truth row after every tick."""
+        append, row = self.truth.append, self.p.plant.truth_row
+        self.tick_loop = TickLoop(self.p.controller, self.p.driver,
+                                  after_tick=lambda: append(row()), every=self.every,
+                                  checkpoint=self._checkpoint, next_command=self._next_command)
+        self.tick_loop.run(self.limit)
 
     def run_paced(self) -> None:
         """Real I/O: one tick per period of wall time, absolute deadlines. Telemetry goes out
         only in a tick's slack: when the time left before the next deadline exceeds 1.5× the
         last batch's cost (a batch is postponed, never allowed to make a tick late)."""
-        ctrl, drv, clock = self.p.controller, self.p.driver, time.perf_counter
-        loop = RealTimeLoop(self.period)
+        clock = time.perf_counter
         cost = [2e-3]  # the last batch's wall time (s): a first guess
 
         def warning(message: str) -> None:
@@ -329,36 +322,23 @@ class _Loop:
             if self.warn is not None:
                 self.warn(message)
 
+        def checkpoint() -> None:
+            raise_caught(self.caught)
+            t0 = clock()
+            slack = loop.realtime.start + loop.t + self.period - t0  # type: ignore[union-attr]
+            if slack > 1.5 * cost[0] and self._batch():
+                cost[0] = clock() - t0
+
         policy = DeadlinePolicy.from_config(self.p.cfg.controller.deadlines, self.period,
                                             on_warning=warning)
-
-        def step(_k: int, t: float) -> bool:
-            if ctrl.done and not self._next_command():
-                return False
-            drv.write(ctrl.tick(drv.read()))
-            self.ticks += 1
-            if self.ticks % self.every == 0:
-                raise_caught(self.caught)
-                t0 = clock()
-                if loop.start + t + self.period - t0 > 1.5 * cost[0] and self._batch():
-                    cost[0] = clock() - t0
-            return True
-
-        # No cyclic garbage collection inside the paced loop: a full collection of a large
-        # heap (a test runner's, a notebook's) takes tens of milliseconds, which is several
-        # lost periods; the loop makes no reference cycles, so one collection before it
-        # leaves nothing for later.
-        paused = gc.isenabled()
-        gc.collect()
-        gc.disable()
+        loop = self.tick_loop = TickLoop(self.p.controller, self.p.driver, every=self.every,
+                                         checkpoint=checkpoint,
+                                         next_command=self._next_command)
         try:
-            with fifo_priority(self.rt_priority) as granted:
-                self.rt_granted = granted
-                self.stats = loop.run(step, max_ticks=self.limit, policy=policy)
+            loop.run_paced(self.period, max_ticks=self.limit, policy=policy,
+                           rt_priority=self.rt_priority)
         finally:
-            if paused:
-                gc.enable()
-            self.stats = self.stats or loop.last_stats()
+            self.stats, self.rt_granted = loop.stats, loop.rt_granted
 
     def finish(self, spec: RunSpec, run_id: str, out: Path, recording: str | None,
                wall: float, aborted: str | None,

@@ -7,7 +7,7 @@ the wiring of machine, program, controller and I/O (``prepare``) that
 from __future__ import annotations
 
 import dataclasses
-from collections.abc import Mapping
+from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -27,7 +27,7 @@ from twin.plant import Plant
 
 __all__ = ["Prepared", "RunResult", "RunSpec", "axis_models", "load_program",
            "measured_position", "model_options", "prepare", "reader_options",
-           "shipped_program"]
+           "shipped_program", "wire"]
 
 
 @dataclass(frozen=True)
@@ -261,29 +261,64 @@ def prepare(spec: RunSpec) -> Prepared:
     """Load the machine, the program and the machine's I/O (the twin, or a driver URL); build
     the controller (checks the program against the work zone before any motion)."""
     cfg = spec.machine_config()
-    belief = spec.belief(cfg)
+    notes: list[str] = []
+    p = wire(cfg, lambda start: load_program(spec, cfg, start, notes),
+             belief=spec.belief(cfg), start=spec.start, driver=spec.driver,
+             drives_off=spec.drives_off, mode=spec.mode, record_capacity=RECORD_CHUNK)
+    p.notes = notes
+    return p
+
+
+def wire(cfg: MachineConfig, program: Callable[[np.ndarray], list[Any]] | None = None, *,
+         belief: MachineConfig | None = None, start: Sequence[float] | None = None,
+         driver: str = "sim", drives_off: bool = False, **controller_options: Any
+         ) -> Prepared:
+    """The one wiring of a machine, a program and the controller, for runs, tuning,
+    environments and experiments.
+
+    Parameters
+    ----------
+    cfg : MachineConfig
+        The machine: the plant's truth on the twin, and the controller's settings and I/O.
+    program : callable(start) -> list, optional
+        Builds the program's items from the table's start position (m); None: the
+        controller starts idle (for jogs, homing and test signals).
+    belief : MachineConfig, optional
+        The controller's model of the machine (``model_options``); default ``cfg``.
+    start : (float, float), optional
+        Table position on the twin (m); default the home keyframe. Behind real I/O the
+        table is where the counters say.
+    driver : str
+        ``"sim"``: the twin in lock-step (``SimDriver`` with the machine's timing); or a
+        URL of real I/O (``twin.hardware.drivers.open_driver``).
+    drives_off : bool
+        The twin's drives disabled whatever the controller writes (a dry run).
+    **controller_options
+        More ``Controller`` options (``gains``, ``axis_models``, ``dcu_order``, ``mode``,
+        …); they take precedence over those derived from ``belief``.
+    """
     plant = None
-    if spec.driver == "sim":
+    if driver == "sim":
         plant = Plant.from_machine(cfg)
-        plant.reset(positions=None if spec.start is None else np.asarray(spec.start, float))
-        start = plant.truth().table_position
-        driver = SimDriver(plant, cfg.controller.period, drives_off=spec.drives_off,
-                           timing=cfg.controller.timing)
+        plant.reset(positions=None if start is None else np.asarray(start, float))
+        here = plant.truth().table_position
+        io: Any = SimDriver(plant, cfg.controller.period, drives_off=drives_off,
+                            timing=cfg.controller.timing)
     else:
         from twin.hardware.drivers import open_driver
 
-        driver = open_driver(spec.driver, cfg)
-        start = measured_position(driver.read().encoder_counts, cfg)
-    notes: list[str] = []
+        io = open_driver(driver, cfg)
+        here = measured_position(io.read().encoder_counts, cfg)
     try:
-        items = load_program(spec, cfg, start, notes)
-        controller = Controller.from_machine(cfg, items or None, **model_options(belief),
-                                             mode=spec.mode, start=start,
-                                             record_capacity=RECORD_CHUNK)
+        items = program(here) if program is not None else []
+        options = dict(controller_options)
+        if "axis_models" not in options:
+            options = {**model_options(belief or cfg), **options}
+        controller = Controller.from_machine(cfg, items or None, start=here, **options)
     except BaseException:
-        driver.close()
+        io.close()
         raise
-    return Prepared(cfg, items, program_path(items), plant, controller, driver, belief, notes)
+    return Prepared(cfg, items, program_path(items), plant, controller, io, belief)
 
 
 def measured_position(counts: np.ndarray, cfg: MachineConfig) -> np.ndarray:
