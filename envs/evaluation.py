@@ -195,7 +195,9 @@ def measure(rec: Mapping[str, np.ndarray], path: list, settings: TuningSettings
     m = summarize(t, rec["ref_position"], rec["ref_velocity"], pos, velocity, path,
                   segment=segment)
     gains = settings.gains
-    full = gains.output_limit - gains.dac_lsb * 1.5
+    # the output stage's limit per axis (a quantising regulator's top code is 1 LSB below)
+    full = np.broadcast_to(np.subtract(gains.output_limit, np.multiply(gains.dac_lsb, 1.5)),
+                           (2,))
     period = float(t[1] - t[0]) if len(t) > 1 else 0.0
     saturated = np.any(np.abs(rec["dac_volts"]) >= full, axis=1)
     return {

@@ -128,7 +128,7 @@ class ServoEnv(gym.Env):
         lim = cfg.controller.limits
         self._scale = np.array([self.error_scale] * 2 + [lim.max_velocity] * 2
                                + [lim.max_acceleration] * 2 + [lim.max_jerk] * 2
-                               + [self._ctrl.gains.output_limit] * 2)
+                               + list(np.broadcast_to(self._ctrl.gains.output_limit, 2)))
         self._pending = self._ctrl.tick(self._driver.read())
         return self._observation(), {"machine": cfg.name, "program": self._program}
 

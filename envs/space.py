@@ -121,10 +121,11 @@ class TuningSpace:
         """The space of machine ``cfg`` whose axes have the linear models ``models``: the
         analytic order-3 DCU design with the machine's DAC and trip limit."""
         reg = cfg.controller.regulator
-        dac = cfg.axes[AXES[0]].dac
         base = default_gains(list(models), cfg.controller.period, dcu_order=3,
                              following_error_limit=reg.following_error_limit)
-        base = dataclasses.replace(base, output_limit=dac.full_scale, dac_bits=dac.bits)
+        # saturation at each axis' DAC full scale; the DAC (the plant) quantises
+        base = dataclasses.replace(base, output_limit=tuple(cfg.axes[a].dac.full_scale
+                                                            for a in AXES), dac_bits=None)
         kh = tuple(float(m.velocity_gain) for m in models)
         return cls(base, cfg.controller.limits.max_jerk, kh, **options)  # type: ignore[arg-type]
 

@@ -220,8 +220,8 @@ def test_a_closed_switch_leaves_the_state_untouched():
                        interp._tau + interp.period, 3, ctrl.period, *(
                            getattr(interp.reference, f) for f in
                            ("position", "velocity", "acceleration", "jerk")),
-                       reg._par, reg._st, reg.output, reg.error, reg.terms, reg._limit,
-                       reg._lsb, reg._code_min, reg._code_max, ctrl._held,
+                       reg._par, reg._st, reg.output, reg.error, reg.terms,
+                       reg._code_min, reg._code_max, ctrl._held,
                        ctrl.outputs.dac_volts, chunk, row, 0, 0)
     assert code == controller_module.FALLBACK
     after = (enc.state_int, enc.position, reg._st, reg.output, interp.reference.position)

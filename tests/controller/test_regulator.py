@@ -350,7 +350,7 @@ def test_any_number_of_axes(n_axes):
     ({"kp": 1.0, "ff2": math.inf}, "ff2"), ({"kp": 1.0, "dcu_alpha": (1.0, 2.0)}, "dcu_alpha"),
     ({"kp": 1.0, "dcu_alpha": ((1.0, 2.0, math.nan),) * 2}, "dcu_alpha"),
     ({"kp": 1.0, "output_limit": 0.0}, "output_limit"),
-    ({"kp": 1.0, "output_limit": (10.0, 5.0)}, "output_limit"),
+    ({"kp": 1.0, "output_limit": (10.0, -5.0)}, "output_limit"),
     ({"kp": 1.0, "dac_bits": 0}, "dac_bits"), ({"kp": 1.0, "dac_bits": 33}, "dac_bits"),
     ({"kp": 1.0, "dac_bits": 12.0}, "dac_bits"), ({"kp": 1.0, "dac_bits": True}, "dac_bits"),
     ({"kp": 1.0, "following_error_limit": 0.0}, "following_error_limit"),
@@ -396,7 +396,8 @@ def test_the_compiled_update_is_the_python_reference_bit_for_bit(seed):
     gains = RegulatorGains(kp=(3000.0, 4500.0), ki=(500.0, 0.0), kd=(2.0, 5.0),
                            ff1=(60.0, 40.0), ff2=0.3, ff3=1e-3,
                            dcu_alpha=((190.0, 5.0, 0.2), (210.0, 3.0, 0.1)),
-                           output_limit=10.0, dac_bits=12, following_error_limit=2e-3)
+                           output_limit=10.0 if seed % 2 else (10.0, 5.0),
+                           dac_bits=12 if seed % 3 else None, following_error_limit=2e-3)
     fast, ref = PositionRegulator(gains, 5e-3), PositionRegulator(gains, 5e-3)
     start = rng.uniform(0.0, 0.1, 2)
     fast.reset(start)
@@ -419,3 +420,16 @@ def test_the_compiled_update_is_the_python_reference_bit_for_bit(seed):
     assert fast.tripped and ref.tripped
     assert {RegulatorStatus.OK, RegulatorStatus.SATURATED,
             RegulatorStatus.FOLLOWING_ERROR} <= seen
+
+
+def test_each_axis_saturates_at_its_own_dac_full_scale():
+    gains = RegulatorGains(kp=1e5, output_limit=(10.0, 2.5), dac_bits=None,
+                           following_error_limit=1.0)
+    reg = PositionRegulator(gains, T)
+    reg.reset([0.0, 0.0])
+    zero = np.zeros(2)
+    assert reg.update([0.01, -0.01], zero, zero, zero, zero) == RegulatorStatus.SATURATED
+    assert reg.output.tolist() == [10.0, -2.5]     # not quantised: the DAC's job
+    assert gains.dac_lsb == 0.0
+    assert RegulatorGains(kp=1.0, output_limit=(10.0, 2.5)).dac_lsb == (20.0 / 4096,
+                                                                         5.0 / 4096)

@@ -30,7 +30,9 @@ def test_zero_action_is_the_analytic_design(machine):
     np.testing.assert_allclose(s.gains.dcu_alpha, ref.dcu_alpha, rtol=1e-15)
     assert s.gains.ki == (0.0, 0.0)
     assert s.max_jerk == cfg.controller.limits.max_jerk
-    assert s.gains.output_limit == cfg.axes["x"].dac.full_scale
+    # each axis saturates at its own DAC's full scale; the DAC (the plant) quantises
+    assert s.gains.output_limit == (cfg.axes["x"].dac.full_scale, cfg.axes["y"].dac.full_scale)
+    assert s.gains.dac_bits is None
     assert s.gains.following_error_limit == cfg.controller.regulator.following_error_limit
 
 

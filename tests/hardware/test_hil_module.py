@@ -16,8 +16,9 @@ from twin.errors import ConfigError, SimulationError
 from twin.hardware.hil import CLIENT, HilModule, Refused
 from twin.hardware.hil_server import hil_plant
 from twin.hardware.register_map import (
+    dac_volts,
+    dac_word,
     load_register_map,
-    volts_to_word,
     word_to_volts,
     words_to_counter,
 )
@@ -60,7 +61,7 @@ def _counts(module):
 def _drive(module, volts, feed=1):
     module.write_holding(FEED, feed)      # outputs are taken only once the watchdog is fed
     for addr, v in zip((DAC_X, DAC_Y), volts, strict=True):
-        module.write_holding(addr, volts_to_word(v, 10.0))
+        module.write_holding(addr, dac_word(v, 10.0, 12))
     assert module.write_coil(ENABLE, True)
 
 
@@ -77,7 +78,7 @@ def test_physics_advances_in_whole_intervals_with_the_clock(rig):
 def test_outputs_drive_the_plant_exactly_like_a_plant_stepped_by_hand(rig):
     module, ref, clock = rig
     dt, u = module.dt, np.array([2.0, -1.5])
-    uq = np.array([word_to_volts(volts_to_word(v, 10.0), 10.0) for v in u])
+    uq = np.array([dac_volts(dac_word(v, 10.0, 12), 10.0, 12) for v in u])
     _drive(module, u)
     ref.enable(True)
     rng = np.random.default_rng(7)
@@ -107,8 +108,8 @@ def test_image_is_the_plant_reading(rig):
     assert [bits[a] for a in range(6)] == [r.limit_min[0], r.limit_max[0], r.home[0],
                                           r.limit_min[1], r.limit_max[1], r.home[1]]
     assert bits[6] and bits[7] and not bits[8]
-    assert module.holding_registers() == {0: volts_to_word(3.0, 10.0),
-                                          1: volts_to_word(3.0, 10.0), 2: 1}
+    assert module.holding_registers() == {0: dac_word(3.0, 10.0, 12),
+                                          1: dac_word(3.0, 10.0, 12), 2: 1}
     assert module.coils() == {0: True}
 
 
@@ -134,7 +135,7 @@ def test_a_fed_or_idle_module_never_trips(rig):
 def test_watchdog_trips_at_the_instant_of_expiry_even_when_checked_late(rig, late):
     module, ref, clock = rig
     dt, u = module.dt, np.array([2.0, 1.0])
-    uq = np.array([word_to_volts(volts_to_word(v, 10.0), 10.0) for v in u])
+    uq = np.array([dac_volts(dac_word(v, 10.0, 12), 10.0, 12) for v in u])
     clock.now = 3.3 * dt
     module.advance()
     _drive(module, u)                      # fed at 3.3 dt: expires at 3.3 dt + 50 ms
@@ -159,13 +160,13 @@ def test_a_latched_trip_drops_references_and_refuses_enable_until_acknowledged(r
     _drive(module, [1.0, 1.0])
     clock.now = 2 * WATCHDOG
     module.advance()
-    assert module.write_holding(DAC_X, volts_to_word(4.0, 10.0)) == 0
+    assert module.write_holding(DAC_X, dac_word(4.0, 10.0, 12)) == 0
     assert not module.write_coil(ENABLE, True)
     assert module.tripped and not module.enabled
     assert module.write_coil(ENABLE, False)          # acknowledge
     assert not module.tripped
     _drive(module, [1.0, 1.0], feed=7)
-    assert module.enabled and module.holding_registers()[DAC_X] == volts_to_word(1.0, 10.0)
+    assert module.enabled and module.holding_registers()[DAC_X] == dac_word(1.0, 10.0, 12)
 
 
 @pytest.mark.parametrize("phase", [0.25, 0.6])
@@ -206,14 +207,14 @@ def test_pymodbus_glue_fills_reads_applies_writes_and_reports_faults(rig, monkey
     assert act(2, 0, 0, bits) is None
     expected = module.discrete_inputs()
     assert [(bits[0] >> a) & 1 == 1 for a in range(9)] == [expected[a] for a in range(9)]
-    values = [volts_to_word(1.0, 10.0), volts_to_word(-1.0, 10.0), 5]
+    values = [dac_word(1.0, 10.0, 12), dac_word(-1.0, 10.0, 12), 5]
     assert act(16, 0, 0, [0] * 4, values) is None
     assert act(5, 0, 0, [0], [True]) is None
     assert module.enabled and module.holding_registers() == {0: values[0], 1: values[1], 2: 5}
     clock.now = 1.0
     module.advance()
     assert module.tripped
-    values = [volts_to_word(2.0, 10.0)]
+    values = [dac_word(2.0, 10.0, 12)]
     assert act(16, 0, 0, [0] * 4, values) is None and values == [0]   # dropped while latched
     assert act(5, 0, 0, [0], [True]) == ExcCodes.DEVICE_FAILURE
 
@@ -241,7 +242,7 @@ def test_a_write_in_the_output_window_acts_from_its_reads_interval(plants, windo
     module = HilModule(plant, RMAP, watchdog=1.0, sync_phase=None,
                        output_window=window * plant.drive_dt, clock=clock)
     dt, u = module.dt, [2.0, -1.5]
-    words = [volts_to_word(v, 10.0) for v in u]
+    words = [dac_word(v, 10.0, 12) for v in u]
 
     def act(fc, values=None):
         return asyncio.run(module._action(fc, 0, 0, 1, [0] * 7, values))
@@ -255,7 +256,7 @@ def test_a_write_in_the_output_window_acts_from_its_reads_interval(plants, windo
     ref.enable(False)
     ref.step(np.zeros(2), from_interval * dt)
     ref.enable(True)
-    ref.step(np.array([word_to_volts(w, 10.0) for w in words]), (10 - from_interval) * dt)
+    ref.step(np.array([dac_volts(w, 10.0, 12) for w in words]), (10 - from_interval) * dt)
     assert plant.truth().table_position.tolist() == ref.truth().table_position.tolist()
     assert (module.stats().dac_writes, module.stats().late_writes) == (1, late)
 
@@ -274,7 +275,7 @@ def test_module_options_out_of_range_name_the_option(plants, option, value):
 def test_nothing_is_driven_before_the_watchdog_is_fed(rig):
     module, _, clock = rig
     with pytest.raises(Refused) as caught:
-        module.write_holding(DAC_X, volts_to_word(5.0, 10.0))
+        module.write_holding(DAC_X, dac_word(5.0, 10.0, 12))
     assert caught.value.code == ExcCodes.DEVICE_FAILURE
     assert module.write_holding(DAC_Y, 0) == 0            # a zero is always safe
     assert not module.write_coil(ENABLE, True)
@@ -286,7 +287,7 @@ def test_nothing_is_driven_before_the_watchdog_is_fed(rig):
     def act(fc, address, values):
         return asyncio.run(module._action(fc, 0, address, len(values), [0] * 4, values))
 
-    word = volts_to_word(1.0, 10.0)
+    word = dac_word(1.0, 10.0, 12)
     assert act(6, DAC_X, [word]) == ExcCodes.DEVICE_FAILURE    # DAC first: refused, alive
     assert act(16, 0, [word, word, 9]) is None                 # one request that feeds
     assert act(5, ENABLE, [True]) is None and module.enabled

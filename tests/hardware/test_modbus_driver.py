@@ -5,6 +5,7 @@ sends, how the image decodes, and every way an answer can be wrong."""
 from __future__ import annotations
 
 import json
+import math
 import socket
 import struct
 import threading
@@ -20,7 +21,7 @@ from twin.controller.io import Outputs
 from twin.errors import ConfigError, DriverError
 from twin.hardware.drivers import open_driver, parse_driver_url
 from twin.hardware.modbus import ModbusDriver
-from twin.hardware.register_map import DEFAULT_MAP, volts_to_word
+from twin.hardware.register_map import DEFAULT_MAP, dac_word
 from twin.session.run import RunSpec, run
 from twin.system.jsonio import json_text
 
@@ -178,7 +179,8 @@ def test_one_tick_is_three_requests_and_the_image_decodes(module):
     for _ in range(3):
         drv.write(Outputs(dac_volts=dac, enable=True))
     drv.write(Outputs(dac_volts=np.zeros(2), enable=False))
-    w = [volts_to_word(v, 10.0) for v in dac]
+    # the 12-bit code of ±10 V (LSB 20 V / 4096), left-justified in the int16 register
+    w = [(math.floor(v / (20.0 / 4096) + 0.5) * 16) & 0xFFFF for v in dac]
     assert module.log == [
         (16, 0, [*w, 2]), (5, 0, True),          # references first, then enable
         (16, 0, [*w, 3]), (16, 0, [*w, 4]),      # the coil only when it changes
@@ -434,7 +436,7 @@ def test_the_packed_map_is_two_requests_per_tick():
         drv.write(Outputs(dac_volts=np.array([1.0, -2.0]), enable=True))
         assert drv.requests - before == 2
         assert module.log[logged:] == [
-            (4, 0, 7), (16, 0, [volts_to_word(1.0, 10.0), volts_to_word(-2.0, 10.0), 2, 1])]
+            (4, 0, 7), (16, 0, [dac_word(1.0, 10.0, 12), dac_word(-2.0, 10.0, 12), 2, 1])]
         np.testing.assert_array_equal(inputs.encoder_counts, [0x00010002, 0xFFFFFFFE])
         np.testing.assert_array_equal(inputs.limit_min, [True, False])
         np.testing.assert_array_equal(inputs.home, [False, True])

@@ -10,11 +10,13 @@ import struct
 import tomllib
 from functools import cache
 
+import numpy as np
 import pytest
 from hypothesis import given
 from hypothesis import strategies as st
 from pymodbus.client import ModbusTcpClient
 
+from twin.config import DacConfig
 from twin.errors import ConfigError
 from twin.hardware.register_map import (
     DEFAULT_MAP,
@@ -22,13 +24,17 @@ from twin.hardware.register_map import (
     MAX_READ_BITS,
     MAX_READ_REGISTERS,
     _spans,
+    check_dacs,
     counter_to_words,
+    dac_volts,
+    dac_word,
     load_register_map,
     register_map_from_dict,
     volts_to_word,
     word_to_volts,
     words_to_counter,
 )
+from twin.plant.loop import quantise
 
 TABLES = ("input registers", "holding registers", "discrete inputs", "coils")
 DOC = tomllib.loads(DEFAULT_MAP.read_text(encoding="utf-8"))
@@ -96,7 +102,7 @@ def test_one_tick_is_three_requests_with_the_default_map():
     ("axes.z", {"encoder": 40, "dac": 40, "limit_min": 40, "limit_max": 41}, "axes",
      "exactly the axes x, y"),
     ("module.word_order", "middle", "module.word_order", "high_first, low_first"),
-    ("module.dac_full_scale", 0.0, "module.dac_full_scale", "> 0"),
+    ("module.dac_full_scale", 10.0, "module.dac_full_scale", "axes.<axis>.dac.full_scale"),
     ("module.tacho_full_scale", float("inf"), "module.tacho_full_scale", "finite"),
     ("module.device_id", 300, "module.device_id", "0 … 247"),
     ("module.enable", _DELETE, "module.enable", "missing"),
@@ -221,3 +227,44 @@ def test_volts_round_to_the_nearest_int16_code_and_clip(volts):
 ])
 def test_volts_table(volts, word):
     assert volts_to_word(volts, 10.0) == word
+
+
+@pytest.mark.parametrize(("volts", "word"), [
+    (0.0, 0), (10.0, 0x7FF0), (-10.0, 0x8000), (20.0, 0x7FF0), (-20.0, 0x8000),
+    (float("inf"), 0x7FF0), (float("-inf"), 0x8000), (float("nan"), 0),
+    (20.0 / 4096, 0x10), (-20.0 / 4096, 0xFFF0), (0.49 * 20.0 / 4096, 0),
+])
+def test_a_dac_word_is_the_axis_dacs_code_left_justified(volts, word):
+    assert dac_word(volts, 10.0, 12) == word        # 12 bits, ±10 V: LSB 20 V / 4096
+
+
+@pytest.mark.parametrize(("full_scale", "bits"), [(10.0, 12), (10.0, 16), (5.0, 14), (2.5, 1)])
+def test_the_dac_is_quantised_once_the_plants_stage_finds_the_drivers_code(full_scale, bits):
+    """The driver quantises to the axis DAC's code; the module hands the plant that code's
+    exact level, and the plant's DAC stage (``plant.loop.quantise``) gives what it gives for
+    the volts themselves: a second quantisation changes nothing."""
+    rng = np.random.default_rng(bits)
+    half = 2 ** (bits - 1)
+    lsb = full_scale / half
+    stage = np.array([[lsb, -half, half - 1, 1.0, 0.0]] * 2)
+    direct, relayed = np.zeros(2), np.zeros(2)
+    for volts in rng.uniform(-1.2 * full_scale, 1.2 * full_scale, (500, 2)):
+        quantise(volts, stage, direct)
+        levels = np.array([dac_volts(dac_word(v, full_scale, bits), full_scale, bits)
+                           for v in volts])
+        quantise(levels, stage, relayed)
+        np.testing.assert_array_equal(relayed, direct)
+        np.testing.assert_array_equal(levels, direct)
+
+
+def test_a_dac_wider_than_its_register_is_refused_naming_the_axis():
+    with pytest.raises(ConfigError, match=r"axes\.y\.dac\.bits"):
+        check_dacs({"x": DacConfig(), "y": DacConfig(bits=18)})
+
+
+def test_a_map_that_sets_the_dac_full_scale_is_told_where_it_lives():
+    doc = tomllib.loads(DEFAULT_MAP.read_text(encoding="utf-8"))
+    doc["module"]["dac_full_scale"] = 10.0
+    with pytest.raises(ConfigError, match=r"axes\.<axis>\.dac\.full_scale") as info:
+        register_map_from_dict(doc)
+    assert info.value.field == "module.dac_full_scale"

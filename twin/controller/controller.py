@@ -312,7 +312,7 @@ class Controller:
             bool(inputs.drive_ready), self._limits_prev, enc.state_int, enc.state_float,
             enc.position, geo, pieces, starts, table, coef, tau, self._ticks + 1,
             self.period, ref.position, ref.velocity, ref.acceleration, ref.jerk, reg._par,
-            reg._st, reg.output, reg.error, reg.terms, reg._limit, reg._lsb, reg._code_min,
+            reg._st, reg.output, reg.error, reg.terms, reg._code_min,
             reg._code_max, self._held, self.outputs.dac_volts, chunk, row, cur.index,
             cur.line)
         if code == FALLBACK:

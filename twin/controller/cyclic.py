@@ -298,8 +298,8 @@ def reference_at(geo, pieces, starts, table, coef, tau, ref_p, ref_v, ref_a, ref
 @numba.njit(cache=True)
 def steady_tick(counts, tacho, limit_min, limit_max, drive_ready, limits_prev, enc_int,
                 enc_float, pos, geo, pieces, starts, table, coef, tau, ticks, period,
-                ref_p, ref_v, ref_a, ref_j, par, st, reg_out, reg_err, terms, limit, lsb,
-                code_min, code_max, held, dac, chunk, row, block, line):
+                ref_p, ref_v, ref_a, ref_j, par, st, reg_out, reg_err, terms, code_min,
+                code_max, held, dac, chunk, row, block, line):
     """One steady tick of ``Controller.tick`` (see the module docstring).
 
     Returns ``FALLBACK`` (and changes nothing) when a switch is closed or was closed last
@@ -325,8 +325,8 @@ def steady_tick(counts, tacho, limit_min, limit_max, drive_ready, limits_prev, e
     # 2. safety passed (checked above); 3. interpolation
     reference_at(geo, pieces, starts, table, coef, tau, ref_p, ref_v, ref_a, ref_j)
     # 4. regulation
-    rc = _regulate(par, st, ref_p, ref_v, ref_a, ref_j, pos, reg_out, reg_err, terms, limit,
-                   lsb, code_min, code_max)
+    rc = _regulate(par, st, ref_p, ref_v, ref_a, ref_j, pos, reg_out, reg_err, terms,
+                   code_min, code_max)
     if rc >= 2:                             # tripped: PositionRegulator._trip
         reg_out[:] = 0.0
         terms[:] = 0.0
@@ -377,6 +377,6 @@ def warm_up() -> None:
     steady_tick(np.zeros(2, dtype=np.int64), two, flags, flags, False,
                 np.zeros(4, dtype=bool), np.zeros((3, 2), dtype=np.int64), np.ones((2, 2)),
                 two, np.zeros(G_SIZE), np.zeros((1, P_SIZE)), np.zeros(1), table, table, 0.0, 1,
-                1e-3, two, two, two, two, np.zeros((2, 10)), np.zeros((2, 5)), two, two,
-                np.zeros((2, 5)), 10.0, 0.0, 0, 0, two, two, np.zeros((1, 31)), 0, 0, 0)
+                1e-3, two, two, two, two, np.zeros((2, 12)), np.zeros((2, 5)), two, two,
+                np.zeros((2, 5)), 0, 0, two, two, np.zeros((1, 31)), 0, 0, 0)
     _warm = True

@@ -61,17 +61,18 @@ def servo_lag(gains: RegulatorGains, models: Sequence[LinearAxisModel], period: 
 def loop_gains(settings: ControllerSettings, axes: Sequence[AxisConfig],
                models: Sequence[LinearAxisModel], dcu_order: int) -> RegulatorGains:
     """Regulator gains of ``settings``; values left ``None`` there come from
-    ``default_gains`` of the axis models (with ``dcu_order``). The DAC range and resolution
-    are those of the first axis (the regulator has one output stage for all axes)."""
+    ``default_gains`` of the axis models (with ``dcu_order``). The output saturates at each
+    axis' DAC full scale; it is not quantised here: the DAC is the machine's (the twin's
+    plant, or the I/O module behind the driver), which quantises the volts once."""
     reg = settings.regulator
     base = default_gains(list(models), settings.period, dcu_order=dcu_order,
                          following_error_limit=reg.following_error_limit)
     given = {name: getattr(reg, name) for name in ("kp", "ki", "kd", "ff1", "ff2", "ff3")
              if getattr(reg, name) is not None}
-    dac = axes[0].dac
     if reg.dcu_alpha is not None:  # explicit coefficients (a tuning job's) win
         given["dcu_alpha"] = reg.dcu_alpha
-    return dataclasses.replace(base, output_limit=dac.full_scale, dac_bits=dac.bits, **given)
+    return dataclasses.replace(base, output_limit=tuple(ax.dac.full_scale for ax in axes),
+                               dac_bits=None, **given)
 
 
 def default_corner_model(settings: ControllerSettings, axes: Mapping[str, AxisConfig], *,

@@ -12,7 +12,10 @@ Anti-windup is **conditional integration** (clamping): the integral is not advan
 where the output saturates and the error would drive it further into saturation; it keeps
 integrating whenever the error pulls the output back. No extra tuning constant is needed.
 
-DAC mapping: a bipolar ``dac_bits`` converter spanning ±``output_limit``;
+A controller saturates each axis at its DAC's full scale and leaves the quantisation to
+the DAC itself, the machine's (``loop_defaults.loop_gains``: ``dac_bits`` None). With
+``dac_bits`` set, the regulator quantises as such a DAC would, for studies of the
+regulator alone: a bipolar ``dac_bits`` converter spanning ±``output_limit``;
 ``lsb = 2·output_limit / 2**dac_bits`` (12 bit, ±10 V: 20 V/4096 = 4.8828 mV); the code is
 ``c = floor(u/lsb + 1/2)`` clamped to ``-2**(bits-1) … 2**(bits-1) - 1`` and the output is
 ``c·lsb`` volts (offset-binary word ``c + 2**(bits-1)``), so +10 V comes out as 9.99512 V.
@@ -85,10 +88,13 @@ class RegulatorGains:
         Velocity (V·s/m), acceleration (V·s²/m) and jerk (V·s³/m) feed-forward.
     dcu_alpha : tuple, shape (3,) or (n_axes, 3)
         DCU coefficients ``α1, α2, α3`` (V/m); zeros: no DCU.
-    output_limit : float
-        Output saturation and DAC full scale, ±``output_limit`` (V), > 0.
+    output_limit : float or tuple
+        Output saturation, ±``output_limit`` (V), > 0: each axis' DAC full scale.
     dac_bits : int or None
-        DAC resolution (bit), 1 … 32; None: no quantisation.
+        Quantise the output to a ``dac_bits`` converter spanning ±``output_limit`` (bit,
+        1 … 32); None: no quantisation. A controller leaves it None: the DAC belongs to
+        the machine's I/O, which quantises (the twin's plant, or the I/O module behind the
+        driver); the option remains for studies of the regulator alone.
     following_error_limit : float or tuple
         Trip threshold on ``|x_ref - x|`` (m), > 0; ``math.inf`` disables the trip.
     """
@@ -100,7 +106,7 @@ class RegulatorGains:
     ff2: Gain = 0.0
     ff3: Gain = 0.0
     dcu_alpha: tuple = (0.0, 0.0, 0.0)
-    output_limit: float = 10.0
+    output_limit: Gain = 10.0
     dac_bits: int | None = 12
     following_error_limit: Gain = 2e-3
 
@@ -117,9 +123,8 @@ class RegulatorGains:
         put(self, "dcu_alpha", tuple(tuple(float(a) for a in row) for row in alpha)
             if alpha.ndim == 2 else tuple(float(a) for a in alpha))
         limit = _gain("output_limit", self.output_limit)
-        if not isinstance(limit, float) or limit <= 0.0:
-            raise ConfigError("output_limit", f"must be one number > 0 (V), got "
-                              f"{self.output_limit!r}")
+        if min(limit if isinstance(limit, tuple) else (limit,)) <= 0.0:
+            raise ConfigError("output_limit", f"must be > 0 (V), got {self.output_limit!r}")
         put(self, "output_limit", limit)
         bits = self.dac_bits
         if bits is not None and (isinstance(bits, bool) or not isinstance(bits, int)
@@ -131,9 +136,14 @@ class RegulatorGains:
         put(self, "following_error_limit", fel)
 
     @property
-    def dac_lsb(self) -> float:
-        """DAC step (V): ``2·output_limit / 2**dac_bits``; 0 without quantisation."""
-        return 0.0 if self.dac_bits is None else 2.0 * self.output_limit / 2**self.dac_bits
+    def dac_lsb(self) -> Gain:
+        """DAC step (V), per axis like ``output_limit``: ``2·output_limit / 2**dac_bits``;
+        0 without quantisation."""
+        if self.dac_bits is None:
+            return 0.0
+        step = 2.0 / 2**self.dac_bits
+        limit = self.output_limit
+        return tuple(step * v for v in limit) if isinstance(limit, tuple) else step * limit
 
 
 class RegulatorStatus(IntEnum):
@@ -159,14 +169,14 @@ def _per_axis(gains: RegulatorGains, name: str, n: int) -> list[float]:
 
 
 # gain columns of the compiled path
-_KP, _KI_T, _KD_T, _FF1, _FF2, _FF3, _FEL, _A1, _A2, _A3 = range(10)
+_KP, _KI_T, _KD_T, _FF1, _FF2, _FF3, _FEL, _A1, _A2, _A3, _LIM, _LSB = range(12)
 # state columns: integral (V), previous error (m), reference history x(k-1..k-3) (m)
 _INT, _EPREV, _H1, _H2, _H3 = range(5)
 
 
 @numba.njit(cache=True)
-def _regulate(par, st, x_ref, v_ref, a_ref, j_ref, x_act, out, err, terms, limit, lsb,
-              code_min, code_max):
+def _regulate(par, st, x_ref, v_ref, a_ref, j_ref, x_act, out, err, terms, code_min,
+              code_max):
     """One tick of every axis (the arithmetic of ``update_reference``, in the same order);
     returns the ``RegulatorStatus`` code (a trip returns at once; the caller zeroes the
     outputs and latches it until ``reset``, which clears the state)."""
@@ -192,6 +202,8 @@ def _regulate(par, st, x_ref, v_ref, a_ref, j_ref, x_act, out, err, terms, limit
         u = p + i + d + ff + dcu
         if u - u != 0.0:                       # NaN or inf from a feed-forward input
             return 3
+        limit = par[k, _LIM]
+        lsb = par[k, _LSB]
         if u > limit or u < -limit:
             if (u > 0.0) == (e > 0.0):         # conditional integration: hold
                 u += i_old - i
@@ -259,7 +271,7 @@ class PositionRegulator:
         if alpha is None:
             raise ConfigError("dcu_alpha", f"has {len(gains.dcu_alpha)} rows, the regulator "
                               f"has {n} axes")
-        par = np.zeros((n, 10))
+        par = np.zeros((n, 12))
         par[:, _KP] = _per_axis(gains, "kp", n)
         par[:, _KI_T] = [k * period for k in _per_axis(gains, "ki", n)]
         par[:, _KD_T] = [k / period for k in _per_axis(gains, "kd", n)]
@@ -268,10 +280,11 @@ class PositionRegulator:
         par[:, _FF3] = _per_axis(gains, "ff3", n)
         par[:, _FEL] = _per_axis(gains, "following_error_limit", n)
         par[:, _A1:_A3 + 1] = alpha
+        par[:, _LIM] = _per_axis(gains, "output_limit", n)
+        if gains.dac_bits is not None:
+            par[:, _LSB] = 2.0 * par[:, _LIM] / 2**gains.dac_bits
         self._par = par
         self._st = np.zeros((n, 5))
-        self._limit = float(gains.output_limit)
-        self._lsb = float(gains.dac_lsb or 0.0)
         half = 0 if gains.dac_bits is None else 2 ** (gains.dac_bits - 1)
         self._code_min, self._code_max = -half, half - 1
         self.output = np.zeros(n)
@@ -332,8 +345,8 @@ class PositionRegulator:
                 np.subtract(x_ref, x_actual, out=self.error)
             return self._latched
         code = _regulate(self._par, self._st, x_ref, v_ref, a_ref, j_ref, x_actual,
-                         self.output, self.error, self.terms, self._limit, self._lsb,
-                         self._code_min, self._code_max)
+                         self.output, self.error, self.terms, self._code_min,
+                         self._code_max)
         if code >= RegulatorStatus.FOLLOWING_ERROR:
             return self._trip(_STATUS[code])
         self.status = _STATUS[code]
@@ -350,7 +363,6 @@ class PositionRegulator:
                 err[k] = x_ref[k] - x_actual[k]
             return self._latched
         par, st = self._par.tolist(), self._st.tolist()
-        lsb, limit = self._lsb, self._limit
         status = RegulatorStatus.OK
         for k in self._axes:
             g, s = par[k], st[k]
@@ -373,6 +385,7 @@ class PositionRegulator:
             u = p + i + d + ff + dcu
             if u - u != 0.0:                       # NaN or inf from a feed-forward input
                 return self._trip(RegulatorStatus.INVALID_INPUT)
+            limit, lsb = g[_LIM], g[_LSB]
             if u > limit or u < -limit:
                 if (u > 0.0) == (e > 0.0):         # conditional integration: hold
                     u += i_old - i

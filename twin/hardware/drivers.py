@@ -118,4 +118,5 @@ def open_driver(url: str, cfg: MachineConfig) -> MachineIO:
     plausible = [PLAUSIBLE_MARGIN * cfg.axes[a].limits.max_velocity
                  * cfg.axes[a].counts_per_metre for a in AXES]
     return ModbusDriver(spec.host, spec.port, register_map=rmap, counts_per_s=plausible,
-                        counter_bits=[cfg.axes[a].encoder.bits for a in AXES], **opts)
+                        counter_bits=[cfg.axes[a].encoder.bits for a in AXES],
+                        dacs=[cfg.axes[a].dac for a in AXES], **opts)

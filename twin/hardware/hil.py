@@ -66,7 +66,13 @@ from pymodbus.simulator import DataType, SimData, SimDevice
 from twin.config import AXES
 from twin.controller.io import Inputs
 from twin.errors import ConfigError, SimulationError
-from twin.hardware.register_map import RegisterMap, counter_to_words, volts_to_word, word_to_volts
+from twin.hardware.register_map import (
+    RegisterMap,
+    check_dacs,
+    counter_to_words,
+    dac_volts,
+    volts_to_word,
+)
 from twin.plant import Plant
 
 __all__ = ["CLIENT", "OUTPUT_WINDOW", "HilModule", "HilStats", "Refused"]
@@ -185,8 +191,11 @@ class HilModule:
         self.dt = plant.drive_dt
         self._clock = clock
         m = register_map.module
-        self._fs_dac, self._fs_tacho, self._order = (m.dac_full_scale, m.tacho_full_scale,
-                                                    m.word_order)
+        self._fs_tacho, self._order = m.tacho_full_scale, m.word_order
+        dacs = {a: plant.config.axes[a].dac for a in AXES}
+        check_dacs(dacs)
+        self._dacs = [(dacs[a].full_scale, dacs[a].bits) for a in AXES]
+        """Each axis' DAC (full scale, bits): the machine's, the one setting of it."""
         self._dac_addr = [register_map.axes[a].dac for a in AXES]
         self._hr = {addr: 0 for addr in (*self._dac_addr, m.watchdog)}
         if m.control is not None:
@@ -390,7 +399,8 @@ class HilModule:
                 self._dac_writes += 1
                 self._late_writes += self._read_step >= 0 and self._steps > self._read_step
             self._hr[address] = 0 if self.tripped else word
-            self._u[k] = word_to_volts(self._hr[address], self._fs_dac)
+            # the code's exact level: the plant's DAC stage finds the same code again
+            self._u[k] = dac_volts(self._hr[address], *self._dacs[k])
         return self._hr.get(address, 0)
 
     def write_coil(self, address: int, flag: bool) -> bool:

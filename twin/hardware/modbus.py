@@ -44,13 +44,14 @@ from pymodbus.client import ModbusTcpClient
 from pymodbus.constants import ExcCodes
 from pymodbus.exceptions import ConnectionException, ModbusException, ModbusIOException
 
-from twin.config import AXES
+from twin.config import AXES, DacConfig
 from twin.controller.io import Inputs, Outputs
 from twin.errors import ConfigError, DriverError
 from twin.hardware.register_map import (
     RegisterMap,
+    check_dacs,
+    dac_word,
     load_register_map,
-    volts_to_word,
     word_to_volts,
     words_to_counter,
 )
@@ -100,6 +101,10 @@ class ModbusDriver:
         the axis (Modbus/TCP carries no checksum). None: unchecked.
     counter_bits : sequence of 2 int
         Width of each counter (bits), for its wrap-around.
+    dacs : sequence of 2 DacConfig, optional
+        Each axis' DAC (``axes.<axis>.dac``: full scale and bits, the one setting of it):
+        the volts written are quantised to its code here, once (``register_map.dac_word``).
+        Default: the default DAC (±10 V, 12 bits).
 
     Attributes
     ----------
@@ -127,7 +132,8 @@ class ModbusDriver:
     def __init__(self, host: str, port: int = 502, *, register_map: RegisterMap | None = None,
                  timeout: float = 0.02, retries: int = 0, reconnects: int = 0,
                  connect_timeout: float = 2.0, counts_per_s: Sequence[float] | None = None,
-                 counter_bits: Sequence[int] = (32, 32)):
+                 counter_bits: Sequence[int] = (32, 32),
+                 dacs: Sequence[DacConfig] | None = None):
         for name, value in (("timeout", timeout), ("connect_timeout", connect_timeout)):
             if not (math.isfinite(value) and value > 0):
                 raise ConfigError(name, f"must be > 0 s, got {value}")
@@ -136,6 +142,9 @@ class ModbusDriver:
                 raise ConfigError(name, f"must be >= 0, got {count}")
         self.url = f"modbus://{host}:{port}"
         self.map = register_map or load_register_map()
+        dacs = list(dacs) if dacs is not None else [DacConfig(), DacConfig()]
+        check_dacs(dict(zip(AXES, dacs, strict=True)))
+        self._dacs = [(d.full_scale, d.bits) for d in dacs]
         self.timeout = timeout
         self.reconnects = reconnects
         self.requests = 0
@@ -274,10 +283,10 @@ class ModbusDriver:
                 time.sleep(0.05)
 
     def _write(self, dac_volts: Any, enable: bool) -> None:
-        fs = self.map.module.dac_full_scale
+        (fs_x, bits_x), (fs_y, bits_y) = self._dacs
         self._life = (self._life + 1) & 0xFFFF
-        values = (volts_to_word(float(dac_volts[0]), fs),
-                  volts_to_word(float(dac_volts[1]), fs), self._life, int(enable))
+        values = (dac_word(float(dac_volts[0]), fs_x, bits_x),
+                  dac_word(float(dac_volts[1]), fs_y, bits_y), self._life, int(enable))
         control = self.map.module.control is not None   # the enable rides with the words
         change = enable != self._enable and not control
         if change and not enable:

@@ -10,8 +10,13 @@ Encodings (the conversions to and from SI happen here, once):
 
 * encoder counters: unsigned 32-bit in two consecutive input registers, high word first
   (``word_order = "high_first"``, "ABCD") or low word first;
-* DAC outputs and tacho inputs: int16 two's complement, ``±32767`` = ``±full_scale`` volts,
-  rounded to the nearest code and clipped to ``±32767``;
+* DAC outputs: the axis DAC's own code (``axes.<axis>.dac``: ``bits`` ≤ 16 and
+  ``full_scale``, the one setting of it), left-justified in an int16 register as a DAC
+  module holds it: word = code·2^(16 − bits), so ``−32768`` = ``−full_scale`` and the top
+  code is one LSB below ``+full_scale``. The driver quantises the volts to that code, the
+  only quantisation between the controller and the drive (``dac_word``, ``dac_volts``);
+* tacho inputs: int16 two's complement, ``±32767`` = ``±tacho_full_scale`` volts (the
+  module's ADC range), rounded to the nearest code and clipped to ``±32767``;
 * switches, drive ready and the watchdog trip: discrete inputs, 1 = actuated / true;
   the drive enable: a coil.
 
@@ -44,7 +49,10 @@ __all__ = [
     "AxisRegisters",
     "ModuleSettings",
     "RegisterMap",
+    "check_dacs",
     "counter_to_words",
+    "dac_volts",
+    "dac_word",
     "load_register_map",
     "register_map_from_dict",
     "volts_to_word",
@@ -125,8 +133,9 @@ class ModuleSettings:
         Modbus unit identifier, 0 … 247.
     word_order : {"high_first", "low_first"}
         Order of the two 16-bit words of a 32-bit counter.
-    dac_full_scale, tacho_full_scale : float
-        Volts at register value +32767 of the DAC outputs and of the tacho inputs (V).
+    tacho_full_scale : float
+        Volts at register value +32767 of the tacho inputs (V). The DAC outputs' scale is
+        each axis' DAC (``axes.<axis>.dac``), not the map's.
     watchdog_tripped : int or None
         Discrete input: the module's watchdog zeroed the outputs (latched); None: not
         reported.
@@ -143,7 +152,6 @@ class ModuleSettings:
     watchdog: int
     device_id: int = 1
     word_order: str = "high_first"
-    dac_full_scale: float = 10.0
     tacho_full_scale: float = 10.24
     watchdog_tripped: int | None = None
     status: int | None = None
@@ -157,10 +165,9 @@ class ModuleSettings:
         if self.word_order not in WORD_ORDERS:
             raise ConfigError("word_order", f"must be one of {', '.join(WORD_ORDERS)}, got "
                               f"{self.word_order!r}")
-        for name in ("dac_full_scale", "tacho_full_scale"):
-            value = getattr(self, name)
-            if not (math.isfinite(value) and value > 0):
-                raise ConfigError(name, f"must be > 0 V, got {value}")
+        value = self.tacho_full_scale
+        if not (math.isfinite(value) and value > 0):
+            raise ConfigError("tacho_full_scale", f"must be > 0 V, got {value}")
 
 
 _TABLES = ("input registers", "holding registers", "discrete inputs", "coils")
@@ -254,7 +261,8 @@ class RegisterMap:
         m = self.module
         enc = {"encoder": f"uint32 counts, {m.word_order.replace('_', ' word ')}",
                "tacho": f"int16, ±{INT16_FULL} = ±{m.tacho_full_scale:g} V",
-               "dac": f"int16, ±{INT16_FULL} = ±{m.dac_full_scale:g} V",
+               "dac": "int16, the axis DAC's code·2^(16 − bits), −32768 = −full scale "
+                      "(axes.<axis>.dac)",
                "watchdog": "uint16, a new value every tick",
                "enable": "1 = drives enabled", "watchdog_tripped": "1 = outputs zeroed",
                "status": "bit n = discrete input n", "control": "bit 0 = drive enable",
@@ -286,6 +294,11 @@ def register_map_from_dict(doc: dict[str, Any], *, source: str = "<dict>") -> Re
     for key in doc:
         if key not in names:
             raise ConfigError(key, f"unknown key; valid: {', '.join(sorted(names))}")
+    module = doc.get("module")
+    if isinstance(module, dict) and "dac_full_scale" in module:
+        raise ConfigError("module.dac_full_scale", "the DAC's range is the machine's "
+                          "(axes.<axis>.dac.full_scale and .bits), one setting per axis: "
+                          "remove it from the register map")
     rmap = from_dict(RegisterMap, doc)
     return RegisterMap(rmap.module, rmap.axes, source)
 
@@ -319,6 +332,44 @@ def volts_to_word(volts: float, full_scale: float) -> int:
         return 0 if math.isnan(volts) else (INT16_FULL if volts > 0 else -INT16_FULL) & 0xFFFF
     code = math.floor(volts * (INT16_FULL / full_scale) + 0.5)
     return max(-INT16_FULL, min(INT16_FULL, code)) & 0xFFFF
+
+
+DAC_WORD_BITS = 16
+"""Width of a DAC register: an axis DAC of up to this many bits fits."""
+
+
+def check_dacs(dacs: dict[str, Any]) -> None:
+    """Check that every axis' DAC (``{axis: DacConfig}``) fits a 16-bit DAC register.
+
+    Raises
+    ------
+    ConfigError
+        ``axes.<axis>.dac.bits``, when it does not."""
+    for a, dac in dacs.items():
+        if dac.bits > DAC_WORD_BITS:
+            raise ConfigError(f"axes.{a}.dac.bits", f"a DAC of {dac.bits} bits does not fit "
+                              f"the I/O module's {DAC_WORD_BITS}-bit DAC registers")
+
+
+def dac_word(volts: float, full_scale: float, bits: int) -> int:
+    """Register value (0 … 65535) of ``volts`` (V) on a ``bits``-bit DAC spanning
+    ±``full_scale``: the nearest code ``floor(volts/lsb + 1/2)``, clipped to the DAC's range
+    (NaN: code 0), left-justified: code·2^(16 − bits), int16 two's complement."""
+    half = 1 << (bits - 1)
+    if math.isnan(volts):
+        code = 0
+    elif math.isinf(volts):
+        code = half - 1 if volts > 0 else -half
+    else:
+        code = max(-half, min(half - 1, math.floor(volts * (half / full_scale) + 0.5)))
+    return (code << (DAC_WORD_BITS - bits)) & 0xFFFF
+
+
+def dac_volts(word: int, full_scale: float, bits: int) -> float:
+    """Volts (V) of a DAC register value (0 … 65535): its code times the LSB (the bits below
+    the DAC's resolution are ignored, as a DAC module does)."""
+    signed = word - 0x10000 if word & 0x8000 else word
+    return (signed >> (DAC_WORD_BITS - bits)) * (full_scale / (1 << (bits - 1)))
 
 
 def word_to_volts(word: int, full_scale: float) -> float:
