@@ -9,7 +9,7 @@ import pytest
 from scipy import signal
 
 from twin.config import load_machine
-from twin.drive import DriveDesign, axis_inertia, design, moving_masses
+from twin.drive import DriveDesign, axis_inertia, design
 from twin.errors import ConfigError
 
 PRESETS = ["tomsk_xy", "laser_belt"]
@@ -114,7 +114,7 @@ def test_reference_filter_from_config_wins():
 
 def test_inertia_reflects_the_moving_mass():
     cfg = load_machine("laser_belt")
-    masses = moving_masses(cfg)
+    masses = cfg.moving_masses()
     ax, ay = cfg.axes["x"], cfg.axes["y"]
     assert masses == {"x": ax.mechanics.carriage_mass + ay.mechanics.carriage_mass,
                       "y": ay.mechanics.carriage_mass}

@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 
 from twin.config import load_machine
-from twin.drive import Drives, moving_masses
+from twin.drive import Drives
 from twin.errors import ConfigError, SimulationError
 
 from .rig import simulate
@@ -79,7 +79,7 @@ def test_wrong_shapes_and_bad_settings_are_rejected():
 def test_from_machine_uses_the_cross_table_masses_and_simulation_rate():
     d = Drives.from_machine(LASER)
     assert d.dt == pytest.approx(LASER.simulation.timestep * LASER.simulation.drive_substeps)
-    m = moving_masses(LASER)
+    m = LASER.moving_masses()
     r = LASER.axes["x"].transmission.ratio
     assert d.designs[0].inertia == pytest.approx(
         LASER.axes["x"].mechanics.rotor_inertia + m["x"] * r * r)

@@ -43,6 +43,7 @@ from twin.config.schema import (
     TimingConfig,
     TransmissionConfig,
     field_unit,
+    moving_masses,
 )
 
 __all__ = [
@@ -73,5 +74,6 @@ __all__ = [
     "load_machine",
     "machine_from_toml_dict",
     "machine_identity",
+    "moving_masses",
     "read_toml",
 ]

@@ -12,6 +12,7 @@ from __future__ import annotations
 import copy
 import dataclasses
 import math
+from collections.abc import Mapping
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -56,6 +57,7 @@ __all__ = [
     "field_meta",
     "field_unit",
     "machine_from_raw",
+    "moving_masses",
     "range_text",
 ]
 
@@ -251,6 +253,14 @@ class SimulationConfig(Validated):
     seed: int = num(0, "1", ge=0, le=2**32 - 1, doc="seed of the sensor noise")
 
 
+def moving_masses(axes: Mapping[str, AxisConfig]) -> dict[str, float]:
+    """Mass moved by each axis of the cross table (kg), the one place it is computed: the
+    lower axis (x) carries the upper carriage (y)."""
+    mx = axes["x"].mechanics.carriage_mass
+    my = axes["y"].mechanics.carriage_mass
+    return {"x": mx + my, "y": my}
+
+
 @dataclass(frozen=True, kw_only=True)
 class MachineConfig(Validated):
     """A whole machine: two axes, the controller's settings, the simulation settings."""
@@ -303,10 +313,8 @@ class MachineConfig(Validated):
 
     def moving_masses(self) -> dict[str, float]:
         """Mass moved by each axis of the cross table (kg): the Y carriage rides on the X
-        one."""
-        mx = self.axes["x"].mechanics.carriage_mass
-        my = self.axes["y"].mechanics.carriage_mass
-        return {"x": mx + my, "y": my}
+        one (``moving_masses``)."""
+        return moving_masses(self.axes)
 
     def with_overrides(self, overrides: dict[str, Any]) -> MachineConfig:
         """A copy with dotted-path overrides applied and validated again.

@@ -40,7 +40,7 @@ from collections.abc import Mapping
 from dataclasses import dataclass
 from typing import Protocol, runtime_checkable
 
-from twin.config import AxisConfig, MachineConfig
+from twin.config import AxisConfig, MachineConfig, moving_masses
 from twin.errors import ConfigError
 
 __all__ = [
@@ -170,8 +170,7 @@ class SeedCornerModel:
         (x) carries the upper carriage (y), so its mass is the sum of both. ξ is the
         transmission damping ratio of the axis with the lower ω.
         """
-        masses = {"x": axes["x"].mechanics.carriage_mass + axes["y"].mechanics.carriage_mass,
-                  "y": axes["y"].mechanics.carriage_mass}
+        masses = moving_masses(axes)
         omegas = {ax: math.sqrt(axes[ax].transmission.axial_stiffness / masses[ax])
                   for ax in masses}
         low = min(omegas, key=omegas.__getitem__)

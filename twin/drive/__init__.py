@@ -10,7 +10,7 @@ current and speed loops, tachogenerator. Numerics only (numpy/numba), no MuJoCo.
   that the controller's DCU derivation uses.
 """
 
-from twin.drive.design import DriveDesign, axis_inertia, design, moving_masses
+from twin.drive.design import DriveDesign, axis_inertia, design
 from twin.drive.drives import Drives
 from twin.drive.linear import axis_transfer_function, speed_transfer_function, velocity_gain
 
@@ -20,7 +20,6 @@ __all__ = [
     "axis_inertia",
     "axis_transfer_function",
     "design",
-    "moving_masses",
     "speed_transfer_function",
     "velocity_gain",
 ]

@@ -64,7 +64,7 @@ Speed loop: symmetric optimum (SO) with spacing factor a
 Inertia
     J is the rotor inertia plus the moving mass reflected through the transmission,
     J = J_rotor + m·r² (r in m/rad). For the X axis of a cross table the moving mass is both
-    carriages (see :func:`moving_masses`); the load's elasticity and the friction are left to
+    carriages (``twin.config.moving_masses``); the load's elasticity and the friction are left to
     the regulators (rigid-body design, the standard practice).
 """
 
@@ -73,7 +73,7 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 
-from twin.config import AxisConfig, MachineConfig
+from twin.config import AxisConfig
 from twin.errors import ConfigError
 
 __all__ = [
@@ -81,7 +81,6 @@ __all__ = [
     "DriveDesign",
     "axis_inertia",
     "design",
-    "moving_masses",
 ]
 
 BRIDGE_THRESHOLD_FRACTION = 2.5e-3
@@ -234,12 +233,6 @@ def axis_inertia(axis: AxisConfig, moving_mass: float | None = None) -> float:
     return axis.mechanics.rotor_inertia + m * r * r
 
 
-def moving_masses(machine: MachineConfig) -> dict[str, float]:
-    """Mass moved by each axis of the cross table (kg): the Y carriage rides on the X one
-    (``MachineConfig.moving_masses``)."""
-    return machine.moving_masses()
-
-
 def design(axis: AxisConfig, *, moving_mass: float | None = None,
            emf_compensation: bool = True) -> DriveDesign:
     """Derive the drive's regulator constants from the axis parameters.
@@ -250,7 +243,7 @@ def design(axis: AxisConfig, *, moving_mass: float | None = None,
         Motor, converter, tacho, speed-loop settings and mechanics of the axis.
     moving_mass : float, optional
         Mass moved by the axis (kg), reflected into the inertia; default the axis' own
-        carriage mass (use :func:`moving_masses` for the X axis of a cross table).
+        carriage mass (``twin.config.moving_masses`` for the X axis of a cross table).
     emf_compensation : bool, optional
         Add the tacho-estimated back-EMF to the current regulator output (default True).
 

@@ -45,7 +45,7 @@ from twin.config import AXES, AxisConfig, MachineConfig
 from twin.drive import kernel as K
 from twin.drive import layout as L
 from twin.drive.dcm import N_ALPHA, N_EMF, build_table
-from twin.drive.design import DriveDesign, design, moving_masses
+from twin.drive.design import DriveDesign, design
 from twin.errors import ConfigError, SimulationError
 
 __all__ = ["Drives"]
@@ -212,7 +212,7 @@ class Drives:
         """
         if dt is None:
             dt = machine.simulation.timestep * machine.simulation.drive_substeps
-        masses = moving_masses(machine)
+        masses = machine.moving_masses()
         options.setdefault("sub_steps", machine.simulation.drive_substeps)
         return cls([machine.axes[a] for a in AXES], dt,
                    moving_masses=[masses[a] for a in AXES], **options)

@@ -12,7 +12,6 @@ import numpy as np
 from scipy.signal import savgol_filter
 
 from twin.config import AXES, MachineConfig
-from twin.drive.design import moving_masses
 from twin.errors import FitError
 from twin.identify.replay import AxisParams, Problem, axis_figures
 
@@ -22,7 +21,7 @@ __all__ = ["coast_regression", "limit_inertia", "lost_motion", "regress_gains"]
 def _carriage_inertia(base: MachineConfig) -> dict[str, float]:
     """The moving mass reflected to each motor, m·r² (kg·m²): the fitted rotor inertia
     plus this is what the motor accelerates."""
-    moved = moving_masses(base)
+    moved = base.moving_masses()
     return {a: moved[a] * base.axes[a].transmission.ratio * base.axes[a].transmission.ratio
             for a in AXES}
 

@@ -28,7 +28,7 @@ from twin.controller.encoder import EncoderUnwrapper
 from twin.controller.io import MachineIO, Outputs
 from twin.controller.loop_defaults import loop_gains
 from twin.controller.regulator import PositionRegulator, RegulatorStatus
-from twin.drive.design import axis_inertia, moving_masses
+from twin.drive.design import axis_inertia
 from twin.errors import ConfigError, ExperimentAborted
 from twin.hardware.realtime import RealTimeLoop
 from twin.identify.log import COLUMNS, IdentLog, io_signature
@@ -219,7 +219,7 @@ def _coast_bound(base: MachineConfig, axis: str) -> Callable[[float], float]:
     the model's."""
     ax = base.axes[axis]
     m, r = ax.mechanics, ax.transmission.ratio
-    inertia = axis_inertia(ax, moving_masses(base)[axis])
+    inertia = axis_inertia(ax, base.moving_masses()[axis])
     torque = m.rotor_coulomb + r * m.slide_coulomb
     if torque <= 0.0:
         return lambda v: 0.5 * float(np.diff(m.travel)[0])

@@ -312,8 +312,10 @@ def wire(cfg: MachineConfig, program: Callable[[np.ndarray], list[Any]] | None =
     try:
         items = program(here) if program is not None else []
         options = dict(controller_options)
-        if "axis_models" not in options:
-            options = {**model_options(belief or cfg), **options}
+        model = belief or cfg
+        options.setdefault("model_axes", model.axes)
+        if "axis_models" not in options:   # derived only when needed: not free
+            options["axis_models"] = axis_models(model)
         controller = Controller.from_machine(cfg, items or None, start=here, **options)
     except BaseException:
         io.close()

@@ -3,9 +3,9 @@
 the reports.
 
 A study builds its program as planner items (``MotionBlock``s of lines and splines) from the
-table's start position, so ``run_items`` wires a run the way ``twin.session.run.prepare`` does and
-swaps in a controller for those items: the same plant, driver, controller and metrics as
-``twin run``, nothing re-implemented.
+table's start position, so ``run_items`` wires it with ``twin.session.setup.wire``, the
+wiring of every run: the same plant, driver, controller and metrics as ``twin run``,
+nothing re-implemented.
 """
 
 from __future__ import annotations
@@ -19,9 +19,8 @@ from typing import Any
 import numpy as np
 
 from twin.config import MachineConfig
-from twin.controller.controller import Controller
-from twin.controller.library import program_path
-from twin.session.run import RunResult, RunSpec, model_options, prepare, run
+from twin.session.run import RunResult, RunSpec, run
+from twin.session.setup import RECORD_CHUNK, wire
 
 __all__ = ["ProgramBuilder", "fit_line", "percent", "run_items"]
 
@@ -46,21 +45,17 @@ def run_items(spec: RunSpec, build: ProgramBuilder, *, keep_fine: bool = False,
     **controller_options
         Passed to ``Controller.from_machine`` (e.g. ``corner_model``); the axis models and
         axes default to the controller's model of the machine (``spec.controller_model``,
-        or the machine itself: ``twin.session.run.model_options``).
+        or the machine itself: ``wire``).
 
     Returns
     -------
     RunResult
     """
     spec = dataclasses.replace(spec, program=None, builtin="none")
-    p = prepare(spec)
-    start = p.plant.truth().table_position
-    items = build(p.cfg, start)
-    for key, value in model_options(p.belief or p.cfg).items():
-        controller_options.setdefault(key, value)
-    controller = Controller.from_machine(p.cfg, items, mode=spec.mode, start=start,
-                                         **controller_options)
-    p = dataclasses.replace(p, items=items, path=program_path(items), controller=controller)
+    cfg = spec.machine_config()
+    p = wire(cfg, lambda start: build(cfg, start), belief=spec.belief(cfg), start=spec.start,
+             drives_off=spec.drives_off, mode=spec.mode, record_capacity=RECORD_CHUNK,
+             **controller_options)
     with tempfile.TemporaryDirectory(prefix="xy-twin-study-") as tmp:
         return run(spec, out_dir=out_dir or tmp, rerun="none", prepared=p,
                    keep_fine=keep_fine)
