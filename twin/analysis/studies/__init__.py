@@ -11,7 +11,8 @@ from typing import Any
 
 __all__ = ["STUDIES", "run_study"]
 
-STUDIES = ("seed000_dcu", "seed000_laws", "seed001_corner", "seed001_laser", "seed004_feed")
+STUDIES = ("seed000_dcu", "seed000_laws", "seed001_corner", "seed001_laser", "seed004_feed",
+           "seed002_steps")
 """Study names, each a module of this package."""
 
 
