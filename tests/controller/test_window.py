@@ -1,6 +1,6 @@
 """The compiled look-ahead passes (`twin.controller.window`) against the plain Python ones
-they replace: the reach floor and the reach of every law bit for bit against
-`twin.controller.reach`, and whole plans identical with `PythonWindow` in the planner."""
+they replace: the rows' reach floor and reach of every law equal to
+`twin.controller.reach`'s, and whole plans identical with `PythonWindow` in the planner."""
 
 from __future__ import annotations
 
@@ -13,6 +13,7 @@ from twin.config import load_machine
 from twin.controller.gcode import parse
 from twin.controller.planner import PlannedBlock, Planner
 from twin.controller.profiles import LAWS, Limits
+from twin.controller.profiles.laws import law_code
 from twin.controller.reach import reach_floor, reach_function
 from twin.controller.window import (
     ACC,
@@ -24,7 +25,6 @@ from twin.controller.window import (
     Window,
     _floor,
     _reach,
-    law_code,
 )
 from twin.errors import PlanningError
 

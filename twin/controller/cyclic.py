@@ -38,7 +38,7 @@ import numba
 import numpy as np
 
 from twin.controller._spline_curve import _GL_W, _GL_X, _MAX_NEWTON, _NEWTON_DONE
-from twin.controller.geometry import Arc, Line
+from twin.controller.geometry import Arc, Line, arc_point
 from twin.controller.profiles.profile import Blend, BlendPart, Polynomial
 from twin.controller.regulator import _regulate
 
@@ -271,12 +271,9 @@ def reference_at(geo, pieces, starts, table, coef, tau, ref_p, ref_v, ref_a, ref
         return
     if kind == K_ARC:
         k = geo[G_K]
-        phi = geo[G_TH0] + k * s
-        c, sn = math.cos(phi), math.sin(phi)
-        sign = geo[G_SIGN]
-        tx, ty = -sign * sn, sign * c
+        x, y, tx, ty = arc_point(geo[G_CX], geo[G_CY], geo[G_R], geo[G_TH0], k, geo[G_SIGN],
+                                 s)
         dk = 0.0
-        x, y = geo[G_CX] + geo[G_R] * c, geo[G_CY] + geo[G_R] * sn
     else:                                   # SplinePath.frame
         length = geo[G_LEN]
         s = _pmin(_pmax(s, 0.0), length)

@@ -17,6 +17,7 @@ from __future__ import annotations
 import math
 from abc import ABC, abstractmethod
 
+import numba
 import numpy as np
 
 from twin.errors import PlanningError
@@ -24,6 +25,18 @@ from twin.errors import PlanningError
 __all__ = ["Arc", "Line", "Segment", "frozen"]
 
 TAU = 2.0 * math.pi
+
+
+@numba.njit(cache=True)
+def arc_point(cx: float, cy: float, r: float, theta0: float, k: float, sign: float,
+              s: float) -> tuple[float, float, float, float]:
+    """Point and unit tangent (m, 1) at arc length ``s`` of an arc about (cx, cy) of radius
+    ``r`` that starts at angle ``theta0`` with signed curvature ``k`` (``sign`` +1 CCW):
+    the one evaluation of an arc, for ``Arc.frame``, the interpolator and its compiled
+    kernel (``twin.controller.cyclic``)."""
+    phi = theta0 + k * s
+    c, sn = math.cos(phi), math.sin(phi)
+    return cx + r * c, cy + r * sn, -sign * sn, sign * c
 
 
 class Segment(ABC):
@@ -329,16 +342,13 @@ class Arc(Segment):
 
     def frame(self, s):
         s = min(max(s, 0.0), self.length)
-        phi = self._theta0 + self._k * s
-        c, sn = math.cos(phi), math.sin(phi)
         cx, cy, x0, y0, x1, y1 = self._xy
+        x, y, tx, ty = arc_point(cx, cy, self.radius, self._theta0, self._k, self._sign, s)
         if s == self.length:
             x, y = x1, y1
         elif s == 0.0:
             x, y = x0, y0
-        else:
-            x, y = cx + self.radius * c, cy + self.radius * sn
-        return x, y, -self._sign * sn, self._sign * c, self._k, 0.0
+        return x, y, tx, ty, self._k, 0.0
 
     def _points(self, s):
         phi = self._theta0 + self._k * s

@@ -11,8 +11,9 @@ alongside the position, never differences of integer positions::
     j = s⃛·t̂ + 3ṡs̈κ·n̂ + ṡ³(κ'·n̂ − κ²·t̂)
 
 (t̂ the unit tangent, n̂ = t̂ turned +90°, κ the signed curvature, κ' = dκ/ds). Lines and
-arcs are evaluated inline on floats; other segments through ``Segment.frame(s)``, which
-gives the point, tangent, κ and κ' of a spline in one call.
+arcs are evaluated on floats (lines inline, arcs by ``geometry.arc_point``, the one arc
+evaluation, shared with ``Arc.frame`` and the compiled kernel); other segments through
+``Segment.frame(s)``, which gives the point, tangent, κ and κ' of a spline in one call.
 
 A tick that crosses a block end carries the leftover time into the next block (or dwell), so
 the path time is continuous. When the program ends the reference lands *exactly* on the
@@ -57,7 +58,7 @@ import numpy as np
 
 from twin.controller.cyclic import block_tables
 from twin.controller.gcode.items import Dwell
-from twin.controller.geometry import Arc, Line, Segment
+from twin.controller.geometry import Arc, Line, Segment, arc_point
 from twin.controller.planner import PlannedBlock
 from twin.controller.profiles import min_distance, plan_move
 from twin.errors import ConfigError, TwinError
@@ -396,9 +397,7 @@ class Interpolator:
                     j * ux, j * uy)
         if kind == _ARC:
             k = cur.k
-            phi = cur.th0 + k * s
-            c, sn = math.cos(phi), math.sin(phi)
-            tx, ty = -cur.sign * sn, cur.sign * c
+            x, y, tx, ty = arc_point(cur.cx, cur.cy, cur.r, cur.th0, k, cur.sign, s)
             dk = 0.0
         else:
             x, y, tx, ty, k, dk = cur.segment.frame(s)
@@ -406,8 +405,6 @@ class Interpolator:
         an = v * v * k                                   # centripetal acceleration
         jt = j - v * v * v * k * k                       # tangential jerk
         jn = 3.0 * v * a * k + v * v * v * dk            # normal jerk
-        if kind == _ARC:
-            x, y = cur.cx + cur.r * c, cur.cy + cur.r * sn
         return (x, y, v * tx, v * ty, a * tx + an * nx, a * ty + an * ny,
                 jt * tx + jn * nx, jt * ty + jn * ny)
 

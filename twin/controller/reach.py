@@ -23,10 +23,19 @@ from __future__ import annotations
 import math
 from collections.abc import Callable
 
-from twin.controller.profiles import SHAPES, Limits, max_end_speed
-from twin.controller.profiles.laws import JERK_LIMITED, end_speed_function
+import numba
 
-__all__ = ["ReachFloor", "monotone_end_speed", "reach_floor", "reach_function"]
+from twin.controller.profiles import Limits, max_end_speed
+from twin.controller.profiles.laws import (
+    SCURVE_KIND,
+    TRAPEZOID_KIND,
+    capped_end_speed,
+    end_speed_function,
+    law_code,
+)
+
+__all__ = ["ReachFloor", "floor_of", "guesses", "monotone_end_speed", "reach_floor",
+           "reach_function", "root_3u"]
 
 ReachFloor = tuple[float, float, float, float]
 """(u1, f(u1), u2, f(u2)): the candidate minima of ``f`` for one block (m/s)."""
@@ -34,31 +43,35 @@ ReachFloor = tuple[float, float, float, float]
 _NONE: ReachFloor = (0.0, 0.0, 0.0, 0.0)
 
 
-def _guesses(law: str, d: float, a: float, j: float) -> tuple[float, float]:
+@numba.njit(cache=True, inline="always")
+def guesses(kind: int, ka: float, kj: float, d: float, a: float,
+            j: float) -> tuple[float, float]:
     """Closed-form roots of f(u) = 3u (Δv = 2u) in the jerk- and acceleration-limited
-    regimes of the law's closed forms (`twin.controller.profiles.laws`)."""
-    if law == JERK_LIMITED:            # d = (u + Δv/2)·2√(Δv/J);  d = 2u·(2u/A + A/J)
+    regimes of the law's closed forms (`twin.controller.profiles.laws`; ``law_code``)."""
+    if kind == SCURVE_KIND:            # d = (u + Δv/2)·2√(Δv/J);  d = 2u·(2u/A + A/J)
         return ((j * d * d / 32.0) ** (1.0 / 3.0),
                 0.125 * a * (math.sqrt(4.0 * a * a / (j * j) + 16.0 * d / a) - 2.0 * a / j))
-    shape = SHAPES[law]                # d = (u + Δv/2)·√(k_j·Δv/J);  d = k_a·(9u² − u²)/(2A)
-    return ((j * d * d / (8.0 * shape.peak_curvature)) ** (1.0 / 3.0),
-            math.sqrt(a * d / (4.0 * shape.peak_rate)))
+    # d = (u + Δv/2)·√(k_j·Δv/J);  d = k_a·(9u² − u²)/(2A)
+    return (j * d * d / (8.0 * kj)) ** (1.0 / 3.0), math.sqrt(a * d / (4.0 * ka))
 
 
-def _root_3u(law: str, distance: float, limits: Limits) -> float:
+@numba.njit(cache=True)
+def root_3u(kind: int, ka: float, kj: float, d: float, cap: float, a: float, j: float,
+            g1: float, g2: float) -> float:
     """The root u of ``max_end_speed(u) = 3u`` (m/s): the closed form of whichever regime
-    holds there (checked), else the Illinois method to 1e-12 relative."""
-    for u in _guesses(law, distance, limits.max_acceleration, limits.max_jerk):
-        if abs(max_end_speed(law, u, distance, limits) - 3.0 * u) <= 1e-12 * u:
+    holds there (the ``guesses`` ``g1``, ``g2``, checked), else the Illinois method to
+    1e-12 relative."""
+    for u in (g1, g2):
+        if abs(capped_end_speed(kind, ka, kj, u, d, cap, a, j) - 3.0 * u) <= 1e-12 * u:
             return u
-    lo, hi = 0.0, max_end_speed(law, 0.0, distance, limits)
-    h_lo, h_hi = hi, max_end_speed(law, hi, distance, limits) - 3.0 * hi
+    lo, hi = 0.0, capped_end_speed(kind, ka, kj, 0.0, d, cap, a, j)
+    h_lo, h_hi = hi, capped_end_speed(kind, ka, kj, hi, d, cap, a, j) - 3.0 * hi
     if h_hi >= 0.0:                      # capped at max_velocity: the root is the cap / 3
         return hi
     side = 0
     for _ in range(100):
         u = (lo * h_hi - hi * h_lo) / (h_hi - h_lo)
-        h = max_end_speed(law, u, distance, limits) - 3.0 * u
+        h = capped_end_speed(kind, ka, kj, u, d, cap, a, j) - 3.0 * u
         if h == 0.0:
             return u
         if h > 0.0:
@@ -76,26 +89,39 @@ def _root_3u(law: str, distance: float, limits: Limits) -> float:
     return 0.5 * (lo + hi)
 
 
-def reach_floor(law: str, distance: float, limits: Limits) -> ReachFloor:
-    """Candidate minima of ``max_end_speed(law, ·, distance, limits)`` (see module doc)."""
-    if law == "trapezoid":
-        return _NONE
-    cap = limits.max_velocity
-    # the S-curve's other candidate, A²/(2J): a·a, not a ** 2, because the product is
-    # correctly rounded and CPython's pow is not always (the compiled passes,
-    # twin.controller.window, must give the same float)
-    u2 = limits.max_acceleration * limits.max_acceleration / (2.0 * limits.max_jerk)
-    if 3.0 * min(_guesses(law, distance, limits.max_acceleration, limits.max_jerk)) >= cap \
-            and max_end_speed(law, 0.0, distance, limits) >= cap and (
-            law != JERK_LIMITED or max_end_speed(law, u2, distance, limits) >= cap):
+@numba.njit(cache=True)
+def floor_of(kind: int, ka: float, kj: float, d: float, cap: float, a: float,
+             j: float) -> tuple[float, float, float, float]:
+    """``reach_floor`` in the kernels' terms (``law_code``; the block's length, speed cap,
+    acceleration and jerk): the one implementation, for the planner's compiled window
+    and for the Python callers."""
+    if kind == TRAPEZOID_KIND:
+        return 0.0, 0.0, 0.0, 0.0
+    g1, g2 = guesses(kind, ka, kj, d, a, j)
+    # the S-curve's other candidate, A²/(2J): a·a, not a ** 2 (correctly rounded)
+    u2 = a * a / (2.0 * j)
+    if 3.0 * min(g1, g2) >= cap and capped_end_speed(kind, ka, kj, 0.0, d, cap, a, j) >= cap \
+            and (kind != SCURVE_KIND or capped_end_speed(kind, ka, kj, u2, d, cap, a, j)
+                 >= cap):
         # f(0), every f(u_r) = 3·u_r ≥ 3·min(closed-form roots) and the S-curve's f(A²/2J)
         # all reach the cap: f is the constant cap, nothing to correct (long blocks)
+        return 0.0, 0.0, 0.0, 0.0
+    u1 = root_3u(kind, ka, kj, d, cap, a, j, g1, g2)
+    f1 = capped_end_speed(kind, ka, kj, u1, d, cap, a, j)
+    if kind != SCURVE_KIND:            # the shape laws rise in their acceleration regime
+        return u1, f1, 0.0, 0.0
+    return u1, f1, u2, capped_end_speed(kind, ka, kj, u2, d, cap, a, j)
+
+
+def reach_floor(law: str, distance: float, limits: Limits) -> ReachFloor:
+    """Candidate minima of ``max_end_speed(law, ·, distance, limits)`` (see module doc)."""
+    if not distance >= 0.0:
+        max_end_speed(law, 0.0, distance, limits)   # raises, naming it
+    if law == "trapezoid":
         return _NONE
-    u1 = _root_3u(law, distance, limits)
-    f1 = max_end_speed(law, u1, distance, limits)
-    if law != JERK_LIMITED:            # the shape laws rise in their acceleration regime
-        return (u1, f1, 0.0, 0.0)
-    return (u1, f1, u2, max_end_speed(law, u2, distance, limits))
+    kind, ka, kj = law_code(law)
+    return floor_of(kind, ka, kj, float(distance), limits.max_velocity,
+                    limits.max_acceleration, limits.max_jerk)
 
 
 def monotone_end_speed(law: str, v: float, distance: float, limits: Limits,

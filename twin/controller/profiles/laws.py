@@ -44,17 +44,27 @@ from __future__ import annotations
 import math
 from collections.abc import Callable
 
+import numba
+import numpy as np
+
 from twin.controller.profiles.limits import Limits
 from twin.errors import ConfigError, PlanningError
 
 __all__ = [
     "JERK_LIMITED",
     "LAWS",
+    "SCURVE_KIND",
     "SHAPES",
+    "SHAPE_KIND",
+    "TRAPEZOID_KIND",
     "Shape",
+    "capped_end_speed",
     "change_time",
     "check_law",
+    "cubic_root",
+    "end_speed",
     "end_speed_function",
+    "law_code",
     "max_end_speed",
     "min_distance",
     "peak_speed",
@@ -203,7 +213,8 @@ def _scurve_time(dv: float, a: float, j: float) -> float:
     return 2.0 * math.sqrt(dv / j)            # acceleration a triangle
 
 
-def _cubic_root(p: float, q: float) -> float:
+@numba.njit(cache=True)
+def cubic_root(p: float, q: float) -> float:
     """The real root of x³ + p·x = q for p ≥ 0, q ≥ 0, in closed form (one Newton polish)."""
     if q <= 0.0:
         return 0.0
@@ -211,32 +222,64 @@ def _cubic_root(p: float, q: float) -> float:
     if scale > 1e-100 * q:                    # hyperbolic form: no cancellation for any p
         x = 2.0 * math.sqrt(p / 3.0) * math.sinh(math.asinh(0.5 * q / scale) / 3.0)
     else:                                     # p·x negligible against x³
-        x = math.cbrt(q)
+        x = np.cbrt(q)
     return x - (x * (x * x + p) - q) / (3.0 * x * x + p)
 
 
-def _shape_end_speed(ka: float, kj: float) -> Callable[[float, float, float, float], float]:
-    # Acceleration-limited change: d = ka·(v1² − v0²)/(2A). Jerk-limited change (dv below
-    # dv* = kj·A²/(ka²·J)): d = (2·v0 + x²)/2 · x·sqrt(kj/J) with x = sqrt(dv), a cubic in x.
-    def end_speed(v0: float, d: float, a: float, j: float) -> float:
-        if kj != 0.0:
-            dv_star = kj * a * a / (ka * ka * j)
-            if d < (v0 + 0.5 * dv_star) * ka * dv_star / a:
-                x = _cubic_root(2.0 * v0, 2.0 * d * math.sqrt(j / kj))
-                return v0 + x * x
-        return math.sqrt(v0 * v0 + 2.0 * a * d / ka)
-    return end_speed
+@numba.njit(cache=True)
+def shape_end_speed(ka: float, kj: float, v0: float, d: float, a: float, j: float) -> float:
+    """End speed of a shape law (peak rate ``ka``, peak curvature ``kj``).
+
+    Acceleration-limited change: d = ka·(v1² − v0²)/(2A). Jerk-limited change (dv below
+    dv* = kj·A²/(ka²·J)): d = (2·v0 + x²)/2 · x·sqrt(kj/J) with x = sqrt(dv), a cubic in x.
+    """
+    if kj != 0.0:
+        dv_star = kj * a * a / (ka * ka * j)
+        if d < (v0 + 0.5 * dv_star) * ka * dv_star / a:
+            x = cubic_root(2.0 * v0, 2.0 * d * math.sqrt(j / kj))
+            return v0 + x * x
+    return math.sqrt(v0 * v0 + 2.0 * a * d / ka)
 
 
-def _scurve_end_speed(v0: float, d: float, a: float, j: float) -> float:
+@numba.njit(cache=True)
+def scurve_end_speed(v0: float, d: float, a: float, j: float) -> float:
+    """End speed of the jerk-limited S-curve."""
     dv_star = a * a / j
     if d >= (v0 + 0.5 * dv_star) * 2.0 * a / j:
         # d = (v0 + dv/2)·(dv/A + A/J): a quadratic in dv, solved without cancellation.
         b = v0 / a + 0.5 * a / j
         c = v0 * a / j - d                    # < 0 in this branch
         return v0 - 2.0 * c / (b + math.sqrt(b * b - 2.0 * c / a))
-    x = _cubic_root(2.0 * v0, d * math.sqrt(j))   # d = (2·v0 + x²)·x/sqrt(J)
+    x = cubic_root(2.0 * v0, d * math.sqrt(j))   # d = (2·v0 + x²)·x/sqrt(J)
     return v0 + x * x
+
+
+TRAPEZOID_KIND, SHAPE_KIND, SCURVE_KIND = 0, 1, 2
+"""The kinds of law the compiled kernels tell apart (``law_code``)."""
+
+
+@numba.njit(cache=True)
+def end_speed(kind: int, ka: float, kj: float, v0: float, d: float, a: float,
+              j: float) -> float:
+    """The uncapped end speed of the law ``law_code`` gives (kind, ka, kj): the one
+    implementation of the closed forms, for the Python and the compiled callers alike."""
+    if kind == SCURVE_KIND:
+        return scurve_end_speed(v0, d, a, j)
+    return shape_end_speed(ka, kj, v0, d, a, j)
+
+
+@numba.njit(cache=True, inline="always")
+def capped_end_speed(kind: int, ka: float, kj: float, v0: float, d: float, cap: float,
+                     a: float, j: float) -> float:
+    """``end_speed`` capped at ``cap``: `max_end_speed` for arguments known valid."""
+    v = end_speed(kind, ka, kj, v0, d, a, j)
+    return v if v < cap else cap
+
+
+def _shape_end_speed(ka: float, kj: float) -> Callable[[float, float, float, float], float]:
+    def end_speed(v0: float, d: float, a: float, j: float) -> float:
+        return shape_end_speed(ka, kj, v0, d, a, j)
+    return end_speed
 
 
 _TIME: dict[str, Callable[[float, float, float], float]] = {
@@ -244,7 +287,17 @@ _TIME: dict[str, Callable[[float, float, float], float]] = {
 _TIME[JERK_LIMITED] = _scurve_time
 _END_SPEED: dict[str, Callable[[float, float, float, float], float]] = {
     name: _shape_end_speed(s.peak_rate, s.peak_curvature) for name, s in SHAPES.items()}
-_END_SPEED[JERK_LIMITED] = _scurve_end_speed
+_END_SPEED[JERK_LIMITED] = scurve_end_speed
+
+
+def law_code(law: str) -> tuple[int, float, float]:
+    """(kind, k_a, k_j) of a law for the compiled kernels: the trapezoid, a shape law (its
+    peak rate and curvature, `SHAPES`), or the jerk-limited S-curve."""
+    check_law(law)
+    if law == JERK_LIMITED:
+        return SCURVE_KIND, 0.0, 0.0
+    kind = TRAPEZOID_KIND if law == "trapezoid" else SHAPE_KIND
+    return kind, SHAPES[law].peak_rate, SHAPES[law].peak_curvature
 
 
 def check_law(law: str) -> None:
