@@ -130,7 +130,7 @@ def test_a_paced_phase_disturbed_by_a_stall_is_measured_again():
     assert [r["attempt"] for r in reports] == list(range(len(reports)))
     # the log holds one attempt, the least disturbed: every due slot of it that ran
     kept = min(reports, key=lambda r: (r["skipped"], r["jitter_max_us"]))
-    assert log.ticks == kept["due"] - kept["skipped"] and kept["due"] == round(0.4 / period)
+    assert log.ticks == kept["due"] - kept["skipped"] and kept["due"] >= round(0.4 / period)
     assert "repeated for timing: phase 0" in timing(log.notes)
 
 
