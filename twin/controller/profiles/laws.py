@@ -195,19 +195,20 @@ SHAPES: dict[str, Shape] = {s.name: s for s in (_Linear(), _Parabolic(), _Cosine
 # A change of |Δv| = dv takes time(dv, A, J); from v0 the highest speed after d of path is
 # end_speed(v0, d, A, J). Both are float-only and allocation-free.
 
-def _shape_time(ka: float, kj: float) -> Callable[[float, float, float], float]:
+@numba.njit(cache=True)
+def shape_time(ka: float, kj: float, dv: float, a: float, j: float) -> float:
+    """Duration of a change |Δv| = ``dv`` of a shape law (peak rate ``ka``, peak curvature
+    ``kj``): the longer of its acceleration- and jerk-limited times."""
+    ta = ka * dv / a
     if kj == 0.0:
-        def time(dv: float, a: float, j: float) -> float:
-            return ka * dv / a
-    else:
-        def time(dv: float, a: float, j: float) -> float:
-            ta = ka * dv / a
-            tj = math.sqrt(kj * dv / j)
-            return ta if ta >= tj else tj
-    return time
+        return ta
+    tj = math.sqrt(kj * dv / j)
+    return ta if ta >= tj else tj
 
 
-def _scurve_time(dv: float, a: float, j: float) -> float:
+@numba.njit(cache=True)
+def scurve_time(dv: float, a: float, j: float) -> float:
+    """Duration of a change |Δv| = ``dv`` of the jerk-limited S-curve."""
     if dv * j >= a * a:                       # acceleration reaches A: a trapezoid
         return dv / a + a / j
     return 2.0 * math.sqrt(dv / j)            # acceleration a triangle
@@ -276,6 +277,64 @@ def capped_end_speed(kind: int, ka: float, kj: float, v0: float, d: float, cap: 
     return v if v < cap else cap
 
 
+@numba.njit(cache=True)
+def time_of(kind: int, ka: float, kj: float, dv: float, a: float, j: float) -> float:
+    """``change_time`` in the kernels' terms (``law_code``)."""
+    if kind == SCURVE_KIND:
+        return scurve_time(dv, a, j)
+    return shape_time(ka, kj, dv, a, j)
+
+
+@numba.njit(cache=True, inline="always")
+def distance_of(kind: int, ka: float, kj: float, v0: float, v1: float, a: float,
+                j: float) -> float:
+    """``min_distance`` in the kernels' terms, for speeds known valid."""
+    dv = v1 - v0 if v1 >= v0 else v0 - v1
+    return 0.5 * (v0 + v1) * time_of(kind, ka, kj, dv, a, j)
+
+
+@numba.njit(cache=True)
+def peak_of(kind: int, ka: float, kj: float, distance: float, v_start: float, v_end: float,
+            cap: float, v_max: float, a: float, j: float) -> float:
+    """``peak_speed`` in the kernels' terms (``v_max``: the limits' speed cap)."""
+    lo = max(v_start, v_end)
+    reach = end_speed(kind, ka, kj, lo, distance, a, j)
+    hi = min(cap, reach if reach < v_max else v_max)       # one change alone fits
+    g_lo = (distance_of(kind, ka, kj, v_start, lo, a, j)
+            + distance_of(kind, ka, kj, lo, v_end, a, j) - distance)
+    g_hi = (distance_of(kind, ka, kj, v_start, hi, a, j)
+            + distance_of(kind, ka, kj, hi, v_end, a, j) - distance)
+    if g_hi <= 0.0:
+        return hi
+    w_lo, w_hi = g_lo, g_hi         # Illinois weights: the values, halved on a stale side
+    side = 0
+    for _ in range(200):
+        if hi - lo <= 4.0 * np.spacing(hi) or -g_lo <= 1e-15 * distance:
+            break
+        v = hi - w_hi * (hi - lo) / (w_hi - w_lo)
+        if not lo < v < hi:
+            v = 0.5 * (lo + hi)
+        g = (distance_of(kind, ka, kj, v_start, v, a, j)
+             + distance_of(kind, ka, kj, v, v_end, a, j) - distance)
+        if g <= 0.0:
+            lo, g_lo, w_lo = v, g, g
+            if side < 0:
+                w_hi *= 0.5
+            side = -1
+        else:
+            hi, g_hi, w_hi = v, g, g
+            if side > 0:
+                w_lo *= 0.5
+            side = 1
+    return lo
+
+
+def _shape_time(ka: float, kj: float) -> Callable[[float, float, float], float]:
+    def time(dv: float, a: float, j: float) -> float:
+        return shape_time(ka, kj, dv, a, j)
+    return time
+
+
 def _shape_end_speed(ka: float, kj: float) -> Callable[[float, float, float, float], float]:
     def end_speed(v0: float, d: float, a: float, j: float) -> float:
         return shape_end_speed(ka, kj, v0, d, a, j)
@@ -284,7 +343,7 @@ def _shape_end_speed(ka: float, kj: float) -> Callable[[float, float, float, flo
 
 _TIME: dict[str, Callable[[float, float, float], float]] = {
     name: _shape_time(s.peak_rate, s.peak_curvature) for name, s in SHAPES.items()}
-_TIME[JERK_LIMITED] = _scurve_time
+_TIME[JERK_LIMITED] = scurve_time
 _END_SPEED: dict[str, Callable[[float, float, float, float], float]] = {
     name: _shape_end_speed(s.peak_rate, s.peak_curvature) for name, s in SHAPES.items()}
 _END_SPEED[JERK_LIMITED] = scurve_end_speed
@@ -423,32 +482,6 @@ def peak_speed(law: str, distance: float, v_start: float, v_end: float, cap: flo
     limits : Limits
         Path limits.
     """
-    def excess(v: float) -> float:
-        return (min_distance(law, v_start, v, limits) + min_distance(law, v, v_end, limits)
-                - distance)
-
-    lo = max(v_start, v_end)
-    hi = min(cap, max_end_speed(law, lo, distance, limits))   # one change alone fits
-    g_lo, g_hi = excess(lo), excess(hi)
-    if g_hi <= 0.0:
-        return hi
-    w_lo, w_hi = g_lo, g_hi         # Illinois weights: the values, halved on a stale side
-    side = 0
-    for _ in range(200):
-        if hi - lo <= 4.0 * math.ulp(hi) or -g_lo <= 1e-15 * distance:
-            break
-        v = hi - w_hi * (hi - lo) / (w_hi - w_lo)
-        if not lo < v < hi:
-            v = 0.5 * (lo + hi)
-        g = excess(v)
-        if g <= 0.0:
-            lo, g_lo, w_lo = v, g, g
-            if side < 0:
-                w_hi *= 0.5
-            side = -1
-        else:
-            hi, g_hi, w_hi = v, g, g
-            if side > 0:
-                w_lo *= 0.5
-            side = 1
-    return lo
+    kind, ka, kj = law_code(law)
+    return peak_of(kind, ka, kj, float(distance), float(v_start), float(v_end), float(cap),
+                   limits.max_velocity, limits.max_acceleration, limits.max_jerk)
