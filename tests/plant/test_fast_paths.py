@@ -9,21 +9,41 @@ from twin.plant import TRUTH_FIELDS, Plant
 
 @pytest.mark.parametrize("machine", ["tomsk_xy", "laser_belt"])
 @pytest.mark.parametrize("preset", [None, (2**32 - 300, 5)])
-def test_read_into_equals_read(machine, preset):
+def test_a_sample_is_what_the_plant_state_says(machine, preset):
+    """The one read path against the state, computed here with numpy: counters from the
+    rotor angles (with the preset, wrapped to 32 bits), the ADC's tacho volts, drive ready,
+    the plant time."""
     plant = Plant.from_machine(machine)
     plant.reset(encoder_preset=None if preset is None else np.array(preset))
+    cpr = np.array([plant.config.axes[a].encoder.counts_per_rev for a in ("x", "y")])
+    offset = np.zeros(2, np.int64) if preset is None else \
+        np.array(preset, np.int64) - np.floor(plant.truth().rotor_angle * cpr / (2 * np.pi)
+                                              ).astype(np.int64)
     inputs = Inputs()
     dac = np.array([2.0, -1.5])
     for _ in range(60):                      # crosses the 32-bit wrap with the preset
         plant.step(dac, plant.config.controller.period)
-        r = plant.read()
         plant.read_into(inputs)
-        np.testing.assert_array_equal(inputs.encoder_counts, r.encoder_counts)
-        np.testing.assert_array_equal(inputs.tacho_volts, r.tacho_volts)
-        for name in ("limit_min", "limit_max", "home"):
-            np.testing.assert_array_equal(getattr(inputs, name), getattr(r, name))
-        assert inputs.drive_ready == r.drive_ready
-        assert inputs.time == r.time
+        raw = np.floor(plant.truth().rotor_angle * cpr / (2 * np.pi)).astype(np.int64)
+        np.testing.assert_array_equal(inputs.encoder_counts, (raw + offset) & (2**32 - 1))
+        np.testing.assert_array_equal(inputs.tacho_volts, plant.drives.tacho_volts)
+        assert inputs.drive_ready == (not plant.drives.fault.any())
+        assert inputs.time == plant.time
+        r = plant.read()
+        np.testing.assert_array_equal(r.encoder_counts, inputs.encoder_counts)
+
+
+def test_a_fault_acknowledged_by_disabling_shows_in_the_next_sample():
+    from twin.drive import layout
+
+    plant = Plant.from_machine("tomsk_xy")
+    plant.enable(True)
+    plant.step(np.zeros(2), plant.config.controller.period)
+    plant.drives.kernel_arrays()[1][:, layout.S_FAULT] = 1.0   # an overload trip latched
+    plant.enable(True)                               # (re-reads the state, keeps the trip)
+    assert not plant.read().drive_ready
+    plant.enable(False)                              # acknowledges it
+    assert plant.read().drive_ready
 
 
 def test_truth_row_equals_truth():

@@ -112,11 +112,13 @@ class Plant:
                                -(2 ** (ax.dac.bits - 1)), 2 ** (ax.dac.bits - 1) - 1,
                                1.0 + ax.dac.gain_error, ax.dac.offset)
                               for ax in axes])  # (LSB (V), code range, gain, offset (V))
-        self._counts_per_rad = np.array([ax.encoder.counts_per_rev / (2.0 * math.pi)
-                                         for ax in axes])
+        self._cpr = tuple(ax.encoder.counts_per_rev / (2.0 * math.pi) for ax in axes)
+        """Encoder counts per rotor radian, per axis."""
         # two's complement masks: -1 & (2³² − 1) = 2³² − 1; a 64-bit counter stays signed
-        self._counter_mask = np.array([(1 << ax.encoder.bits) - 1 if ax.encoder.bits < 64
-                                       else -1 for ax in axes], dtype=np.int64)
+        self._mask = tuple((1 << ax.encoder.bits) - 1 if ax.encoder.bits < 64 else -1
+                           for ax in axes)
+        self._offset = [0, 0]
+        """Counts added to each counter (an encoder preset), Python ints: the one copy."""
         self._encoder_noise = np.array([ax.encoder.noise_counts for ax in axes])
         self._noisy_counts = bool(self.noise and self._encoder_noise.any())
         """The counters are read with noise (the tacho's is drawn by the drives)."""
@@ -132,11 +134,7 @@ class Plant:
         self._has_passive = bool(np.any(self._passive))
         self._drive_torque = np.zeros(2)  # the drives' interval-average torque
         self._noise_block = np.zeros((1, *self.drives.kernel_arrays()[3].shape))
-        self._encoder_offset = np.zeros(2, dtype=np.int64)
-        self._cpr = self._counts_per_rad.tolist()          # scalar copies for read_into
-        self._mask = self._counter_mask.tolist()
-        self._offset = [0, 0]
-        self._ratio_f = self._ratio.tolist()
+        self._ratio_f = tuple(self._ratio.tolist())   # the constants as floats, for rows
         self._out = np.zeros(plant_loop.NREADOUT)
         self._ro: list[float] = [0.0] * plant_loop.NREADOUT
         """The drive state this period's readers need (``plant_loop.readout``), as floats."""
@@ -221,18 +219,22 @@ class Plant:
         self.drives.reset()
         plant_loop.readout(self.drives.kernel_arrays()[1], self._out)
         self._ro = self._out.tolist()
-        self._encoder_offset[:] = 0
         self._ring_read = self._ring_n  # samples from before the reset are not drained
+        self._offset = [0, 0]
         if encoder_preset is not None:
-            self._encoder_offset[:] = np.asarray(encoder_preset, np.int64) - self._raw_counts()
-        self._offset = self._encoder_offset.tolist()
+            self._offset = [int(p) - c for p, c in zip(np.asarray(encoder_preset, np.int64)
+                                                       .tolist(), self._raw_counts(),
+                                                       strict=True)]
         self._warnings_seen = self._warning_count.tobytes()
         for sw, x in zip(self._monitors, self._table_pos.tolist(), strict=True):
             sw.settle(x)
 
     def enable(self, flag: bool) -> None:
-        """Drive enable; ``False`` blocks both converters (and acknowledges a fault)."""
+        """Drive enable; ``False`` blocks both converters (and acknowledges a fault, which
+        the next sample shows)."""
         self.drives.enable(flag)
+        plant_loop.readout(self.drives.kernel_arrays()[1], self._out)
+        self._ro = self._out.tolist()
 
     def step(self, dac_volts: np.ndarray, duration: float) -> StepStatus:
         """Apply DAC voltages for ``duration`` and advance drives and mechanics.
@@ -337,15 +339,18 @@ class Plant:
 
     # ------------------------------------------------------------------ sensing
     def read_into(self, inputs: Inputs) -> None:
-        """Write the I/O sample into ``inputs`` in place: the cheap path of :meth:`read`
-        for a driver's every period (same values, scalar arithmetic)."""
+        """Sample the I/O into ``inputs`` in place, as the machine's I/O hardware delivers
+        it: encoder counters (with their noise, wrapped to the counter's bits), tacho
+        voltages at the ADC, debounced switches, drive ready, the plant time. The one read
+        path (:meth:`read` returns a new sample of it)."""
+        counts = self._raw_counts()
         if self._noisy_counts:
-            inputs.encoder_counts[:] = self.read().encoder_counts
-        else:
-            theta = self._rotor_pos.tolist()
-            for k in (0, 1):
-                c = math.floor(theta[k] * self._cpr[k]) + self._offset[k]
-                inputs.encoder_counts[k] = c & self._mask[k]
+            noise = np.rint(self._rng.standard_normal(2) * self._encoder_noise).tolist()
+            counts = [c + int(n) for c, n in zip(counts, noise, strict=True)]
+        offset, mask = self._offset, self._mask
+        out = inputs.encoder_counts
+        out[0] = (counts[0] + offset[0]) & mask[0]
+        out[1] = (counts[1] + offset[1]) & mask[1]
         ro = self._ro
         tacho = inputs.tacho_volts
         tacho[0], tacho[1] = ro[0], ro[1]
@@ -355,17 +360,10 @@ class Plant:
         inputs.time = self.data.time
 
     def read(self) -> Inputs:
-        """Sample the I/O as the machine's I/O hardware delivers it: encoder counters
-        (wrapped to the counter's bits), tacho voltages at the ADC, debounced switches,
-        drive ready, the plant time (`twin.controller.io.Inputs`)."""
-        counts = self._raw_counts() + self._encoder_offset
-        if self.noise and self._encoder_noise.any():
-            counts += np.rint(self._rng.standard_normal(2) * self._encoder_noise).astype(np.int64)
-        states = np.array([mon.state for mon in self._monitors])  # (axis, channel)
-        return Inputs(encoder_counts=np.bitwise_and(counts, self._counter_mask),
-                       tacho_volts=self.drives.tacho_volts, limit_min=states[:, 0],
-                       limit_max=states[:, 1], home=states[:, 2],
-                       drive_ready=not self.drives.fault.any(), time=self.time)
+        """A new I/O sample (`twin.controller.io.Inputs`; see :meth:`read_into`)."""
+        inputs = Inputs()
+        self.read_into(inputs)
+        return inputs
 
     @property
     def fine(self) -> np.ndarray:
@@ -425,8 +423,10 @@ class Plant:
         self._intervals[duration] = n
         return n
 
-    def _raw_counts(self) -> np.ndarray:
-        return np.floor(self._rotor_pos * self._counts_per_rad).astype(np.int64)
+    def _raw_counts(self) -> list[int]:
+        """The rotors' angles in whole encoder counts (no offset, no wrap)."""
+        theta = self._rotor_pos.tolist()
+        return [math.floor(theta[0] * self._cpr[0]), math.floor(theta[1] * self._cpr[1])]
 
     def _new_warnings(self) -> tuple[str, ...]:
         """Names of the MuJoCo warnings whose counters moved since the last call."""
