@@ -3,15 +3,19 @@ position loop of one axis, or with ``open_loop`` straight to the drive's speed r
 and the figures of the response: rise time, overshoot, settling time, steady-state error, and
 the elastic mode seen in the screw deflection.
 
-The closed-loop experiment uses the controller's own encoder unwrapper and position regulator
-(with the machine's gains and DCU order, derived from the controller's model of the machine)
-against the twin, with the controller's timing: the output computed from the sample of
-tick k reaches the drive at tick k + 1 (compute ahead, the one-period delay the gains and the
-DCU are derived for). So it shows the loop the controller really closes — but with a raw
-step or ramp as the reference, which the planner would never produce. Each record row holds
-what the regulator compared at its tick: the reference and the encoder position of the same
-sample. The screw deflection is sampled every drive interval (not every controller period),
-so elastic modes above the controller's Nyquist rate still show.
+The closed-loop experiment is the controller itself (``Controller.test_signal``: the raw
+step or ramp in place of the planned program) behind ``SimDriver``, ticked by the one tick
+loop (``twin.session.loop.TickLoop``): the same encoder unwrapper, safety checks, regulator
+with the machine's gains and DCU order (derived from the controller's model of the machine)
+and timing as a program run. The output computed from the sample of tick k reaches the drive
+at tick k + 1 (compute ahead, the one-period delay the gains and the DCU are derived for).
+So it shows the loop the controller really closes, with a reference the planner would never
+produce; a step that trips the following-error limit is refused, naming the setting. Each
+record row holds what the regulator compared at its tick: the reference and the encoder
+position of the same sample, and the twin's state at that instant. The open-loop
+experiment puts its DAC source in the controller's place in the same loop. The screw
+deflection is sampled every drive interval (not every controller period), so elastic modes
+above the controller's Nyquist rate still show.
 """
 
 from __future__ import annotations
