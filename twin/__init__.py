@@ -26,7 +26,7 @@ __version__ = "0.1.0"
 
 _COMPILED = ("drive", "plant", "controller/cyclic.py", "controller/regulator.py",
              "controller/_spline_curve.py", "controller/window.py", "controller/reach.py",
-             "controller/profiles/laws.py", "controller/geometry.py")
+             "controller/profiles/closed_forms.py", "controller/geometry.py")
 """Parts of the package that hold numba-compiled code, or constants a kernel compiles in
 (folders or files)."""
 

@@ -31,16 +31,16 @@ Soft limits: a program held in memory (``Program``, list, tuple) is checked agai
 work zone in the constructor, which raises ``PlanningError`` naming the G-code line before
 any motion; a streamed program is checked block by block as it is planned.
 
-Manual mode hooks (issue 4): ``jog(target)`` runs a single planned move when the controller
-is at rest; ``home(axis)`` moves toward the home switch until it closes, brakes, and declares
-the latched position to be the configured home position.
+Manual mode (issue 4, `twin.controller.manual`): ``jog(target)`` runs a single planned move
+when the controller is at rest; ``home(axis)`` moves toward the home switch until it closes,
+brakes, and declares the latched position to be the configured home position;
+``test_signal`` follows a raw step or ramp (``twin experiment``).
 """
 
 from __future__ import annotations
 
 import math
 from collections.abc import Iterable, Mapping, Sequence
-from enum import IntEnum
 from typing import Any
 
 import numpy as np
@@ -50,66 +50,24 @@ from twin.controller.corner import CornerModel
 from twin.controller.cyclic import FALLBACK, steady_tick, warm_up
 from twin.controller.encoder import EncoderUnwrapper
 from twin.controller.gcode.items import Move
-from twin.controller.geometry import Line
 from twin.controller.interpolator import Interpolator, InterpolatorStatus
 from twin.controller.io import Inputs, MachineIO, Outputs
 from twin.controller.linear import LinearAxisModel
 from twin.controller.loop_defaults import default_corner_model, estimated_axis_model, loop_gains
+from twin.controller.manual import ManualCommands
 from twin.controller.planner import MotionBlock, PlannedBlock, Planner
 from twin.controller.record import Record
 from twin.controller.regulator import (
-    TERMS,
     PositionRegulator,
     RegulatorGains,
     RegulatorStatus,
 )
-from twin.controller.signals import TestSignal
+from twin.controller.status import INTEGER_FIELDS, RECORD_FIELDS, ControllerStatus
 from twin.errors import ConfigError, PlanningError, TwinError
 
 __all__ = ["RECORD_FIELDS", "Controller", "ControllerStatus"]
 
 
-class ControllerStatus(IntEnum):
-    """What the controller is doing; values ≥ ``LIMIT_TRIP`` are latched faults."""
-
-    IDLE = 0
-    """Nothing to run: outputs zero, drives disabled."""
-    RUNNING = 1
-    """Following the program (or a jog)."""
-    DWELLING = 2
-    """G4: holding position with the loop closed."""
-    HOMING = 3
-    """Moving toward a home switch, or braking after it closed."""
-    SETTLING = 4
-    """Motion done; loop closed on the end point until in position (``settle_time`` at
-    least, ``settle_timeout`` at most)."""
-    FINISHED = 5
-    """Done: outputs zero, drives disabled."""
-    LIMIT_TRIP = 6
-    """An end limit switch closed: outputs zero, disabled."""
-    FOLLOWING_ERROR = 7
-    """|x_ref − x| exceeded the limit: outputs zero, disabled."""
-    INVALID_INPUT = 8
-    """A non-finite reference or measurement: outputs zero, disabled."""
-    DRIVE_FAULT = 9
-    """The drives reported not ready: outputs zero, disabled."""
-    PROGRAM_ERROR = 10
-    """The program failed while streaming (see ``Controller.error``); stopped at rest."""
-    HOMING_FAILED = 11
-    """The homing move ended without the home switch closing."""
-
-
-RECORD_FIELDS = (
-    ("t", 1), ("ref_position", 2), ("ref_velocity", 2), ("ref_acceleration", 2),
-    ("ref_jerk", 2), ("position", 2), ("following_error", 2), ("dac_volts", 2),
-    ("tacho_volts", 2), ("terms", (2, len(TERMS))), ("enable", 1), ("block", 1),
-    ("line", 1), ("status", 1))
-"""Fields of ``Controller.record``: time (s), references (m, m/s, m/s², m/s³), measured
-position (m), following error x_ref − x (m), DAC and tacho volts (V), regulator terms (V,
-columns ``regulator.TERMS``: p, i, d, ff, dcu), drive enable, active block index, source line
-and ``ControllerStatus`` code."""
-
-_INTEGER_FIELDS = ("enable", "block", "line", "status")
 _STATUS = tuple(ControllerStatus)
 _REG_STATUS = tuple(RegulatorStatus)
 _START_TOLERANCE = 1e-6
@@ -118,7 +76,7 @@ _FAULTS = {RegulatorStatus.FOLLOWING_ERROR: ControllerStatus.FOLLOWING_ERROR,
            RegulatorStatus.INVALID_INPUT: ControllerStatus.INVALID_INPUT}
 
 
-class Controller:
+class Controller(ManualCommands):
     """The cyclic controller of a two-axis table (see the module docstring).
 
     Parameters
@@ -223,7 +181,7 @@ class Controller:
         self.regulator = PositionRegulator(gains, self.period, n_axes=2)
         self.encoder = EncoderUnwrapper([ax.counts_per_metre for ax in self.axes],
                                         bits=[ax.encoder.bits for ax in self.axes])
-        self.record = Record(RECORD_FIELDS, integer=_INTEGER_FIELDS, capacity=record_capacity)
+        self.record = Record(RECORD_FIELDS, integer=INTEGER_FIELDS, capacity=record_capacity)
         """Record: one row per tick, fields ``RECORD_FIELDS``; ``record.as_arrays()``."""
         self.outputs = Outputs()
         """Outputs: written in place and returned by every ``tick``."""
@@ -447,96 +405,17 @@ class Controller:
         """Clear a latched fault; the controller becomes IDLE at its present reference."""
         self.error = None
         self._homing = self._home_latch = None
-        self.regulator.reset(self.interpolator.reference.position)
-        self._held[0] = self._held[1] = 0.0
-        self.interpolator = self._interpolator((), self.position_reference)
+        self._rest_at(self.position_reference)
         self.status = ControllerStatus.IDLE
 
-    def _start_motion(self, blocks: Iterable[Any], status: ControllerStatus) -> None:
-        if self.status not in (ControllerStatus.IDLE, ControllerStatus.FINISHED):
-            raise PlanningError(f"cannot start a motion while {self.status.name}; "
-                                "wait for FINISHED or call reset()")
-        here = self.position_reference
-        self.interpolator = self._interpolator(blocks, here)
+    def _rest_at(self, here: Sequence[float], interpolator: Any = None) -> None:
+        """Start from rest at ``here`` (m) with ``interpolator`` (or the reference source
+        of a test signal; default an idle one there): the regulator's history and the
+        output held for the next tick cleared."""
+        self.interpolator = self._interpolator((), here) if interpolator is None \
+            else interpolator
         self.regulator.reset(here)
         self._held[0] = self._held[1] = 0.0
-        self.status = status
-
-    def run_program(self, program: Iterable[Any]) -> None:
-        """Start another program from rest (checked against the work zone first)."""
-        self._start_motion(self._blocks(program, self.position_reference),
-                           ControllerStatus.RUNNING)
-
-    def jog(self, target: Sequence[float], *, feed: float | None = None) -> None:
-        """Move in a straight line to ``target`` (m) at ``feed`` (m/s; default the contour
-        ``max_velocity``). Raises ``PlanningError`` if the target leaves the work zone or
-        the controller is not at rest."""
-        line = Line(self.position_reference, target)
-        feed = self.settings.limits.max_velocity if feed is None else feed
-        block = MotionBlock(line, feed)
-        self.planner.check([block])
-        self._start_motion(self.planner.plan([block]), ControllerStatus.RUNNING)
-
-    def test_signal(self, axis: str, kind: str, amplitude: float) -> None:
-        """Follow a raw step (``amplitude`` m) or ramp (``amplitude`` m/s) of ``axis`` from
-        the present reference, instead of a planned program (``signals.TestSignal``), until
-        ``interpolator.stop()``; the other axis holds. The soft limits are not checked:
-        the caller keeps the signal inside the travel (the limit switches still trip)."""
-        if axis not in AXES:
-            raise ConfigError("axis", f"must be one of {AXES}, got {axis!r}")
-        if self.status not in (ControllerStatus.IDLE, ControllerStatus.FINISHED):
-            raise PlanningError(f"cannot start a test signal while {self.status.name}; "
-                                "wait for FINISHED or call reset()")
-        here = self.position_reference
-        self.interpolator = TestSignal(here, axis=AXES.index(axis), kind=kind,  # type: ignore
-                                       amplitude=amplitude, period=self.period)
-        self.regulator.reset(here)
-        self._held[0] = self._held[1] = 0.0
-        self.status = ControllerStatus.RUNNING
-
-    def home(self, axis: str, *, feed: float | None = None, direction: int | None = None
-             ) -> None:
-        """Search the home switch of ``axis``: move toward it until ``inputs.home`` closes,
-        brake, and declare the latched position to be ``switches.home``.
-
-        Parameters
-        ----------
-        axis : {"x", "y"}
-        feed : float, optional
-            Search speed (m/s); default a quarter of the axis' max velocity.
-        direction : {-1, +1}, optional
-            Default toward the nearer end of travel from the home switch.
-        """
-        if axis not in AXES:
-            raise ConfigError("axis", f"must be one of {AXES}, got {axis!r}")
-        k = AXES.index(axis)
-        cfg = self.axes[k]
-        sw, travel = cfg.switches, cfg.mechanics.travel
-        if direction is None:
-            direction = -1 if sw.home - travel[0] <= travel[1] - sw.home else 1
-        if direction not in (-1, 1):
-            raise ConfigError("direction", f"must be -1 or +1, got {direction!r}")
-        here = self.position_reference
-        target = list(here)
-        target[k] += direction * (travel[1] - travel[0])
-        feed = 0.25 * cfg.limits.max_velocity if feed is None else feed
-        blocks = self._free_planner.plan([MotionBlock(Line(here, target), feed)])
-        self._start_motion(blocks, ControllerStatus.HOMING)
-        self._homing = (k, float(sw.home))
-        self._home_latch = None
-
-    def _finish_homing(self) -> None:
-        """After the braking: shift the coordinates so the latch is at the home position."""
-        k, home = self._homing  # type: ignore[misc]
-        offset = [0.0, 0.0]
-        offset[k] = home - self._home_latch  # type: ignore[operator]
-        self.encoder.rebase(offset)
-        here = list(self.position_reference)
-        here[k] += offset[k]
-        self.interpolator = self._interpolator((), here)
-        self.regulator.reset(here)
-        self._held[0] = self._held[1] = 0.0
-        self._homing = self._home_latch = None
 
     def run(self, io: MachineIO, *, max_time: float = math.inf) -> ControllerStatus:
         """Tick against ``io`` until ``done`` (or ``max_time`` of controller time, s)."""

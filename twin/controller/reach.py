@@ -26,21 +26,19 @@ from collections.abc import Callable
 import numba
 
 from twin.controller.profiles import Limits, max_end_speed
-from twin.controller.profiles.laws import (
+from twin.controller.profiles.closed_forms import (
     SCURVE_KIND,
     TRAPEZOID_KIND,
     capped_end_speed,
-    end_speed_function,
-    law_code,
 )
+from twin.controller.profiles.laws import law_code
 
 __all__ = ["ReachFloor", "floor_of", "guesses", "monotone_end_speed", "reach_floor",
-           "reach_function", "root_3u"]
+           "reach_function", "reach_of", "root_3u"]
 
 ReachFloor = tuple[float, float, float, float]
 """(u1, f(u1), u2, f(u2)): the candidate minima of ``f`` for one block (m/s)."""
 
-_NONE: ReachFloor = (0.0, 0.0, 0.0, 0.0)
 
 
 @numba.njit(cache=True, inline="always")
@@ -117,8 +115,6 @@ def reach_floor(law: str, distance: float, limits: Limits) -> ReachFloor:
     """Candidate minima of ``max_end_speed(law, ·, distance, limits)`` (see module doc)."""
     if not distance >= 0.0:
         max_end_speed(law, 0.0, distance, limits)   # raises, naming it
-    if law == "trapezoid":
-        return _NONE
     kind, ka, kj = law_code(law)
     return floor_of(kind, ka, kj, float(distance), limits.max_velocity,
                     limits.max_acceleration, limits.max_jerk)
@@ -144,23 +140,30 @@ def monotone_end_speed(law: str, v: float, distance: float, limits: Limits,
     return reach_function(law)(v, distance, limits, floor)
 
 
+@numba.njit(cache=True)
+def reach_of(kind: int, ka: float, kj: float, v: float, d: float, cap: float, a: float,
+             j: float, u1: float, f1: float, u2: float, f2: float) -> float:
+    """g(v) in the kernels' terms (``law_code``; the block's length, speed cap,
+    acceleration and jerk, and its floor ``floor_of``): the one implementation, for the
+    compiled window and ``reach_function``."""
+    f = capped_end_speed(kind, ka, kj, v, d, cap, a, j)
+    if v < u1 and f1 < f:
+        f = f1
+    if v < u2 and f2 < f:
+        f = f2
+    return f
+
+
 def reach_function(law: str) -> Callable[[float, float, Limits, ReachFloor], float]:
     """``monotone_end_speed`` for one law, as one closure ``reach(v, distance, limits,
-    floor)``: ``max_end_speed`` without the law lookup and its call level (the look-ahead
-    passes call it several times per block), then the floor. A negative or NaN speed or
-    distance is refused by ``max_end_speed`` (``PlanningError``)."""
-    end_speed = end_speed_function(law)
+    floor)`` (``reach_of`` without the law lookup; the look-ahead passes call it several
+    times per block). A negative or NaN speed or distance is refused by
+    ``max_end_speed`` (``PlanningError``)."""
+    kind, ka, kj = law_code(law)
 
     def reach(v: float, distance: float, limits: Limits, floor: ReachFloor) -> float:
         if not (v >= 0.0 and distance >= 0.0):
             return max_end_speed(law, v, distance, limits)     # raises, naming them
-        f = end_speed(v, distance, limits.max_acceleration, limits.max_jerk)
-        cap = limits.max_velocity
-        f = f if f < cap else cap
-        u1, f1, u2, f2 = floor
-        if v < u1 and f1 < f:
-            f = f1
-        if v < u2 and f2 < f:
-            f = f2
-        return f
+        return reach_of(kind, ka, kj, v, distance, limits.max_velocity,
+                        limits.max_acceleration, limits.max_jerk, *floor)
     return reach

@@ -10,8 +10,9 @@ and runs the forward pass from its successor when that one's start was lowered (
 envelope `fw`: how fast the blocks before it allow it to start).
 
 The speeds are those of `twin.controller.reach`, computed by the same compiled functions
-(`reach.floor_of` on the laws' closed forms, `twin.controller.profiles.laws.end_speed`):
-one implementation for the compiled window and the Python callers.
+(`reach.floor_of` and `reach.reach_of` on the laws' closed forms,
+`twin.controller.profiles.closed_forms`): one implementation for the compiled window and
+the Python callers.
 ``tests/controller/test_window.py`` checks the rows' floor and reach against
 `twin.controller.reach` and whole plans against the Python passes (`PythonWindow`, kept as
 the reference of the passes).
@@ -25,8 +26,8 @@ import numba
 import numpy as np
 
 from twin.controller.profiles import Limits, max_end_speed
-from twin.controller.profiles.laws import end_speed, law_code
-from twin.controller.reach import floor_of, reach_function
+from twin.controller.profiles.laws import law_code
+from twin.controller.reach import floor_of, reach_function, reach_of
 from twin.controller.reach import reach_floor as python_reach_floor
 
 __all__ = ["COLUMNS", "PythonWindow", "Window"]
@@ -46,14 +47,8 @@ def _floor(w: np.ndarray, s: int, kind: int, ka: float, kj: float) -> None:
 @numba.njit(cache=True, inline="always")
 def _reach(w: np.ndarray, s: int, v: float, kind: int, ka: float, kj: float) -> float:
     """`twin.controller.reach.reach_function(law)` of row ``s`` from speed ``v``."""
-    cap = w[s, VMAX]
-    f = end_speed(kind, ka, kj, v, w[s, LEN], w[s, ACC], w[s, JERK])
-    f = f if f < cap else cap
-    if v < w[s, U1] and w[s, F1] < f:
-        f = w[s, F1]
-    if v < w[s, U2] and w[s, F2] < f:
-        f = w[s, F2]
-    return f
+    return reach_of(kind, ka, kj, v, w[s, LEN], w[s, VMAX], w[s, ACC], w[s, JERK],
+                    w[s, U1], w[s, F1], w[s, U2], w[s, F2])
 
 
 # --------------------------------------------------------------------------- the passes

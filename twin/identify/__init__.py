@@ -153,7 +153,9 @@ def identify(machine: str, output: str | Path, *, driver: str = "sim",
         result = fit(base, log, progress=say)
     except FitError as exc:
         when = timing(log.notes)
-        raise FitError(f"{exc} ({when})" if when else str(exc)) from exc
+        if when:
+            raise FitError(f"{exc} ({when})") from exc
+        raise
     finally:
         if from_log is None:   # the experiments' recording, with the fitted twin if it fit
             report.record(log, base, where / "experiments.rrd", result)

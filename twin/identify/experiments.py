@@ -30,7 +30,7 @@ from twin.controller.loop_defaults import loop_gains
 from twin.controller.regulator import PositionRegulator, RegulatorStatus
 from twin.drive.design import axis_inertia
 from twin.errors import ConfigError, ExperimentAborted
-from twin.hardware.realtime import RealTimeLoop
+from twin.hardware.realtime import RealTimeLoop, TickStats
 from twin.identify.log import COLUMNS, IdentLog, io_signature
 from twin.identify.plan import Piece, excursion, phases
 from twin.session.loop import TickLoop
@@ -288,52 +288,65 @@ def run_plan(driver: MachineIO, base: MachineConfig, plan: Sequence[Piece], *,
         numbered = list(enumerate(part, start=index))
         index += len(part)
         kept = len(rows)
-        best: tuple[tuple, list] | None = None
+        best: tuple[tuple, list, np.ndarray] | None = None
         for attempt in range(1 + (REPEATS if paced else 0)):
             del rows[kept:]
-            target, window = _room(base, part, _position(driver, base), moving)
-            _move_to(driver, base, belief, target, paced)
-            runner = _Runner(driver, base, belief, numbered, window, rows, moving)
-            counts = driver.read().encoder_counts
-            here = measured_position(counts, base)
-            if not rows:
-                start = here
-            runner.start(counts, here)
-            runner.stop()  # a clean enable edge: the drives start from their reset state
             try:
-                if not paced:
-                    k = 0
-                    while runner.tick(k, k * base.controller.period):
-                        k += 1
-                        if progress is not None and k % 200 == 0:
-                            progress(len(rows) * base.controller.period)
-                    runner.stop()
-                    break
-                stats = RealTimeLoop(base.controller.period).run(runner.tick)
+                stats, here = _run_part(driver, base, belief, part, numbered, rows, moving,
+                                        paced, progress)
             except ExperimentAborted as exc:
-                runner.stop()
                 exc.log = _log(rows, base, plan, start, driver_name, {"aborted": str(exc)},
                                axes)
                 raise
-            except BaseException:
-                runner.stop()
-                raise
-            runner.stop()
-            report = {**stats.to_dict(), "phase": number, "attempt": attempt}
-            notes.setdefault("deadlines", []).append(report)
+            if stats is None:          # lock-step: no timing to judge
+                best = ((), rows[kept:], here)
+                break
+            notes.setdefault("deadlines", []).append(
+                {**stats.to_dict(), "phase": number, "attempt": attempt})
             score = (stats.skipped, stats.jitter_max_us)
             if best is None or score < best[0]:
-                best = (score, rows[kept:])
+                best = (score, rows[kept:], here)
             if not disturbed(stats):
                 break
             notes.setdefault("repeated", []).append(
                 f"phase {number}: {stats.skipped} slots lost, a tick "
                 f"{stats.jitter_max_us / 1e3:.2f} ms late")
-        if paced and best is not None:  # the least disturbed attempt
-            rows[kept:] = best[1]
+        assert best is not None
+        rows[kept:] = best[1]          # the least disturbed attempt
+        if kept == 0:
+            start = best[2]
     notes["wall_time_s"] = time.perf_counter() - t_wall
     notes["machine_time_s"] = len(rows) * base.controller.period
     return _log(rows, base, plan, start, driver_name, notes, axes)
+
+
+def _run_part(driver: MachineIO, base: MachineConfig, belief: MachineConfig,
+              part: Sequence[Piece], numbered: Sequence[tuple[int, Piece]], rows: list,
+              moving: Sequence[bool], paced: bool,
+              progress: Callable[[float], None] | None) -> tuple[TickStats | None, np.ndarray]:
+    """Move to the part's start point and run it, appending its rows: (the deadline
+    report, None lock-step; where the table started, m). The machine is stopped (outputs
+    zero, drives disabled) however it ends."""
+    target, window = _room(base, part, _position(driver, base), moving)
+    _move_to(driver, base, belief, target, paced)
+    runner = _Runner(driver, base, belief, numbered, window, rows, moving)
+    counts = driver.read().encoder_counts
+    here = measured_position(counts, base)
+    runner.start(counts, here)
+    runner.stop()  # a clean enable edge: the drives start from their reset state
+    stats = None
+    try:
+        if paced:
+            stats = RealTimeLoop(base.controller.period).run(runner.tick)
+        else:
+            k = 0
+            while runner.tick(k, k * base.controller.period):
+                k += 1
+                if progress is not None and k % 200 == 0:
+                    progress(len(rows) * base.controller.period)
+    finally:
+        runner.stop()
+    return stats, here
 
 
 def _log(rows: list[tuple], base: MachineConfig, plan: Sequence[Piece], start: np.ndarray,

@@ -28,6 +28,7 @@ import numpy as np
 from twin.config import AXES, MachineConfig
 from twin.controller.controller import Controller
 from twin.controller.io import Inputs, Outputs
+from twin.controller.signals import SIGNALS
 from twin.errors import ConfigError
 from twin.plant import FINE_FIELDS, TRUTH_FIELDS
 from twin.session.loop import TickLoop
@@ -219,8 +220,8 @@ def run_experiment(cfg: MachineConfig, *, kind: str, axis: str, amplitude: float
         and ``fine_t``, ``screw_deflection`` per drive interval (fine enough for the elastic
         mode), for the axis (SI).
     """
-    if kind not in ("step", "ramp"):
-        raise ConfigError("kind", f"must be 'step' or 'ramp', got {kind!r}")
+    if kind not in SIGNALS:
+        raise ConfigError("kind", f"must be one of {SIGNALS}, got {kind!r}")
     if axis not in AXES:
         raise ConfigError("axis", f"must be one of {AXES}, got {axis!r}")
     if not (math.isfinite(amplitude) and amplitude != 0.0):

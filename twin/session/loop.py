@@ -83,53 +83,33 @@ class TickLoop:
 
     def run(self, max_ticks: int | float) -> int:
         """Lock-step: tick until done or ``max_ticks`` ticks in all; returns the ticks run
-        by this call. The hot loop keeps to local names."""
-        ctrl = self.controller
-        tick, read, write = ctrl.tick, self.driver.read, self.driver.write
-        after, every, checkpoint = self.after_tick, self.every, self.checkpoint
-        more = self.next_command
-        first = self.ticks
+        by this call."""
+        first, step = self.ticks, self.step
         paused = gc.isenabled()
         gc.disable()
         try:
-            while self.ticks < max_ticks:
-                if ctrl.done and not more():
-                    break
-                write(tick(read()))
-                if after is not None:
-                    after()
-                self.ticks += 1
-                if every and self.ticks % every == 0:
-                    checkpoint()  # type: ignore[misc]
+            while self.ticks < max_ticks and step():
+                pass
         finally:
             if paused:
                 gc.enable()
         return self.ticks - first
 
     def run_paced(self, period: float, *, max_ticks: int | None = None,
-                  policy: DeadlinePolicy | None = None, rt_priority: int = 0
-                  ) -> tuple[TickStats, bool]:
+                  policy: DeadlinePolicy | None = None, rt_priority: int = 0) -> TickStats:
         """Real I/O: one tick per ``period`` of wall time (absolute deadlines), under
-        SCHED_FIFO at ``rt_priority`` where the OS grants it (0: normal).
-
-        Returns
-        -------
-        (TickStats, bool)
-            The deadline report (also when a ``DeadlineFault`` or a stop ends the loop:
-            ``last_stats``), and whether the priority was granted.
-        """
+        SCHED_FIFO at ``rt_priority`` where the OS grants it (0: normal). Returns the
+        deadline report; it is also ``stats`` (with ``rt_granted``) when a
+        ``DeadlineFault`` or a stop ends the loop."""
         loop = self.realtime = RealTimeLoop(period)
-        granted = False
-        stats = None
         paused = gc.isenabled()
         gc.collect()     # one collection before, none inside (see the module docstring)
         gc.disable()
         try:
-            with fifo_priority(rt_priority) as granted:
-                stats = loop.run(self.step, max_ticks=max_ticks, policy=policy)
+            with fifo_priority(rt_priority) as self.rt_granted:
+                loop.run(self.step, max_ticks=max_ticks, policy=policy)
         finally:
             if paused:
                 gc.enable()
-            self.stats = stats or loop.last_stats()
-            self.rt_granted = granted
-        return self.stats, granted
+            self.stats = loop.last_stats()
+        return self.stats

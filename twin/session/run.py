@@ -197,7 +197,6 @@ class _Loop:
                  keep_record: bool = True, caught: list[int] | None = None):
         self.p, self.sink, self.pending, self.progress = p, sink, pending, progress
         self.rt_priority = rt_priority
-        self.rt_granted = False
         self.warn = warn
         self.deadline_warnings: list[str] = []
         # stop signals, checked at every telemetry checkpoint
@@ -222,7 +221,6 @@ class _Loop:
             contour_tolerance=p.cfg.controller.contour_tolerance)
         self.names = {int(s): s.name for s in ControllerStatus}
         self.tick_loop: TickLoop | None = None
-        self.stats: TickStats | None = None
         # the twin's drive-rate samples: to the telemetry, into the elastic oscillation
         # (streamed: memory does not grow with the run), and kept only when asked
         self.meter = None if p.plant is None else OscillationMeter(
@@ -239,6 +237,16 @@ class _Loop:
     def ticks(self) -> int:
         """Ticks run so far."""
         return 0 if self.tick_loop is None else self.tick_loop.ticks
+
+    @property
+    def stats(self) -> TickStats | None:
+        """The paced loop's deadline report (None lock-step or before it ran)."""
+        return None if self.tick_loop is None else self.tick_loop.stats
+
+    @property
+    def rt_granted(self) -> bool:
+        """Whether the paced loop got its SCHED_FIFO priority."""
+        return self.tick_loop is not None and self.tick_loop.rt_granted
 
     def _event(self, t: float, item: Any) -> None:
         kind = getattr(item, "kind", None)
@@ -334,11 +342,8 @@ class _Loop:
         loop = self.tick_loop = TickLoop(self.p.controller, self.p.driver, every=self.every,
                                          checkpoint=checkpoint,
                                          next_command=self._next_command)
-        try:
-            loop.run_paced(self.period, max_ticks=self.limit, policy=policy,
-                           rt_priority=self.rt_priority)
-        finally:
-            self.stats, self.rt_granted = loop.stats, loop.rt_granted
+        loop.run_paced(self.period, max_ticks=self.limit, policy=policy,
+                       rt_priority=self.rt_priority)
 
     def finish(self, spec: RunSpec, run_id: str, out: Path, recording: str | None,
                wall: float, aborted: str | None,
