@@ -141,6 +141,60 @@ def test_homing_and_jogs_give_the_same_bits(both, tmp_path):
     assert share > 0.5          # the jogs; homing itself runs in Python
 
 
+# --------------------------------------------------------------------------- block changes
+def _chord_run(compiled: bool, read_ahead_in_tick: bool, law: str) -> tuple[Controller, int]:
+    """A controller on 400 random chords of 0.02–0.1 mm (several block changes in some
+    periods), fed a servo that follows its DAC; returns it and the number of ticks whose
+    block change the kernel made."""
+    cfg = load_machine("tomsk_xy")
+    rng = np.random.default_rng(7)
+    start = np.array((0.05, 0.04))
+    heading, points = 0.0, [start]
+    for _ in range(400):
+        heading += rng.uniform(-0.5, 0.5)
+        step = rng.uniform(0.02e-3, 0.1e-3)
+        points.append(points[-1] + step * np.array((math.cos(heading), math.sin(heading))))
+    blocks = [MotionBlock(Line(tuple(a), tuple(b)), 0.01) for a, b in
+              zip(points, points[1:], strict=False)]
+    ctrl = Controller.from_machine(cfg, blocks, start=tuple(start), compiled=compiled,
+                                   profile=law)
+    ctrl.read_ahead_in_tick = read_ahead_in_tick
+    cpm = np.array([cfg.axes[a].counts_per_metre for a in ("x", "y")])
+    kh = np.array([1.0 / cfg.axes[a].volts_per_speed for a in ("x", "y")])
+    x = start.copy()
+    inputs = Inputs()
+    changes = 0
+    while not ctrl.done:
+        inputs.encoder_counts[:] = np.floor(x * cpm).astype(np.int64) % (1 << 32)
+        block = ctrl.interpolator._cur
+        kernel = ctrl.compiled and ctrl._tick_compiled(inputs)
+        out = ctrl.outputs if kernel else ctrl._tick_python(inputs)
+        changes += kernel and ctrl.interpolator._cur is not block
+        if not read_ahead_in_tick:
+            ctrl.read_ahead()
+        x = x + kh * out.dac_volts * ctrl.period
+    return ctrl, changes
+
+
+@pytest.mark.parametrize("law", ("trapezoid", "jerk-limited"))
+def test_block_changes_in_the_kernel_and_the_read_ahead_after_the_write(law):
+    """The kernel makes the block changes to blocks read ahead (``Interpolator.landing``),
+    also past blocks shorter than a period; reading ahead after the write instead of
+    inside the tick changes no bit."""
+    reference, _ = _chord_run(False, True, law)
+    in_tick, _ = _chord_run(True, True, law)
+    after_write, changes = _chord_run(True, False, law)
+    assert reference.status == ControllerStatus.FINISHED
+    blocks_run = int(reference.record.as_arrays()["block"].max()) + 1
+    assert blocks_run >= 400                         # the chords and the blends between
+    _same(reference.record.as_arrays(), in_tick.record.as_arrays())
+    _same(reference.record.as_arrays(), after_write.record.as_arrays())
+    # each tick whose block change the kernel made passed one block or more
+    passes = np.diff(after_write.record.as_arrays()["block"])
+    assert passes.max() >= 2, "no period passed a whole block: the test lost its point"
+    assert changes >= 0.95 * np.count_nonzero(passes), (changes, np.count_nonzero(passes))
+
+
 # --------------------------------------------------------------------------- without a plant
 def _synthetic(compiled: bool, events: dict[int, str]) -> tuple[list, Controller]:
     """A controller on a line and an arc, fed inputs that follow its own reference with a

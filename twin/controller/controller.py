@@ -199,6 +199,7 @@ class Controller(ManualCommands):
             ax.encoder.bits <= 62 for ax in self.axes)
         if self.compiled:
             warm_up()
+        self._read_ahead_in_tick = True
         self.interpolator = self._interpolator(self._blocks(program, start), start)
         if program is not None:
             self.status = ControllerStatus.RUNNING
@@ -236,9 +237,37 @@ class Controller(ManualCommands):
 
     def _interpolator(self, blocks: Iterable[Any], start: Sequence[float] | None
                       ) -> Interpolator:
-        return Interpolator(blocks, period=self.period, start=start, mode=self.mode,
-                            counts_per_metre=[ax.counts_per_metre for ax in self.axes],
-                            tables=self.compiled)
+        interp = Interpolator(blocks, period=self.period, start=start, mode=self.mode,
+                              counts_per_metre=[ax.counts_per_metre for ax in self.axes],
+                              tables=self.compiled)
+        interp.read_ahead = self._read_ahead_in_tick
+        return interp
+
+    # ------------------------------------------------------------------ read-ahead
+    @property
+    def read_ahead_in_tick(self) -> bool:
+        """Whether ``tick`` itself makes the interpolator's read-ahead step (default True).
+
+        The read-ahead — the streamed planner's next chunk, the next block's speed profile
+        and tables — is the bulk of the work of a tick that prepares a block. It does not
+        feed the outputs of that tick. A real-time loop (``TickLoop``) sets this False and
+        calls ``read_ahead`` after writing the outputs, as a CNC runs its block preparation
+        beside the interpolation interrupt: the tick, read to write, stays short. The
+        outputs are the same either way."""
+        return self._read_ahead_in_tick
+
+    @read_ahead_in_tick.setter
+    def read_ahead_in_tick(self, flag: bool) -> None:
+        self._read_ahead_in_tick = bool(flag)
+        if isinstance(self.interpolator, Interpolator):
+            self.interpolator.read_ahead = self._read_ahead_in_tick
+
+    def read_ahead(self) -> None:
+        """One step of the interpolator's read-ahead, if one is due (see
+        ``read_ahead_in_tick``); call it after writing a tick's outputs."""
+        interp = self.interpolator
+        if isinstance(interp, Interpolator):
+            interp.prepare_next()
 
     # ------------------------------------------------------------------ the cyclic path
     def tick(self, inputs: Inputs) -> Outputs:
@@ -258,9 +287,18 @@ class Controller(ManualCommands):
         cur = interp._cur
         if cur is None or self._homing is not None or self.regulator._latched:
             return False
-        tables = cur.tables
         tau = interp._tau + interp.period
-        if tables is None or not tau < cur.duration or not self.encoder._ready:
+        passed = 0
+        if not tau < cur.duration:
+            # Block changes to blocks read ahead and activated are done here, as
+            # ``Interpolator.update`` does them; anything else (an event, a dwell still to
+            # start, a block not yet prepared) takes the Python path.
+            landing = interp.landing(tau)
+            if landing is None:
+                return False
+            passed, cur, tau = landing
+        tables = cur.tables
+        if tables is None or not self.encoder._ready:
             return False
         enc, reg, ref, rec = self.encoder, self.regulator, interp.reference, self.record
         chunk, row = rec.slot()
@@ -278,7 +316,10 @@ class Controller(ManualCommands):
         rec.advance()
         self._ticks += 1
         interp._ticks += 1
-        interp._tau = tau
+        if passed:
+            interp.switch_blocks(passed, tau)
+        else:
+            interp._tau = tau
         ref.time = interp._ticks * interp.period
         ref.block, ref.line = cur.index, cur.line
         rcode = code >> 5
@@ -287,8 +328,8 @@ class Controller(ManualCommands):
             reg._latched = reg.status
         self.status = status = _STATUS[code & 31]
         self.outputs.enable = status < ControllerStatus.FINISHED
-        if interp._pending is not None or not interp._ready:
-            interp._prepare()                  # the interpolator's read-ahead step
+        if not passed and self._read_ahead_in_tick:
+            interp.prepare_next()              # as update(): none on a block change
         return True
 
     def _tick_python(self, inputs: Inputs) -> Outputs:

@@ -172,6 +172,10 @@ class Interpolator:
         self.mode = mode
         self.on_event = on_event
         self._tables = tables
+        self.read_ahead = True
+        """bool: ``update`` ends with one step of read-ahead (``prepare_next``). A real-time
+        loop that keeps its tick short sets it False and calls ``prepare_next`` itself once
+        the outputs are written; the blocks and the reference are the same either way."""
         self.reference = Reference()
         """Reference: the output of the last ``update``."""
         self.error: TwinError | None = None
@@ -253,9 +257,59 @@ class Interpolator:
         j[0] = jx
         j[1] = jy
         status = ref.status = self.status
-        if not changed:
+        if not changed and self.read_ahead:
             self._prepare()
         return status
+
+    def prepare_next(self) -> None:
+        """Read ahead until the items ready cover the next period: fetch them from the
+        block source (the streamed planner's work) and, for blocks, make their profiles and
+        tables. The tick that reaches a block then only switches to it (``landing``). Stops
+        at an item that is no block (an event, a dwell, the end): ``update`` runs those."""
+        ready = self._ready
+        while True:
+            if self._pending is not None:
+                ready.append(self._activate(self._pending))
+                self._pending = None
+            ahead = 0.0
+            for item in ready:
+                if type(item) is not _Active:
+                    return
+                ahead += item.duration
+            if ahead >= self.period:
+                return
+            item = self._pull()
+            if item is None:
+                return
+            if isinstance(item, PlannedBlock):
+                self._pending = item
+            else:
+                ready.append(item)
+
+    def landing(self, tau: float) -> tuple[int, _Active, float] | None:
+        """Where ``update`` would land when the active block ends before ``tau`` (s into
+        it): (blocks passed, the block landed in, the time into it), if every block on
+        the way is read ahead and activated; None otherwise (the change needs ``update``).
+        The arithmetic is ``update``'s, step by step."""
+        cur, passed = self._cur, 0
+        for item in self._ready:
+            if type(item) is not _Active or cur is None:
+                return None
+            tau -= cur.duration
+            cur = item
+            passed += 1
+            if tau < cur.duration:
+                return passed, cur, tau
+        return None
+
+    def switch_blocks(self, passed: int, tau: float) -> None:
+        """Make the block changes of a ``landing``: each passed block's end becomes the
+        held point, and the landing block becomes active at ``tau`` (s) into it. For the
+        compiled tick, which evaluates the new block itself."""
+        for _ in range(passed):
+            self._hold = self._cur.end  # type: ignore[union-attr]
+            self._cur = self._ready.popleft()
+        self._tau = tau
 
     def stop(self) -> None:
         """Brake to rest along the active block now and drop the rest of the program.

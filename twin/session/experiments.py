@@ -52,6 +52,7 @@ class _OpenLoop:
     loop, so no loop delay to keep), the drives enabled."""
 
     done = False
+    read_ahead_in_tick = True    # nothing to read ahead: TickLoop's setting is kept, unused
 
     def __init__(self, axis: int, kind: str, amplitude: float, period: float):
         self.axis, self.kind, self.amplitude, self.period = axis, kind, amplitude, period
@@ -66,6 +67,9 @@ class _OpenLoop:
         self.out.dac_volts[self.axis] = u
         self.reference.append(u)
         return self.out
+
+    def read_ahead(self) -> None:
+        """No program: nothing to prepare."""
 
 
 @dataclass(frozen=True)

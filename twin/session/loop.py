@@ -9,6 +9,10 @@ identification's jogs. What differs between them is only what happens around a t
 - ``next_command()`` when the controller is at rest (manual mode starts its next command;
   False ends the loop).
 
+The controller's read-ahead (the next block's profile, the streamed planner's next chunk)
+runs after the outputs are written (``Controller.read_ahead``), not inside the tick: the
+time from reading the machine to writing it is the tick alone.
+
 Lock-step (``run``) ticks as fast as the machine answers; paced (``run_paced``) ticks once
 per period of wall time under ``RealTimeLoop``'s absolute deadlines and the machine's
 deadline policy. Neither collects cyclic garbage while it runs: the loop makes no reference
@@ -55,6 +59,7 @@ class TickLoop:
                  checkpoint: Callable[[], object] | None = None,
                  next_command: Callable[[], bool] | None = None):
         self.controller, self.driver = controller, driver
+        controller.read_ahead_in_tick = False   # read ahead after the write (see step)
         self.after_tick, self.checkpoint = after_tick, checkpoint
         self.every = every if checkpoint is not None and every > 0 else 0
         self.next_command = next_command or (lambda: False)
@@ -74,6 +79,7 @@ class TickLoop:
             return False
         self.t = _t
         self.driver.write(ctrl.tick(self.driver.read()))
+        ctrl.read_ahead()
         if self.after_tick is not None:
             self.after_tick()
         self.ticks += 1
