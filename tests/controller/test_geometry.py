@@ -183,6 +183,24 @@ def test_arc_against_analytic_formulas(start, end, center, ccw, turns, sweep):
     check_arc_length_parameterisation(seg, s, h=1e-4 * r)
 
 
+def test_arc_end_tangents_are_those_of_frame_bit_for_bit():
+    """The planner takes a block's end tangents from ``end_tangents`` instead of two calls
+    of ``frame``: they must be the same floats, or plans would depend on the path taken."""
+    rng = np.random.default_rng(11)
+    for start, end, center, ccw, turns, _ in ARCS:
+        seg = Arc(start, end, center, ccw=ccw, turns=turns)
+        f0, f1 = seg.frame(0.0), seg.frame(seg.length)
+        assert seg.end_tangents() == (f0[2], f0[3], f1[2], f1[3])
+    for _ in range(2000):
+        c, r = rng.normal(size=2), rng.uniform(1e-4, 3.0)
+        a0, a1 = rng.uniform(-7.0, 7.0, 2)
+        seg = Arc(c + r * np.array([math.cos(a0), math.sin(a0)]),
+                  c + r * np.array([math.cos(a1), math.sin(a1)]), c,
+                  ccw=bool(rng.integers(2)), tol=1e-6)
+        f0, f1 = seg.frame(0.0), seg.frame(seg.length)
+        assert seg.end_tangents() == (f0[2], f0[3], f1[2], f1[3])
+
+
 def test_arc_midpoints_of_the_two_directions():
     ccw = Arc((1.0, 0.0), (0.0, 1.0), (0.0, 0.0), ccw=True)
     cw = Arc((1.0, 0.0), (0.0, 1.0), (0.0, 0.0), ccw=False)

@@ -350,6 +350,15 @@ class Arc(Segment):
             x, y = x0, y0
         return x, y, tx, ty, self._k, 0.0
 
+    def end_tangents(self) -> tuple[float, float, float, float]:
+        """Unit tangents at the start and at the end, (t0x, t0y, t1x, t1y): those of
+        ``frame(0)`` and ``frame(length)``, in the same arithmetic as ``arc_point``, for
+        the planner's blocks without two compiled calls."""
+        sign, th0 = self._sign, self._theta0
+        phi = th0 + self._k * self.length
+        return -sign * math.sin(th0), sign * math.cos(th0), -sign * math.sin(phi), \
+            sign * math.cos(phi)
+
     def _points(self, s):
         phi = self._theta0 + self._k * s
         return self.center + self.radius * np.stack((np.cos(phi), np.sin(phi)), axis=-1)

@@ -109,7 +109,7 @@ from twin.controller.blocks import (
 )
 from twin.controller.corner import CornerModel, SeedCornerModel
 from twin.controller.gcode.items import Dwell, Move, PathControl, ProgramEnd
-from twin.controller.geometry import Line, Segment
+from twin.controller.geometry import Arc, Line, Segment
 from twin.controller.loop_defaults import default_corner_model
 from twin.controller.profiles import Limits, min_distance
 from twin.controller.profiles.laws import check_law
@@ -445,8 +445,12 @@ class Planner:
             b.k0 = b.k1 = 0.0
             v_nom, acc, jerk = self._caps.line_caps(abs(ux), abs(uy), v_cap)
         else:
-            _, _, b.t0x, b.t0y, b.k0, _ = seg.frame(0.0)
-            _, _, b.t1x, b.t1y, b.k1, _ = seg.frame(seg.length)
+            if type(seg) is Arc:
+                b.t0x, b.t0y, b.t1x, b.t1y = seg.end_tangents()
+                b.k0 = b.k1 = seg._k
+            else:
+                _, _, b.t0x, b.t0y, b.k0, _ = seg.frame(0.0)
+                _, _, b.t1x, b.t1y, b.k1, _ = seg.frame(seg.length)
             v_nom, acc, jerk = self._caps.curve_caps(seg, v_cap)
         b.v_nom = v_nom
         if b.k0 != 0.0:                     # a curve's caps are its own: no reuse
