@@ -127,6 +127,9 @@ class HilStats:
     refused : int
         Output writes refused: before the watchdog was fed, or from a client other than
         the one that owns the outputs.
+    direct : int
+        Requests of a tick's kinds answered by the server itself (``hil_server``'s
+        ``tick_answer``); pymodbus answered the others.
     """
 
     requests: int
@@ -139,6 +142,7 @@ class HilStats:
     dac_writes: int = 0
     late_writes: int = 0
     refused: int = 0
+    direct: int = 0
 
 
 class HilModule:
@@ -210,6 +214,8 @@ class HilModule:
         docstring)."""
         self.refused = 0
         """Writes refused (not fed, or another client's while one owns the outputs)."""
+        self.direct = 0
+        """Requests answered without pymodbus (see ``HilStats.direct``)."""
         self._last_feed = -math.inf
         self._steps = 0
         self._sampled = -1
@@ -422,30 +428,21 @@ class HilModule:
         """What the module did so far."""
         return HilStats(self._requests, self._steps, self._max_catch_up, self._trips,
                         self._steps * self.dt, self.now, self.fault, self._dac_writes,
-                        self._late_writes, self.refused)
+                        self._late_writes, self.refused, self.direct)
 
-    # ------------------------------------------------------------------ pymodbus glue
-    def sim_device(self) -> SimDevice:
-        """A pymodbus device whose four tables are this module's image (bit addressing)."""
+    # ------------------------------------------------------------------ serving
+    def tables(self) -> dict[int, tuple[int, int]]:
+        """The address range [lo, hi) of each table, by the function code that reads it
+        (1 coils, 2 discrete inputs, 3 holding registers, 4 input registers): from the
+        lowest to the highest address the map uses."""
         ir, hr, di, co = self.map.signals()
+        return {code: (min(a for _, a, _ in entries), max(a + w for _, a, w in entries))
+                for code, entries in ((1, co), (2, di), (3, hr), (4, ir))}
 
-        def block(entries: list[tuple[str, int, int]], bits: bool) -> list[SimData]:
-            lo = min(a for _, a, _ in entries)
-            hi = max(a + w for _, a, w in entries)
-            kind = DataType.BITS if bits else DataType.REGISTERS
-            return [SimData(lo, count=hi - lo, values=False if bits else 0, datatype=kind)]
-
-        return SimDevice(self.map.module.device_id,
-                         simdata=(block(co, True), block(di, True), block(hr, False),
-                                  block(ir, False)),
-                         action=self._action)
-
-    async def _action(self, function_code: int, start: int, address: int, _count: int,
-                      registers: list[int], values: list[int] | list[bool] | None
-                      ) -> ExcCodes | None:
-        """pymodbus hook before every access: catch up, then apply a write or refresh the
-        registers a read returns from the image (``registers`` is the table's block from
-        ``start``; bit tables pack 16 bits per entry, bit 0 first)."""
+    def begin(self, function_code: int) -> ExcCodes | None:
+        """What comes before every access: count it, catch the plant up (a counter read
+        also steers the grid and marks its interval), and answer device failure once the
+        plant has diverged."""
         self._requests += 1
         if function_code == 4:
             self.synchronise()
@@ -456,22 +453,55 @@ class HilModule:
             return ExcCodes.DEVICE_FAILURE
         if function_code == 4:
             self._read_step = self._steps
+        return None
+
+    def write_registers(self, address: int, values: list[int]) -> ExcCodes | None:
+        """Write consecutive holding registers from ``address``, the watchdog first (a
+        request that feeds and sets references, a controller's tick, is taken whole);
+        each entry of ``values`` becomes what its register holds afterwards. Returns the
+        exception code of a refused write (the ones before it stay written)."""
+        order = sorted(range(len(values)), key=lambda i: address + i != self.map.module.watchdog)
+        try:
+            for i in order:
+                values[i] = self.write_holding(address + i, int(values[i]))
+        except Refused as exc:
+            return exc.code
+        return None
+
+    # ------------------------------------------------------------------ pymodbus glue
+    def sim_device(self) -> SimDevice:
+        """A pymodbus device whose four tables are this module's image (bit addressing)."""
+        tables = self.tables()
+
+        def block(code: int) -> list[SimData]:
+            lo, hi = tables[code]
+            bits = code in (1, 2)
+            kind = DataType.BITS if bits else DataType.REGISTERS
+            return [SimData(lo, count=hi - lo, values=False if bits else 0, datatype=kind)]
+
+        return SimDevice(self.map.module.device_id,
+                         simdata=(block(1), block(2), block(3), block(4)),
+                         action=self._action)
+
+    async def _action(self, function_code: int, start: int, address: int, _count: int,
+                      registers: list[int], values: list[int] | list[bool] | None
+                      ) -> ExcCodes | None:
+        """pymodbus hook before every access: ``begin``, then apply a write or refresh the
+        registers a read returns from the image (``registers`` is the table's block from
+        ``start``; bit tables pack 16 bits per entry, bit 0 first)."""
+        refused = self.begin(function_code)
+        if refused is not None:
+            return refused
         if values is not None:
-            try:
-                if function_code in _READ_BITS:
+            if function_code in _READ_BITS:
+                try:
                     for i, flag in enumerate(values):
                         if not self.write_coil(address + i, bool(flag)):
                             return ExcCodes.DEVICE_FAILURE
-                else:
-                    # the watchdog first: a request that feeds and sets references is
-                    # taken whole (a controller's tick)
-                    order = sorted(range(len(values)), key=lambda i: address + i
-                                   != self.map.module.watchdog)
-                    for i in order:
-                        values[i] = self.write_holding(address + i, int(values[i]))
-            except Refused as exc:
-                return exc.code
-            return None
+                except Refused as exc:
+                    return exc.code
+                return None
+            return self.write_registers(address, values)  # type: ignore[arg-type]
         if function_code in _READ_BITS:
             for a, flag in getattr(self, _READ_BITS[function_code])().items():
                 i, bit = a // 16 - start, 1 << (a % 16)
