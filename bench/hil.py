@@ -14,7 +14,8 @@ subprocess whose physics runs in real time. Reported per rate:
   writes, and the late ones that missed the output window, ``--output-window-ms``).
 
 The client thread and the server run under SCHED_FIFO where the OS grants it (``--no-rt``
-turns that off, to see what a plain time-shared process achieves), both on one CPU when there are two (``--no-pin`` leaves them to the OS); ``--no-sync`` runs the
+turns that off, to see what a plain time-shared process achieves), both on one CPU when
+there are two (``--no-pin`` leaves them to the OS); ``--no-sync`` runs the
 server's drive-interval grid free instead of phase-locked to the controller's reads. The
 machine's load average is reported next to the figures: other work on the two cores shows
 up as late ticks. Prints one JSON object.

@@ -6,6 +6,10 @@ bare MuJoCo stepping of the same model, on the default program.
 * ``bare_mujoco_s_per_sim_s``: the same model, timestep and number of ``mj_step(m, d,
   drive_substeps)`` calls, with the motor torques the run produced replayed per controller
   period, measured in the same process right after.
+* ``plant_only_s_per_sim_s``: the plant alone — compiled drives and MuJoCo, one
+  ``Plant.step`` per controller period — replaying the run's DAC requests and enable: the
+  physics' own cost (``plant_only_ratio_vs_bare_mujoco``); the rest of ``full`` is the
+  controller, the driver, the run's bookkeeping and telemetry.
 * ``ratio_vs_bare_mujoco`` = full / bare (issue 4: ≤ 1.5); ``real_time_factor`` (≥ 50);
   ``telemetry_share``: wall time spent building and sending telemetry over the run's wall
   time (≤ 0.10).
@@ -32,15 +36,36 @@ import numpy as np
 from twin.session.run import RunSpec, prepare, run
 
 
-def _full(machine: str, out: str) -> tuple[float, float, float, np.ndarray]:
-    """(wall, sim time, telemetry wall, per-tick rotor torque) of one default run."""
+def _full(machine: str, out: str) -> tuple[float, float, float, np.ndarray, np.ndarray,
+                                           np.ndarray]:
+    """(wall, sim time, telemetry wall, per-tick rotor torque, DAC requests, enable) of one
+    default run."""
     p = prepare(RunSpec(machine=machine))
     result = run(RunSpec(machine=machine), out_dir=out, prepared=p)
     s = result.summary
     # Motor torque k·i at the end of every period: what the bare replay applies.
     tau = result.record["armature_current"] * np.array(
         [p.cfg.axes[a].motor.emf_constant for a in ("x", "y")])
-    return s["wall_time_s"], s["sim_time_s"], s["telemetry_wall_s"], tau
+    return (s["wall_time_s"], s["sim_time_s"], s["telemetry_wall_s"], tau,
+            result.record["dac_volts"], result.record["enable"])
+
+
+def _plant_only(machine: str, dac: np.ndarray, enable: np.ndarray) -> float:
+    """Wall time of the plant alone (the compiled drives and MuJoCo, ``Plant.step`` per
+    controller period) replaying the run's DAC requests and enable: the physics' own cost,
+    without the controller, the driver and the run's bookkeeping."""
+    p = prepare(RunSpec(machine=machine))
+    plant, period = p.plant, p.cfg.controller.period
+    step, on = plant.step, None
+    rows = np.ascontiguousarray(dac, dtype=np.float64)
+    flags = enable.astype(bool).tolist()
+    t0 = time.perf_counter()
+    for volts, flag in zip(rows, flags, strict=True):
+        if flag is not on:
+            plant.enable(flag)
+            on = flag
+        step(volts, period)
+    return time.perf_counter() - t0
 
 
 def _bare(machine: str, torques: np.ndarray) -> float:
@@ -67,14 +92,15 @@ def main() -> None:
     parser.add_argument("--machine", default="tomsk_xy")
     parser.add_argument("--repeat", type=int, default=3)
     args = parser.parse_args()
-    full, bare, tele = [], [], []
+    full, bare, tele, plant = [], [], [], []
     with tempfile.TemporaryDirectory() as out:
         for _ in range(args.repeat):
-            wall, sim, tel, tau = _full(args.machine, out)
+            wall, sim, tel, tau, dac, enable = _full(args.machine, out)
             full.append(wall / sim)
             tele.append(tel / wall)
             bare.append(_bare(args.machine, tau) / sim)
-    f, b = min(full), min(bare)
+            plant.append(_plant_only(args.machine, dac, enable) / sim)
+    f, b, pl = min(full), min(bare), min(plant)
     print(json.dumps({
         "machine": args.machine,
         "program": "default",
@@ -82,6 +108,8 @@ def main() -> None:
         "full_s_per_sim_s": f,
         "bare_mujoco_s_per_sim_s": b,
         "ratio_vs_bare_mujoco": f / b,
+        "plant_only_s_per_sim_s": pl,
+        "plant_only_ratio_vs_bare_mujoco": pl / b,
         "real_time_factor": 1.0 / f,
         "telemetry_share": min(tele),
         "repeat": args.repeat,

@@ -9,6 +9,7 @@ whole closed loop must then agree as well: the plant's truth is compared too.
 
 from __future__ import annotations
 
+import itertools
 import math
 
 import numpy as np
@@ -155,7 +156,7 @@ def _chord_run(compiled: bool, read_ahead_in_tick: bool, law: str) -> tuple[Cont
         step = rng.uniform(0.02e-3, 0.1e-3)
         points.append(points[-1] + step * np.array((math.cos(heading), math.sin(heading))))
     blocks = [MotionBlock(Line(tuple(a), tuple(b)), 0.01) for a, b in
-              zip(points, points[1:], strict=False)]
+              itertools.pairwise(points)]
     ctrl = Controller.from_machine(cfg, blocks, start=tuple(start), compiled=compiled,
                                    profile=law)
     ctrl.read_ahead_in_tick = read_ahead_in_tick
