@@ -18,6 +18,11 @@ acceleration law:
   braking: a law whose speed changes take k_a times as long at the same peak acceleration
   (parabolic 1.5, cosine π/2, cubic 1.875) is held to about ``1 + φ·(k_a − 1)`` of the bound
   on such a program, whatever its planner;
+* ``mean_bound_s`` / ``ratio_to_mean_bound`` (parabolic, cosine, cubic): the same bound
+  with the path acceleration also held to the law's mean over a speed change, A/k_a (the
+  peak still within the limits above): what the law's fixed shape allows at best for its
+  speed changes. Not a strict bound (a curve's speed limit may cut a change short), a
+  like-for-like yardstick for the smooth laws;
 * ``axis_acceleration``: the largest |second difference| of the position reference over one
   controller period, as the interpolator produces it, relative to each axis' limit (velocity
   steps at nodes count as Δv/T there);
@@ -129,9 +134,11 @@ def _grid(blocks: list[PlannedBlock]) -> tuple[np.ndarray, list[tuple[int, float
     return np.array(s_all), where
 
 
-def bound_time(blocks: list[PlannedBlock], cfg) -> tuple[float, float]:
+def bound_time(blocks: list[PlannedBlock], cfg, k_a: float = 1.0) -> tuple[float, float]:
     """TOPP-RA's time for one piece that starts and ends at rest (s), and the part of it
-    spent changing speed (path acceleration above 1 % of the contour limit) (s)."""
+    spent changing speed (path acceleration above 1 % of the contour limit) (s). With
+    ``k_a`` > 1 the path acceleration is also held to |s̈| ≤ A/k_a: a smooth law's mean
+    acceleration over a speed change (its peak stays within the same limits as above)."""
     import toppra
     import toppra.algorithm as algo
     from toppra.constraint import DiscretizationType, LinearConstraint
@@ -186,7 +193,19 @@ def bound_time(blocks: list[PlannedBlock], cfg) -> tuple[float, float]:
         def path_interval(self):
             return np.array([grid[0], grid[-1]])
 
-    inst = algo.TOPPRA([Limits()], Path(), gridpoints=grid, solver_wrapper="seidel")
+    class Mean(LinearConstraint):
+        def __init__(self):
+            super().__init__()
+            self.identical = True
+            self.discretization_type = DiscretizationType.Collocation
+
+        def compute_constraint_params(self, path, gridpoints, *args, **kwargs):
+            mean = limit_c / k_a
+            return (np.ones((n, 1)), np.zeros((n, 1)), np.zeros((n, 1)),
+                    np.array([[1.0], [-1.0]]), np.array([mean, mean]), None, None)
+
+    constraints = [Limits()] if k_a == 1.0 else [Limits(), Mean()]
+    inst = algo.TOPPRA(constraints, Path(), gridpoints=grid, solver_wrapper="seidel")
     inst.compute_parameterization(0.0, 0.0)
     sd = inst.problem_data.sd_vec
     if sd is None:
@@ -196,6 +215,12 @@ def bound_time(blocks: list[PlannedBlock], cfg) -> tuple[float, float]:
     sdd = (sd[1:] ** 2 - sd[:-1] ** 2) / (2.0 * ds)
     changing = np.abs(sdd) > 0.01 * contour.max_acceleration
     return float(np.sum(dt)), float(np.sum(dt[changing]))
+
+
+K_A = {"parabolic": 1.5, "cosine": math.pi / 2, "cubic": 1.875}
+"""Peak over mean acceleration of a speed change of each smooth law with a fixed shape
+(φ'(u) at its peak: 6u(1 − u), (π/2)·sin πu, 30u²(1 − u)²); the jerk-limited law's depends
+on the change."""
 
 
 # ----------------------------------------------------------------------------- limits
@@ -222,6 +247,10 @@ def program_figures(cfg, name: str, text: str, laws, check_limits: bool) -> dict
         row = {"lookahead_s": round(la, 3), "stop_s": round(st, 3),
                "ratio": round(la / bound, 4), "stop_ratio": round(st / bound, 4),
                "blocks": blocks, "blocks_per_s": round(blocks / seconds)}
+        if law in K_A:
+            mean = sum(bound_time(p, cfg, K_A[law])[0] for p in parts) + dwell
+            row["mean_bound_s"] = round(mean, 3)
+            row["ratio_to_mean_bound"] = round(la / mean, 4)
         if check_limits:
             row["axis_acceleration"] = [round(r, 3) for r in axis_acceleration(items, cfg)]
         out[law] = row
