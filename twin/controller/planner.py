@@ -82,8 +82,9 @@ Decisions
   every block ends at rest (exact stop).
 * Contour ``max_velocity`` limits feed moves; rapids are limited by ``rapid_velocity`` and
   the per-axis limits only.
-* Segment caps (per-axis projections, centripetal acceleration and jerk on curves) are
-  computed by `twin.controller.segment_limits`.
+* The rules for a block and a node (the caps above, the runs) are
+  `twin.controller.block_rules`; segment caps (per-axis projections, centripetal
+  acceleration and jerk on curves) are computed by `twin.controller.segment_limits`.
 * Soft limits: with a ``work_zone`` every segment's bounding box is checked when it enters
   the window. A violation (or a G-code error in a streamed file) stops reading: the blocks
   already in the window are still yielded — they were planned to end at rest — and then the
@@ -100,6 +101,16 @@ from typing import Any
 
 from twin.config import AxisConfig, ControllerSettings
 from twin.controller.blend import BlendedBlock, Blender
+from twin.controller.block_rules import (
+    APART,
+    JOINS,
+    TOO_LONG,
+    BlockRules,
+    WindowBlock,
+    absorb,
+    close_run,
+    open_run,
+)
 from twin.controller.blocks import (
     MotionBlock,
     PlannedBlock,
@@ -109,11 +120,9 @@ from twin.controller.blocks import (
 )
 from twin.controller.corner import CornerModel, SeedCornerModel
 from twin.controller.gcode.items import Dwell, Move, PathControl, ProgramEnd
-from twin.controller.geometry import Arc, Line, Segment
 from twin.controller.loop_defaults import default_corner_model
 from twin.controller.profiles import Limits, min_distance
 from twin.controller.profiles.laws import check_law
-from twin.controller.segment_limits import SegmentLimits
 from twin.controller.window import Window
 from twin.controller.workzone import WorkZone
 from twin.errors import ConfigError, PlanningError, TwinError
@@ -129,29 +138,6 @@ __all__ = [
 
 MODES = ("lookahead", "stop")
 """``Planner(mode=...)``: look-ahead speeds, or the classic stop at every node."""
-_APART, _JOINS, _TOO_LONG = 0, 1, 2
-RUN_CAP_SHARE = 0.95
-"""A block joins a run only if that lowers the run's speed cap by at most 5 %, and a
-faster block only if it is short (at most 5 % of the run): its cap then costs nothing."""
-
-STRAIGHT = 1e-9
-"""A node whose tangent turns by less than this (rad) is straight through: a blend's ends
-meet their lines at angles of 1e-16..1e-12 from rounding. Below it neither the corner model
-(``δ/(sin θ · f2)``, beyond 1e5 m/s for any δ ≥ 1 µm and f2 ≤ 0.01 s) nor the velocity
-step (``A·T/θ``, beyond 1e4 m/s for any A ≥ 0.1 m/s² and T ≥ 0.1 ms) could cap a speed."""
-
-
-class _Block:
-    """A block in the window: its geometry summary and its speeds (mutable, internal).
-
-    A *run* is a ``_Block`` whose ``members`` are consecutive blocks planned as one: its
-    length their sum, its caps their lowest (``acc``, ``jerk``: the tangential limits).
-    """
-
-    __slots__ = ("acc", "blend", "feed", "index", "jerk", "k0", "k1", "length", "limits",
-                 "line", "members", "rapid", "segment", "t0x", "t0y", "t1x", "t1y", "v_nom")
-
-
 class Planner:
     """Seed-001 speed assignment with a bounded look-ahead window (see the module doc).
 
@@ -225,20 +211,11 @@ class Planner:
         self.work_zone = work_zone
         self.period = None if period is None else float(period)
         self.blend = float(blend)
-        self._caps = SegmentLimits(limits, axis_limits, jerk=law != "trapezoid")
-        # a kink's velocity step per axis and on the contour: v·|Δt̂_k| ≤ A_k·T
-        self._step = None if period is None else (
-            axis_limits[0].max_acceleration * period, axis_limits[1].max_acceleration * period,
-            limits.max_acceleration * period)
-        # a node where the curvature jumps (a line meets an arc, a blend of another radius)
-        # steps the normal acceleration by v²·|Δκ| within one period: at most J·T for a law
-        # that limits jerk
-        self._jerk_step = None if period is None or law == "trapezoid" else period * min(
-            limits.max_jerk, axis_limits[0].max_jerk, axis_limits[1].max_jerk)
         # rapids run between exact stops: the feed moves' top speed sets the view
         self._view = 2.0 * min_distance(law, limits.max_velocity, 0.0, limits)
-        self._limits_cache: dict[tuple[float, float, float], Limits] = {}
-        self._count = 0
+        self._rules = BlockRules(limits, self.axis_limits, rapid_velocity=self.rapid_velocity,
+                                 tolerance=self.tolerance, corner_model=self.corner_model,
+                                 period=self.period, jerk=law != "trapezoid", view=self._view)
         self.min_feed = float(min_feed)
         self.max_program_time = float(max_program_time)
         self._time_bound = 0.0
@@ -290,14 +267,16 @@ class Planner:
         PlanningError or GCodeError
             After the blocks planned before the fault (which end at rest) have been yielded.
         """
-        window: deque[_Block] = deque()
+        window: deque[WindowBlock] = deque()
         self._speeds = self._window(self.law, self.lookahead)
         stream: Iterator[Any] = self._checked(items)
         if self.mode == "lookahead" and self.blend > 0.0:
             stream = Blender(self.blend * self.tolerance).blend(stream)
         runs = self.mode == "lookahead" and self.law != "trapezoid" and self.lookahead > 1
         error: TwinError | None = None
-        self._count = 0
+        rules = self._rules
+        rules.count = 0
+        block_of, joins_of = rules.block, rules.joins
         self._time_bound = 0.0
         self._length = 0.0
         # the blocks that leave the window (_pop) gather here and are yielded after each
@@ -306,8 +285,8 @@ class Planner:
         self._out = out
         append, pop, end_run = self._append, self._pop, self._end_run
         exact_stop = False
-        run: _Block | None = None       # the run being grown
-        held: _Block | None = None      # a run closed for its length, its successor to come
+        run: WindowBlock | None = None       # the run being grown
+        held: WindowBlock | None = None      # a run closed for its length, its successor to come
         while True:
             if out:
                 yield from out
@@ -320,7 +299,7 @@ class Planner:
                 error = exc
                 break
             if type(item) is BlendedBlock:
-                block = self._block(*item)
+                block = block_of(*item)
                 if exact_stop:                  # G61.1: every block ends at rest
                     if run is not None:
                         end_run(window, held, run)
@@ -347,18 +326,18 @@ class Planner:
             if not runs:
                 append(window, block)
                 continue
-            joins = self._joins(run, block) if run is not None else _APART
-            if joins == _JOINS:
-                _absorb(run, block)
+            joins = joins_of(run, block) if run is not None else APART
+            if joins == JOINS:
+                absorb(run, block)
                 continue
-            if joins == _TOO_LONG:              # the same curve goes on: hold this part
+            if joins == TOO_LONG:              # the same curve goes on: hold this part
                 if held is not None:
-                    append(window, _close(held))
+                    append(window, close_run(held))
                 held = run
             elif run is not None:
                 end_run(window, held, run)
                 held = None
-            run = _open(block)
+            run = open_run(block)
         if run is not None:
             end_run(window, held, run)
         while window:
@@ -414,12 +393,7 @@ class Planner:
             raise PlanningError(f"line {line}: feed {feed * 60e3:.6g} mm/min is below the "
                                 f"machine's minimum {self.min_feed * 60e3:.6g} mm/min "
                                 "(controller.min_feed)")
-        self._spend(length / self._full_speed(feed), line, "its moves")
-
-    def _full_speed(self, feed: float | None) -> float:
-        """A block's speed before any other cap (m/s): rapid, or the feed within the
-        contour limit."""
-        return self.rapid_velocity if feed is None else min(feed, self.limits.max_velocity)
+        self._spend(length / self._rules.full_speed(feed), line, "its moves")
 
     def _spend(self, seconds: float, line: int, what: str) -> None:
         self._time_bound += seconds
@@ -429,97 +403,20 @@ class Planner:
                                 f"machine's {self.max_program_time:g} s "
                                 "(controller.max_program_time)")
 
-    def _block(self, seg: Segment, feed: float | None, line: int, blend: bool = False
-               ) -> _Block:
-        v_cap = self._full_speed(feed)
-        b = _Block()
-        b.segment, b.feed, b.line, b.blend = seg, feed, line, blend
-        b.rapid = feed is None
-        b.length = seg.length
-        b.index = self._count
-        self._count += 1
-        if type(seg) is Line:
-            ux, uy = seg._ux, seg._uy      # float fast path (same package)
-            b.t0x = b.t1x = ux
-            b.t0y = b.t1y = uy
-            b.k0 = b.k1 = 0.0
-            v_nom, acc, jerk = self._caps.line_caps(abs(ux), abs(uy), v_cap)
-        else:
-            if type(seg) is Arc:
-                b.t0x, b.t0y, b.t1x, b.t1y = seg.end_tangents()
-                b.k0 = b.k1 = seg._k
-            else:
-                _, _, b.t0x, b.t0y, b.k0, _ = seg.frame(0.0)
-                _, _, b.t1x, b.t1y, b.k1, _ = seg.frame(seg.length)
-            v_nom, acc, jerk = self._caps.curve_caps(seg, v_cap)
-        b.v_nom = v_nom
-        if b.k0 != 0.0:                     # a curve's caps are its own: no reuse
-            lim = _limits(v_nom, acc, jerk)
-        else:                               # lines of one direction and feed share theirs
-            key = (v_nom, acc, jerk)
-            lim = self._limits_cache.get(key)
-            if lim is None:
-                if len(self._limits_cache) > 256:
-                    self._limits_cache.clear()
-                lim = self._limits_cache[key] = _limits(v_nom, acc, jerk)
-        b.limits = lim
-        b.acc, b.jerk = acc, jerk
-        b.members = None
-        return b
-
-    def _node_cap(self, prev: _Block, b: _Block) -> float:
-        """The speed limit of the node from ``prev`` to ``b`` (m/s): both segments' caps,
-        and at a kink the corner model and the velocity step, where the curvature jumps the
-        step of the normal acceleration (module doc)."""
-        emax = prev.v_nom if prev.v_nom < b.v_nom else b.v_nom
-        cross = prev.t1x * b.t0y - prev.t1y * b.t0x
-        dot = prev.t1x * b.t0x + prev.t1y * b.t0y
-        angle = math.atan2(abs(cross), dot)
-        if angle > STRAIGHT:
-            corner = self.corner_model.max_node_speed(angle, self.tolerance)
-            if corner < emax:
-                emax = corner
-            if self._step is not None:
-                step = _step_speed(self._step, b.t0x - prev.t1x, b.t0y - prev.t1y)
-                if step < emax:
-                    emax = step
-        dk = abs(b.k0 - prev.k1)
-        if dk > 0.0 and self._jerk_step is not None:    # v²·|Δκ| ≤ J·T
-            jump = math.sqrt(self._jerk_step / dk)
-            if jump < emax:
-                emax = jump
-        return emax
-
-    def _joins(self, run: _Block, b: _Block) -> int:
-        """Whether ``b`` may join ``run`` (one speed change across them): both feed moves,
-        a node that limits nothing, caps within ``RUN_CAP_SHARE`` (``_JOINS``); but not
-        once the run is as long as the view (``_TOO_LONG``); else ``_APART``."""
-        if b.rapid or run.rapid:
-            return _APART
-        cap = run.v_nom
-        if b.v_nom < RUN_CAP_SHARE * cap:
-            return _APART
-        if b.v_nom * RUN_CAP_SHARE > cap and b.length > (1.0 - RUN_CAP_SHARE) * (
-                run.length + b.length):
-            return _APART
-        last = run.members[-1] if run.members else run
-        if self._node_cap(last, b) < (cap if cap < b.v_nom else b.v_nom):
-            return _APART
-        return _TOO_LONG if run.length >= self._view else _JOINS
-
-    def _end_run(self, window: deque[_Block], held: _Block | None, run: _Block) -> None:
+    def _end_run(self, window: deque[WindowBlock], held: WindowBlock | None,
+                 run: WindowBlock) -> None:
         """Append the last run of a curve, and the part of it held before: one run if the
         last is short (so that a change near the curve's end is not cut in two)."""
         if held is not None:
             if run.length < 0.5 * self._view:
                 for m in run.members:
-                    _absorb(held, m)
-                self._append(window, _close(held))
+                    absorb(held, m)
+                self._append(window, close_run(held))
                 return
-            self._append(window, _close(held))
-        self._append(window, _close(run))
+            self._append(window, close_run(held))
+        self._append(window, close_run(run))
 
-    def _append(self, window: deque[_Block], b: _Block) -> None:
+    def _append(self, window: deque[WindowBlock], b: WindowBlock) -> None:
         """Add ``b`` to the window (both passes, `twin.controller.window`); the blocks that
         leave it go to ``_out``."""
         self._length += b.length
@@ -529,7 +426,7 @@ class Planner:
         else:
             last = prev.members[-1] if prev.members else prev
             first = b.members[0] if b.members else b
-            emax = self._node_cap(last, first)
+            emax = self._rules.node_cap(last, first)
             if prev.v_nom < emax:
                 emax = prev.v_nom
             if b.v_nom < emax:
@@ -541,7 +438,7 @@ class Planner:
                 len(window) > 1 and self._length - window[0].length >= self._view):
             self._pop(window)
 
-    def _pop(self, window: deque[_Block]) -> None:
+    def _pop(self, window: deque[WindowBlock]) -> None:
         """Commit the window's first block (or run); what it plans goes to ``_out``."""
         b = window.popleft()
         self._length -= b.length
@@ -595,56 +492,3 @@ def _read_ahead(items: Iterable[Any]) -> Iterator[Any]:
             raise
         yield from batch
         batch.clear()
-
-
-def _step_speed(step: tuple[float, float, float], dx: float, dy: float) -> float:
-    """Fastest speed at a kink whose tangent changes by (dx, dy): the velocity step of each
-    axis, and of the contour, at most its acceleration limit times the period (m/s)."""
-    sx, sy, sc = step
-    v = sc / math.sqrt(dx * dx + dy * dy)
-    if abs(dx) * v > sx:
-        v = sx / abs(dx)
-    if abs(dy) * v > sy:
-        v = sy / abs(dy)
-    return v
-
-
-def _open(b: _Block) -> _Block:
-    """A run of one block, to be grown by `_absorb`."""
-    run = _Block()
-    run.acc, run.feed, run.index, run.jerk, run.k0, run.k1 = b.acc, b.feed, b.index, b.jerk, \
-        b.k0, b.k1
-    run.length, run.line, run.rapid, run.segment, run.blend, run.limits = b.length, b.line, \
-        b.rapid, b.segment, b.blend, b.limits
-    run.t0x, run.t0y, run.t1x, run.t1y, run.v_nom = b.t0x, b.t0y, b.t1x, b.t1y, b.v_nom
-    run.members = [b]
-    return run
-
-
-def _absorb(run: _Block, b: _Block) -> None:
-    run.members.append(b)
-    run.length += b.length
-    run.t1x, run.t1y, run.k1 = b.t1x, b.t1y, b.k1
-    if b.v_nom < run.v_nom:
-        run.v_nom = b.v_nom
-    if b.acc < run.acc:
-        run.acc = b.acc
-    if b.jerk < run.jerk:
-        run.jerk = b.jerk
-
-
-def _close(run: _Block) -> _Block:
-    """The run as the window's block: its only member itself, or the run with its limits."""
-    if len(run.members) == 1:
-        return run.members[0]
-    run.limits = _limits(run.v_nom, run.acc, run.jerk)
-    run.segment = None
-    return run
-
-
-def _limits(v: float, a: float, j: float) -> Limits:
-    """A block's tangential limits; checked where they could be wrong (a non-finite or
-    non-positive cap from a degenerate segment), else built without the checks."""
-    if 0.0 < v < math.inf and 0.0 < a < math.inf and 0.0 < j < math.inf:
-        return Limits.trusted(v, a, j)
-    return Limits(v, a, j)

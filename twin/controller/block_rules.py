@@ -1,0 +1,229 @@
+"""The planner's rules for blocks and nodes (seed 001's technological and accuracy
+limits), and the runs of the smooth laws: what ``Planner`` applies to each block before its
+window's speed passes (see `twin.controller.planner`'s module doc for the rules' reasons).
+
+``BlockRules.block`` summarises a segment as a ``WindowBlock``: its speed cap (the feed or
+the rapid speed within the contour limit and the per-axis and curve caps of
+`twin.controller.segment_limits`), its tangential limits, its end tangents and curvatures.
+``BlockRules.node_cap`` is the speed limit of a node: both blocks' caps, at a kink the
+corner model and the velocity step the axes take in one period, where the curvature jumps
+the step of the normal acceleration. ``BlockRules.joins`` says whether a block may join a
+run; ``open_run``, ``absorb`` and ``close_run`` grow a run and close it into one window
+block.
+"""
+
+from __future__ import annotations
+
+import math
+
+from twin.controller.corner import CornerModel
+from twin.controller.geometry import Arc, Line, Segment
+from twin.controller.profiles import Limits
+from twin.controller.segment_limits import SegmentLimits
+
+__all__ = ["APART", "JOINS", "RUN_CAP_SHARE", "STRAIGHT", "TOO_LONG", "BlockRules",
+           "WindowBlock", "absorb", "close_run", "open_run", "tangential_limits"]
+
+APART, JOINS, TOO_LONG = 0, 1, 2
+"""``BlockRules.joins``: apart, joins the run, or the run is as long as the view."""
+RUN_CAP_SHARE = 0.95
+"""A block joins a run only if that lowers the run's speed cap by at most 5 %, and a
+faster block only if it is short (at most 5 % of the run): its cap then costs nothing."""
+
+STRAIGHT = 1e-9
+"""A node whose tangent turns by less than this (rad) is straight through: a blend's ends
+meet their lines at angles of 1e-16..1e-12 from rounding. Below it neither the corner model
+(``δ/(sin θ · f2)``, beyond 1e5 m/s for any δ ≥ 1 µm and f2 ≤ 0.01 s) nor the velocity
+step (``A·T/θ``, beyond 1e4 m/s for any A ≥ 0.1 m/s² and T ≥ 0.1 ms) could cap a speed."""
+
+
+class WindowBlock:
+    """A block in the window: its geometry summary and its speeds (mutable, internal).
+
+    A *run* is a ``WindowBlock`` whose ``members`` are consecutive blocks planned as one: its
+    length their sum, its caps their lowest (``acc``, ``jerk``: the tangential limits).
+    """
+
+    __slots__ = ("acc", "blend", "feed", "index", "jerk", "k0", "k1", "length", "limits",
+                 "line", "members", "rapid", "segment", "t0x", "t0y", "t1x", "t1y", "v_nom")
+
+
+class BlockRules:
+    """The rules for blocks and nodes of one planner (see the module doc).
+
+    Parameters
+    ----------
+    limits, axis_limits : Limits
+        Contour and per-axis limits.
+    rapid_velocity : float
+        Speed of G0 moves (m/s).
+    tolerance : float
+        Allowed contour error at corners (m), for the corner model.
+    corner_model : CornerModel
+    period : float or None
+        Controller period (s) for the velocity-step rules; None: they are off.
+    jerk : bool
+        Whether the law limits jerk (curve caps and the curvature-step rule).
+    view : float
+        Twice the braking distance from the top feed (m): a run is not grown beyond it.
+
+    Attributes
+    ----------
+    count : int
+        Blocks made so far (the next block's index); the planner resets it per plan.
+    """
+
+    def __init__(self, limits: Limits, axis_limits: tuple[Limits, Limits], *,
+                 rapid_velocity: float, tolerance: float, corner_model: CornerModel,
+                 period: float | None, jerk: bool, view: float):
+        self.limits, self.rapid_velocity, self.tolerance = limits, rapid_velocity, tolerance
+        self.corner_model = corner_model
+        self._caps = SegmentLimits(limits, axis_limits, jerk=jerk)
+        # a kink's velocity step per axis and on the contour: v·|Δt̂_k| ≤ A_k·T
+        self._step = None if period is None else (
+            axis_limits[0].max_acceleration * period, axis_limits[1].max_acceleration * period,
+            limits.max_acceleration * period)
+        # a node where the curvature jumps (a line meets an arc, a blend of another radius)
+        # steps the normal acceleration by v²·|Δκ| within one period: at most J·T for a law
+        # that limits jerk
+        self._jerk_step = None if period is None or not jerk else period * min(
+            limits.max_jerk, axis_limits[0].max_jerk, axis_limits[1].max_jerk)
+        self._view = view
+        self._limits_cache: dict[tuple[float, float, float], Limits] = {}
+        self.count = 0
+
+    def full_speed(self, feed: float | None) -> float:
+        """A block's speed before any other cap (m/s): rapid, or the feed within the
+        contour limit."""
+        return self.rapid_velocity if feed is None else min(feed, self.limits.max_velocity)
+
+    def block(self, seg: Segment, feed: float | None, line: int, blend: bool = False
+               ) -> WindowBlock:
+        v_cap = self.full_speed(feed)
+        b = WindowBlock()
+        b.segment, b.feed, b.line, b.blend = seg, feed, line, blend
+        b.rapid = feed is None
+        b.length = seg.length
+        b.index = self.count
+        self.count += 1
+        if type(seg) is Line:
+            ux, uy = seg._ux, seg._uy      # float fast path (same package)
+            b.t0x = b.t1x = ux
+            b.t0y = b.t1y = uy
+            b.k0 = b.k1 = 0.0
+            v_nom, acc, jerk = self._caps.line_caps(abs(ux), abs(uy), v_cap)
+        else:
+            if type(seg) is Arc:
+                b.t0x, b.t0y, b.t1x, b.t1y = seg.end_tangents()
+                b.k0 = b.k1 = seg._k
+            else:
+                _, _, b.t0x, b.t0y, b.k0, _ = seg.frame(0.0)
+                _, _, b.t1x, b.t1y, b.k1, _ = seg.frame(seg.length)
+            v_nom, acc, jerk = self._caps.curve_caps(seg, v_cap)
+        b.v_nom = v_nom
+        if b.k0 != 0.0:                     # a curve's caps are its own: no reuse
+            lim = tangential_limits(v_nom, acc, jerk)
+        else:                               # lines of one direction and feed share theirs
+            key = (v_nom, acc, jerk)
+            lim = self._limits_cache.get(key)
+            if lim is None:
+                if len(self._limits_cache) > 256:
+                    self._limits_cache.clear()
+                lim = self._limits_cache[key] = tangential_limits(v_nom, acc, jerk)
+        b.limits = lim
+        b.acc, b.jerk = acc, jerk
+        b.members = None
+        return b
+
+    def node_cap(self, prev: WindowBlock, b: WindowBlock) -> float:
+        """The speed limit of the node from ``prev`` to ``b`` (m/s): both segments' caps,
+        and at a kink the corner model and the velocity step, where the curvature jumps the
+        step of the normal acceleration (module doc)."""
+        emax = prev.v_nom if prev.v_nom < b.v_nom else b.v_nom
+        cross = prev.t1x * b.t0y - prev.t1y * b.t0x
+        dot = prev.t1x * b.t0x + prev.t1y * b.t0y
+        angle = math.atan2(abs(cross), dot)
+        if angle > STRAIGHT:
+            corner = self.corner_model.max_node_speed(angle, self.tolerance)
+            if corner < emax:
+                emax = corner
+            if self._step is not None:
+                step = step_speed(self._step, b.t0x - prev.t1x, b.t0y - prev.t1y)
+                if step < emax:
+                    emax = step
+        dk = abs(b.k0 - prev.k1)
+        if dk > 0.0 and self._jerk_step is not None:    # v²·|Δκ| ≤ J·T
+            jump = math.sqrt(self._jerk_step / dk)
+            if jump < emax:
+                emax = jump
+        return emax
+
+    def joins(self, run: WindowBlock, b: WindowBlock) -> int:
+        """Whether ``b`` may join ``run`` (one speed change across them): both feed moves,
+        a node that limits nothing, caps within ``RUN_CAP_SHARE`` (``JOINS``); but not
+        once the run is as long as the view (``TOO_LONG``); else ``APART``."""
+        if b.rapid or run.rapid:
+            return APART
+        cap = run.v_nom
+        if b.v_nom < RUN_CAP_SHARE * cap:
+            return APART
+        if b.v_nom * RUN_CAP_SHARE > cap and b.length > (1.0 - RUN_CAP_SHARE) * (
+                run.length + b.length):
+            return APART
+        last = run.members[-1] if run.members else run
+        if self.node_cap(last, b) < (cap if cap < b.v_nom else b.v_nom):
+            return APART
+        return TOO_LONG if run.length >= self._view else JOINS
+
+
+def step_speed(step: tuple[float, float, float], dx: float, dy: float) -> float:
+    """Fastest speed at a kink whose tangent changes by (dx, dy): the velocity step of each
+    axis, and of the contour, at most its acceleration limit times the period (m/s)."""
+    sx, sy, sc = step
+    v = sc / math.sqrt(dx * dx + dy * dy)
+    if abs(dx) * v > sx:
+        v = sx / abs(dx)
+    if abs(dy) * v > sy:
+        v = sy / abs(dy)
+    return v
+
+
+def open_run(b: WindowBlock) -> WindowBlock:
+    """A run of one block, to be grown by `absorb`."""
+    run = WindowBlock()
+    run.acc, run.feed, run.index, run.jerk, run.k0, run.k1 = b.acc, b.feed, b.index, b.jerk, \
+        b.k0, b.k1
+    run.length, run.line, run.rapid, run.segment, run.blend, run.limits = b.length, b.line, \
+        b.rapid, b.segment, b.blend, b.limits
+    run.t0x, run.t0y, run.t1x, run.t1y, run.v_nom = b.t0x, b.t0y, b.t1x, b.t1y, b.v_nom
+    run.members = [b]
+    return run
+
+
+def absorb(run: WindowBlock, b: WindowBlock) -> None:
+    run.members.append(b)
+    run.length += b.length
+    run.t1x, run.t1y, run.k1 = b.t1x, b.t1y, b.k1
+    if b.v_nom < run.v_nom:
+        run.v_nom = b.v_nom
+    if b.acc < run.acc:
+        run.acc = b.acc
+    if b.jerk < run.jerk:
+        run.jerk = b.jerk
+
+
+def close_run(run: WindowBlock) -> WindowBlock:
+    """The run as the window's block: its only member itself, or the run with its limits."""
+    if len(run.members) == 1:
+        return run.members[0]
+    run.limits = tangential_limits(run.v_nom, run.acc, run.jerk)
+    run.segment = None
+    return run
+
+
+def tangential_limits(v: float, a: float, j: float) -> Limits:
+    """A block's tangential limits; checked where they could be wrong (a non-finite or
+    non-positive cap from a degenerate segment), else built without the checks."""
+    if 0.0 < v < math.inf and 0.0 < a < math.inf and 0.0 < j < math.inf:
+        return Limits.trusted(v, a, j)
+    return Limits(v, a, j)
