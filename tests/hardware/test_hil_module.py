@@ -4,7 +4,6 @@ exact instant of expiry, the phase lock, and the pymodbus glue."""
 
 from __future__ import annotations
 
-import asyncio
 import math
 
 import numpy as np
@@ -14,7 +13,7 @@ from pymodbus.constants import ExcCodes
 from twin.config import load_machine
 from twin.errors import ConfigError, SimulationError
 from twin.hardware.hil import CLIENT, HilModule, Refused
-from twin.hardware.hil_server import hil_plant
+from twin.hardware.hil_server import access, hil_plant
 from twin.hardware.register_map import (
     dac_volts,
     dac_word,
@@ -197,7 +196,7 @@ def test_pymodbus_glue_fills_reads_applies_writes_and_reports_faults(rig, monkey
     module, _, clock = rig
 
     def act(fc, start, address, registers, values=None):
-        return asyncio.run(module._action(fc, start, address, 1, registers, values))
+        return access(module, fc, start, address, registers, values)
 
     regs = [0] * 7
     assert act(4, 0, 0, regs) is None
@@ -245,7 +244,7 @@ def test_a_write_in_the_output_window_acts_from_its_reads_interval(plants, windo
     words = [dac_word(v, 10.0, 12) for v in u]
 
     def act(fc, values=None):
-        return asyncio.run(module._action(fc, 0, 0, 1, [0] * 7, values))
+        return access(module, fc, 0, 0, [0] * 7, values)
 
     clock.now = 3.25 * dt
     assert act(4) is None and plant.time == pytest.approx(3 * dt)
@@ -285,7 +284,7 @@ def test_nothing_is_driven_before_the_watchdog_is_fed(rig):
     assert not module.tripped and module.stats().refused == 2
 
     def act(fc, address, values):
-        return asyncio.run(module._action(fc, 0, address, len(values), [0] * 4, values))
+        return access(module, fc, 0, address, [0] * 4, values)
 
     word = dac_word(1.0, 10.0, 12)
     assert act(6, DAC_X, [word]) == ExcCodes.DEVICE_FAILURE    # DAC first: refused, alive

@@ -61,7 +61,6 @@ from dataclasses import dataclass
 
 import numpy as np
 from pymodbus.constants import ExcCodes
-from pymodbus.simulator import DataType, SimData, SimDevice
 
 from twin.config import AXES
 from twin.controller.io import Inputs
@@ -94,9 +93,6 @@ class Refused(Exception):
 OUTPUT_WINDOW = 2e-3
 """Default output window (s): twice a tick's read-compute-write over pymodbus on loopback."""
 
-_READ_BITS = {1: "coils", 5: "coils", 15: "coils", 2: "discrete_inputs"}
-_READ_WORDS = {3: "holding_registers", 6: "holding_registers", 16: "holding_registers",
-               23: "holding_registers", 4: "input_registers"}
 
 
 @dataclass(frozen=True)
@@ -466,47 +462,4 @@ class HilModule:
                 values[i] = self.write_holding(address + i, int(values[i]))
         except Refused as exc:
             return exc.code
-        return None
-
-    # ------------------------------------------------------------------ pymodbus glue
-    def sim_device(self) -> SimDevice:
-        """A pymodbus device whose four tables are this module's image (bit addressing)."""
-        tables = self.tables()
-
-        def block(code: int) -> list[SimData]:
-            lo, hi = tables[code]
-            bits = code in (1, 2)
-            kind = DataType.BITS if bits else DataType.REGISTERS
-            return [SimData(lo, count=hi - lo, values=False if bits else 0, datatype=kind)]
-
-        return SimDevice(self.map.module.device_id,
-                         simdata=(block(1), block(2), block(3), block(4)),
-                         action=self._action)
-
-    async def _action(self, function_code: int, start: int, address: int, _count: int,
-                      registers: list[int], values: list[int] | list[bool] | None
-                      ) -> ExcCodes | None:
-        """pymodbus hook before every access: ``begin``, then apply a write or refresh the
-        registers a read returns from the image (``registers`` is the table's block from
-        ``start``; bit tables pack 16 bits per entry, bit 0 first)."""
-        refused = self.begin(function_code)
-        if refused is not None:
-            return refused
-        if values is not None:
-            if function_code in _READ_BITS:
-                try:
-                    for i, flag in enumerate(values):
-                        if not self.write_coil(address + i, bool(flag)):
-                            return ExcCodes.DEVICE_FAILURE
-                except Refused as exc:
-                    return exc.code
-                return None
-            return self.write_registers(address, values)  # type: ignore[arg-type]
-        if function_code in _READ_BITS:
-            for a, flag in getattr(self, _READ_BITS[function_code])().items():
-                i, bit = a // 16 - start, 1 << (a % 16)
-                registers[i] = registers[i] | bit if flag else registers[i] & ~bit
-        else:
-            for a, word in getattr(self, _READ_WORDS[function_code])().items():
-                registers[a - start] = word
         return None

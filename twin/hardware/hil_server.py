@@ -1,7 +1,8 @@
 """The HIL module served: ``serve_hil`` runs a ``HilModule`` behind a pymodbus
 ``ModbusTcpServer`` (asyncio, one thread: no locks) until SIGINT/SIGTERM, advancing the
-physics between requests. It binds 127.0.0.1 unless told otherwise. ``hil_plant`` makes the
-plant it serves.
+physics between requests. ``sim_device`` and ``access`` are the pymodbus glue; a tick's
+requests are answered without it (``tick_answer``). It binds 127.0.0.1 unless told
+otherwise. ``hil_plant`` makes the plant it serves.
 
 Each connection's requests run with ``hil.CLIENT`` set to that connection, so the module
 knows who owns the outputs, and a connection that closes releases them. pymodbus' own log
@@ -25,15 +26,18 @@ from collections.abc import Callable, Iterator
 from contextlib import contextmanager
 
 import numpy as np
+from pymodbus.constants import ExcCodes
 from pymodbus.server import ModbusTcpServer
 from pymodbus.server.requesthandler import ServerRequestHandler
+from pymodbus.simulator import DataType, SimData, SimDevice
 
 from twin.config import MachineConfig
-from twin.hardware.hil import CLIENT, OUTPUT_WINDOW, HilModule, HilStats
+from twin.hardware.hil import CLIENT, OUTPUT_WINDOW, HilModule, HilStats, Refused
 from twin.hardware.register_map import RegisterMap
 from twin.plant import Plant
 
-__all__ = ["LOG_INTERVAL", "RateLimitedLog", "hil_plant", "serve_hil", "tick_answer"]
+__all__ = ["LOG_INTERVAL", "RateLimitedLog", "access", "hil_plant", "serve_hil", "sim_device",
+           "tick_answer"]
 
 LOG_INTERVAL = 5.0
 """At most one log line per connection and kind of fault in this many seconds."""
@@ -98,6 +102,59 @@ def _quiet_log(level: int = logging.WARNING) -> Iterator[None]:
         log.handlers[:] = saved[1]
         log.propagate = saved[2]
         listener.stop()
+
+
+_READ_BITS = {1: "coils", 5: "coils", 15: "coils", 2: "discrete_inputs"}
+_READ_WORDS = {3: "holding_registers", 6: "holding_registers", 16: "holding_registers",
+               23: "holding_registers", 4: "input_registers"}
+
+
+def sim_device(module: HilModule) -> SimDevice:
+    """A pymodbus device whose four tables are the module's image (bit addressing), with
+    ``access`` before every access."""
+    tables = module.tables()
+
+    def block(code: int) -> list[SimData]:
+        lo, hi = tables[code]
+        bits = code in (1, 2)
+        kind = DataType.BITS if bits else DataType.REGISTERS
+        return [SimData(lo, count=hi - lo, values=False if bits else 0, datatype=kind)]
+
+    async def action(function_code: int, start: int, address: int, _count: int,
+                     registers: list[int], values: list[int] | list[bool] | None
+                     ) -> ExcCodes | None:
+        return access(module, function_code, start, address, registers, values)
+
+    return SimDevice(module.map.module.device_id,
+                     simdata=(block(1), block(2), block(3), block(4)), action=action)
+
+
+def access(module: HilModule, function_code: int, start: int, address: int,
+           registers: list[int], values: list[int] | list[bool] | None) -> ExcCodes | None:
+    """pymodbus' hook before every access: ``HilModule.begin``, then apply a write or
+    refresh the registers a read returns from the image (``registers`` is the table's block
+    from ``start``; bit tables pack 16 bits per entry, bit 0 first)."""
+    refused = module.begin(function_code)
+    if refused is not None:
+        return refused
+    if values is not None:
+        if function_code in _READ_BITS:
+            try:
+                for i, flag in enumerate(values):
+                    if not module.write_coil(address + i, bool(flag)):
+                        return ExcCodes.DEVICE_FAILURE
+            except Refused as exc:
+                return exc.code
+            return None
+        return module.write_registers(address, values)  # type: ignore[arg-type]
+    if function_code in _READ_BITS:
+        for a, flag in getattr(module, _READ_BITS[function_code])().items():
+            i, bit = a // 16 - start, 1 << (a % 16)
+            registers[i] = registers[i] | bit if flag else registers[i] & ~bit
+    else:
+        for a, word in getattr(module, _READ_WORDS[function_code])().items():
+            registers[a - start] = word
+    return None
 
 
 _HEADER = struct.Struct(">HHHBB")       # MBAP header and function code
@@ -207,7 +264,7 @@ class _Server(ModbusTcpServer):
 
 async def _serve(module: HilModule, host: str, port: int,
                  on_ready: Callable[[str, int], None] | None, fast: bool) -> None:
-    server = _Server(module.sim_device(), address=(host, port))
+    server = _Server(sim_device(module), address=(host, port))
     server.module, server.tables, server.fast = module, module.tables(), fast
     await server.serve_forever(background=True)
     bound = server.transport.sockets[0].getsockname()  # type: ignore[union-attr]
