@@ -47,7 +47,7 @@ def _errors(summary: dict) -> dict:
 
 @contextlib.contextmanager
 def _pinned(server_pid: int, pin: bool) -> Iterator[dict | None]:
-    """With ``pin`` and two CPUs or more: the server and this thread (the controller's
+    """With ``pin`` and two CPUs or more (Linux): the server and this thread (the controller's
     loop) together on the last CPU, everything else left to the others; this thread is
     unpinned again afterwards. Yields the placement.
 
@@ -55,7 +55,7 @@ def _pinned(server_pid: int, pin: bool) -> Iterator[dict | None]:
     directly, while between two CPUs each hand-over waits for the other to wake (on this
     VM a 1 kHz tick's read and write took 325 µs at the median that way, against 199 µs
     on one CPU and 336 µs unpinned, where stalls of several ms also occurred)."""
-    cpus = sorted(os.sched_getaffinity(0))
+    cpus = sorted(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else []
     if not pin or len(cpus) < 2:
         yield None
         return
