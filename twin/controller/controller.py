@@ -263,8 +263,8 @@ class Controller(ManualCommands):
             self.interpolator.read_ahead = self._read_ahead_in_tick
 
     def read_ahead(self) -> None:
-        """One step of the interpolator's read-ahead, if one is due (see
-        ``read_ahead_in_tick``); call it after writing a tick's outputs."""
+        """The interpolator's read-ahead, if any is due (see ``read_ahead_in_tick``); call
+        it after writing a tick's outputs."""
         interp = self.interpolator
         if isinstance(interp, Interpolator):
             interp.prepare_next()
@@ -328,7 +328,7 @@ class Controller(ManualCommands):
             reg._latched = reg.status
         self.status = status = _STATUS[code & 31]
         self.outputs.enable = status < ControllerStatus.FINISHED
-        if not passed and self._read_ahead_in_tick:
+        if not passed and interp.read_ahead:
             interp.prepare_next()              # as update(): none on a block change
         return True
 

@@ -173,7 +173,7 @@ class Interpolator:
         self.on_event = on_event
         self._tables = tables
         self.read_ahead = True
-        """bool: ``update`` ends with one step of read-ahead (``prepare_next``). A real-time
+        """bool: ``update`` ends with the read-ahead (``prepare_next``). A real-time
         loop that keeps its tick short sets it False and calls ``prepare_next`` itself once
         the outputs are written; the blocks and the reference are the same either way."""
         self.reference = Reference()
@@ -185,11 +185,10 @@ class Interpolator:
         self._source = iter(blocks)
         self._exhausted = False
         self._ready: deque[Any] = deque()
-        self._pending: PlannedBlock | None = None
         self._ticks = 0
         self._tau = 0.0
         self._cur: _Active | None = None
-        self._prepare()
+        self.prepare_next()
         if start is None:
             start = self._first_start()
         self._hold = (float(start[0]), float(start[1]))
@@ -258,7 +257,7 @@ class Interpolator:
         j[1] = jy
         status = ref.status = self.status
         if not changed and self.read_ahead:
-            self._prepare()
+            self.prepare_next()
         return status
 
     def prepare_next(self) -> None:
@@ -268,9 +267,6 @@ class Interpolator:
         at an item that is no block (an event, a dwell, the end): ``update`` runs those."""
         ready = self._ready
         while True:
-            if self._pending is not None:
-                ready.append(self._activate(self._pending))
-                self._pending = None
             ahead = 0.0
             for item in ready:
                 if type(item) is not _Active:
@@ -281,10 +277,7 @@ class Interpolator:
             item = self._pull()
             if item is None:
                 return
-            if isinstance(item, PlannedBlock):
-                self._pending = item
-            else:
-                ready.append(item)
+            ready.append(self._activate(item) if isinstance(item, PlannedBlock) else item)
 
     def landing(self, tau: float) -> tuple[int, _Active, float] | None:
         """Where ``update`` would land when the active block ends before ``tau`` (s into
@@ -321,7 +314,6 @@ class Interpolator:
         """
         cur = self._cur
         self._ready.clear()
-        self._pending = None
         self._exhausted = True
         close = getattr(self._source, "close", None)
         if close is not None:
@@ -368,33 +360,19 @@ class Interpolator:
     def _first_start(self) -> tuple[float, float]:
         """Start point of the first block (m), reading past leading events; (0, 0) if none."""
         while True:
-            for item in (*self._ready, self._pending):
-                if isinstance(item, PlannedBlock | _Active):
+            for item in self._ready:
+                if type(item) is _Active:
                     return float(item.segment.start[0]), float(item.segment.start[1])
             item = self._pull()
             if item is None:
                 return 0.0, 0.0
-            self._ready.append(item)
-
-    def _prepare(self) -> None:
-        """One step of read-ahead: fetch the next item, or plan the fetched block's profile."""
-        if self._pending is not None:
-            self._ready.append(self._activate(self._pending))
-            self._pending = None
-        elif not self._ready:
-            item = self._pull()
-            if isinstance(item, PlannedBlock):
-                self._pending = item
-            elif item is not None:
-                self._ready.append(item)
+            self._ready.append(self._activate(item) if isinstance(item, PlannedBlock) else item)
 
     def _advance(self) -> _Active | None:
         """The next block or dwell to run (events on the way are reported)."""
         while True:
             if self._ready:
                 item = self._ready.popleft()
-            elif self._pending is not None:
-                item, self._pending = self._pending, None
             else:
                 item = self._pull()
                 if item is None:

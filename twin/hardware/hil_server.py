@@ -184,23 +184,21 @@ def tick_answer(module: HilModule, tables: dict[int, tuple[int, int]], frame: by
     lo, hi = tables[3 if code == 16 else code]
     if not (lo <= address and address + count <= hi):
         return None
+    values: list[int] = []
     if code == 16:
         if not (1 <= count <= 123 and length == 7 + 2 * count and frame[12] == 2 * count):
             return None
         values = list(struct.unpack_from(f">{count}H", frame, 13))
-        module.direct += 1
-        refused = module.begin(code)
-        if refused is None:
-            refused = module.write_registers(address, values)
-        if refused is not None:
-            return _HEADER.pack(tid, 0, 3, unit, code | 0x80) + bytes((refused,))
-        return _HEADER.pack(tid, 0, 6, unit, code) + _SPAN.pack(address, count)
-    if length != 6 or not 1 <= count <= (125 if code == 4 else 2000):
+    elif length != 6 or not 1 <= count <= (125 if code == 4 else 2000):
         return None
     module.direct += 1
     refused = module.begin(code)
+    if refused is None and code == 16:
+        refused = module.write_registers(address, values)
     if refused is not None:
         return _HEADER.pack(tid, 0, 3, unit, code | 0x80) + bytes((refused,))
+    if code == 16:
+        return _HEADER.pack(tid, 0, 6, unit, code) + _SPAN.pack(address, count)
     if code == 4:
         words = module.input_registers()
         data = struct.pack(f">B{count}H", 2 * count,
