@@ -62,6 +62,40 @@ def _trials(url: str, study: str) -> list[optuna.trial.FrozenTrial]:
         deepcopy=False)
 
 
+def _kill_inside_a_trial(victim: subprocess.Popen, url: str, study: str, *, complete: int,
+                         timeout: float) -> list[int]:
+    """SIGKILL ``victim`` while it is inside a trial, once ``complete`` trials are done;
+    returns the numbers of its RUNNING trials at that instant.
+
+    The victim is stopped (SIGSTOP) before the trials are read for the last time, so the
+    trial it is found in cannot finish between that read and the kill; were it read
+    running and then killed, it could have completed in between (it did once in CI, with
+    a 1 s trial and a slow read), and no trial would be lost. If the frozen victim is not
+    inside a trial after all, it goes on (SIGCONT) and the watch goes on."""
+    deadline = time.monotonic() + timeout
+
+    def running_in(trials: list[optuna.trial.FrozenTrial]) -> list[int]:
+        return [t.number for t in trials if t.state == RUNNING
+                and t.user_attrs.get("worker", "").endswith(f":{victim.pid}")]
+
+    while True:
+        assert time.monotonic() < deadline, "the victim never ran a trial"
+        assert victim.poll() is None, victim.communicate()[1][-2000:]
+        time.sleep(0.1)
+        try:
+            trials = _trials(url, study)
+        except KeyError:
+            continue
+        if sum(t.state == COMPLETE for t in trials) < complete or not running_in(trials):
+            continue
+        victim.send_signal(signal.SIGSTOP)          # frozen: its trials cannot change now
+        mine = running_in(_trials(url, study))
+        if mine:
+            victim.send_signal(signal.SIGKILL)
+            return mine
+        victim.send_signal(signal.SIGCONT)
+
+
 def _no_duplicates(trials: list[optuna.trial.FrozenTrial]) -> None:
     """Every finished point was run once, but for the retry of a failed trial."""
     complete = [t for t in trials if t.state == COMPLETE]
@@ -95,20 +129,7 @@ def test_a_worker_killed_mid_trial_loses_only_that_trial(server, tmp_path):
     runs = 24      # enough that the victim is still inside a trial once 3 are complete
     procs = [_worker(url, "k", tmp_path / f"w{k}", "--max-runs", str(runs)) for k in range(3)]
     victim = procs[0]
-    deadline = time.monotonic() + 180.0
-    while True:   # once a few trials are done and the victim is inside one
-        assert time.monotonic() < deadline, "the victim never ran a trial"
-        assert victim.poll() is None, victim.communicate()[1][-2000:]
-        time.sleep(0.1)
-        try:
-            trials = _trials(url, "k")
-        except KeyError:
-            continue
-        mine = [t.number for t in trials if t.state == RUNNING
-                and t.user_attrs.get("worker", "").endswith(f":{victim.pid}")]
-        if sum(t.state == COMPLETE for t in trials) >= 3 and mine:
-            break
-    victim.send_signal(signal.SIGKILL)
+    mine = _kill_inside_a_trial(victim, url, "k", complete=3, timeout=180.0)
     results = _finish(procs)
     assert results[0][0] == -signal.SIGKILL
     for code, err in results[1:]:
