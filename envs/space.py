@@ -32,8 +32,8 @@ from dataclasses import dataclass
 import numpy as np
 
 from twin.config import AXES, MachineConfig
+from twin.controller.gains import RegulatorGains, default_gains
 from twin.controller.linear import LinearAxisModel
-from twin.controller.regulator import RegulatorGains, default_gains
 from twin.errors import ConfigError
 
 __all__ = ["ALPHA_SPAN", "DIM", "KI_DECADES", "NAMES", "TuningSettings", "TuningSpace"]

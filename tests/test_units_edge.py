@@ -76,7 +76,7 @@ def test_every_short_key_states_its_unit():
 
 def test_override_files_take_units_and_best_toml_carries_them(tmp_path):
     from envs.space import TuningSettings
-    from twin.controller.regulator import RegulatorGains
+    from twin.controller.gains import RegulatorGains
 
     settings = TuningSettings(RegulatorGains(kp=(2150.25, 1980.5), ki=(1e4, 2e4),
                                              dcu_alpha=((1.0, -2.5, 0.5), (0.25, 0.0, -1.0))),

@@ -25,7 +25,7 @@ from envs.evaluation import METRICS
 from envs.space import TuningSettings
 from tuning.evaluator import Trial
 from twin.config import read_toml
-from twin.controller.regulator import RegulatorGains
+from twin.controller.gains import RegulatorGains
 from twin.errors import ConfigError
 
 __all__ = ["comparison", "plot_convergence", "read_overrides", "table_markdown",

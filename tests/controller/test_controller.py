@@ -14,6 +14,7 @@ import pytest
 
 from twin.config import load_machine
 from twin.controller.controller import RECORD_FIELDS, Controller, ControllerStatus
+from twin.controller.gains import RegulatorGains, default_gains
 from twin.controller.gcode import parse
 from twin.controller.io import Inputs, MachineIO, Outputs
 from twin.controller.linear import LinearAxisModel
@@ -21,7 +22,6 @@ from twin.controller.loop_defaults import estimated_axis_model, servo_lag
 from twin.controller.metrics import contour_error
 from twin.controller.planner import MotionBlock, segments_from_program
 from twin.controller.record import Record
-from twin.controller.regulator import RegulatorGains, default_gains
 from twin.errors import PlanningError
 
 CFG = load_machine("tomsk_xy")

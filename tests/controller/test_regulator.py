@@ -17,14 +17,9 @@ from hypothesis import example, given
 from hypothesis import strategies as st
 
 from twin.controller.dcu import dcu_as_feedforward, dcu_coefficients
+from twin.controller.gains import RegulatorGains, default_gains
 from twin.controller.linear import LinearAxisModel, position_gain
-from twin.controller.regulator import (
-    TERMS,
-    PositionRegulator,
-    RegulatorGains,
-    RegulatorStatus,
-    default_gains,
-)
+from twin.controller.regulator import TERMS, PositionRegulator, RegulatorStatus
 from twin.errors import ConfigError
 
 K_H = 1.0 / 600.0

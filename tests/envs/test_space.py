@@ -10,7 +10,7 @@ from hypothesis import strategies as st
 
 from envs.space import ALPHA_SPAN, KI_DECADES, TuningSettings, TuningSpace, check_action
 from twin.config import load_machine
-from twin.controller.regulator import default_gains
+from twin.controller.gains import default_gains
 from twin.errors import ConfigError
 from twin.session.run import axis_models
 

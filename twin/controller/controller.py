@@ -49,6 +49,7 @@ from twin.config import AXES, AxisConfig, ControllerSettings, MachineConfig
 from twin.controller.corner import CornerModel
 from twin.controller.cyclic import FALLBACK, steady_tick, warm_up
 from twin.controller.encoder import EncoderUnwrapper
+from twin.controller.gains import RegulatorGains
 from twin.controller.gcode.items import Move
 from twin.controller.interpolator import Interpolator, InterpolatorStatus
 from twin.controller.io import Inputs, MachineIO, Outputs
@@ -57,11 +58,7 @@ from twin.controller.loop_defaults import default_corner_model, estimated_axis_m
 from twin.controller.manual import ManualCommands
 from twin.controller.planner import MotionBlock, PlannedBlock, Planner
 from twin.controller.record import Record
-from twin.controller.regulator import (
-    PositionRegulator,
-    RegulatorGains,
-    RegulatorStatus,
-)
+from twin.controller.regulator import PositionRegulator, RegulatorStatus
 from twin.controller.status import INTEGER_FIELDS, RECORD_FIELDS, ControllerStatus
 from twin.errors import ConfigError, PlanningError, TwinError
 

@@ -16,8 +16,8 @@ from collections.abc import Mapping, Sequence
 
 from twin.config import AxisConfig, ControllerSettings
 from twin.controller.corner import SeedCornerModel
+from twin.controller.gains import RegulatorGains, default_gains
 from twin.controller.linear import LinearAxisModel
-from twin.controller.regulator import RegulatorGains, default_gains
 
 __all__ = ["default_corner_model", "estimated_axis_model", "loop_gains", "servo_lag"]
 
