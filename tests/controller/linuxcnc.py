@@ -16,9 +16,11 @@ from __future__ import annotations
 
 import json
 import math
+import os
 import re
 import shutil
 import subprocess
+import tempfile
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -37,6 +39,12 @@ def _binding_python() -> str | None:
 
 
 BINDING = _binding_python() if RS274 else None
+
+_HOME = tempfile.TemporaryDirectory(prefix="rs274-home-")
+ENV = {**os.environ, "HOME": _HOME.name}
+"""rs274 and the binding keep their tool table in ``$HOME/.tool.mmap``, which each run
+truncates and maps shared: two runs at once over one file crash with SIGBUS (two test
+sessions side by side did). Each test process gives them a home of its own."""
 CANON = Path(__file__).with_name("linuxcnc_canon.py")
 
 PRINTED = 0.5e-4
@@ -80,7 +88,7 @@ def run_rs274(path: Path) -> Reference:
     """Run LinuxCNC's interpreter on ``path``; its moves in SI machine coordinates."""
     done = subprocess.run([RS274, "-g", str(path)], capture_output=True, text=True,
                           timeout=60, stdin=subprocess.DEVNULL, cwd=path.parent,
-                          errors="replace")
+                          errors="replace", env=ENV)
     other = False
     unit, feed = MM, None
     feed_call, feed_unit = -1, MM
@@ -156,7 +164,8 @@ def _make_precise(reference: Reference, path: Path) -> None:
     if any(move.kind == "spline" for move in reference.moves):
         return
     done = subprocess.run([BINDING, str(CANON), str(path.resolve())], capture_output=True,
-                          text=True, timeout=60, stdin=subprocess.DEVNULL, cwd=path.parent)
+                          text=True, timeout=60, stdin=subprocess.DEVNULL, cwd=path.parent,
+                          env=ENV)
     rows = [json.loads(row) for row in done.stdout.splitlines() if row.startswith("[")]
     if done.returncode != 0 or not rows or rows[-1][0] != "end":
         return
