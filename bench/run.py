@@ -13,6 +13,12 @@ bare MuJoCo stepping of the same model, on the default program.
 * ``ratio_vs_bare_mujoco`` = full / bare (issue 4: ≤ 1.5); ``real_time_factor`` (≥ 50);
   ``telemetry_share``: wall time spent building and sending telemetry over the run's wall
   time (≤ 0.10).
+* ``loop_us_per_tick``: where a tick's wall time goes, from one more run with each part
+  timed (so a little slower than ``full``: each timer costs about 0.1 µs): the driver's
+  read (the plant's sensors), the controller's tick, the driver's write (the plant's step,
+  and the plant step alone inside it), the read-ahead, the truth row, and every 50 ticks
+  the checkpoint (stop signals, the drive-rate samples, a telemetry batch); ``rest`` is
+  the loop itself.
 
 Each figure is the best of ``--repeat`` runs (full and bare alternate), which keeps the
 comparison fair on a shared machine. Prints one JSON object.
@@ -68,6 +74,45 @@ def _plant_only(machine: str, dac: np.ndarray, enable: np.ndarray) -> float:
     return time.perf_counter() - t0
 
 
+def _breakdown(machine: str, out: str) -> dict[str, float]:
+    """µs per tick of each part of one default run's loop (see the module docstring)."""
+    import twin.session.run as session
+
+    p = prepare(RunSpec(machine=machine))
+    spent: dict[str, float] = {}
+    clock = time.perf_counter
+
+    def timed(owner: object, name: str, part: str) -> None:
+        call = getattr(owner, name)
+
+        def wrapper(*args, **kwargs):
+            t0 = clock()
+            try:
+                return call(*args, **kwargs)
+            finally:
+                spent[part] = spent.get(part, 0.0) + clock() - t0
+        setattr(owner, name, wrapper)
+
+    timed(p.driver, "read", "read")
+    timed(p.driver, "write", "write")
+    timed(p.plant, "step", "write_plant_step")
+    timed(p.controller, "tick", "tick")
+    timed(p.controller, "read_ahead", "read_ahead")
+    timed(p.plant, "truth_row", "truth_row")
+    checkpoint = session._Loop._checkpoint
+    try:
+        timed(session._Loop, "_checkpoint", "checkpoint")
+        s = run(RunSpec(machine=machine), out_dir=out, prepared=p).summary
+    finally:
+        session._Loop._checkpoint = checkpoint
+    ticks = s["sim_time_s"] / p.cfg.controller.period
+    parts = {k: v / ticks * 1e6 for k, v in spent.items()}
+    loop = s["wall_time_s"] / ticks * 1e6
+    parts["rest"] = loop - sum(v for k, v in parts.items() if k != "write_plant_step")
+    parts["loop"] = loop
+    return {k: round(v, 2) for k, v in parts.items()}
+
+
 def _bare(machine: str, torques: np.ndarray) -> float:
     """Wall time of bare mj_step over the same intervals, replaying the per-period torque."""
     p = prepare(RunSpec(machine=machine))
@@ -100,6 +145,7 @@ def main() -> None:
             tele.append(tel / wall)
             bare.append(_bare(args.machine, tau) / sim)
             plant.append(_plant_only(args.machine, dac, enable) / sim)
+        parts = _breakdown(args.machine, out)
     f, b, pl = min(full), min(bare), min(plant)
     print(json.dumps({
         "machine": args.machine,
@@ -112,6 +158,7 @@ def main() -> None:
         "plant_only_ratio_vs_bare_mujoco": pl / b,
         "real_time_factor": 1.0 / f,
         "telemetry_share": min(tele),
+        "loop_us_per_tick": parts,
         "repeat": args.repeat,
         "cpus": os.cpu_count(),
         "load_average_1min": os.getloadavg()[0],
