@@ -45,6 +45,12 @@ ENV = {**os.environ, "HOME": _HOME.name}
 """rs274 and the binding keep their tool table in ``$HOME/.tool.mmap``, which each run
 truncates and maps shared: two runs at once over one file crash with SIGBUS (two test
 sessions side by side did). Each test process gives them a home of its own."""
+_VARS = Path(_HOME.name) / "rs274ngc.var"
+"""rs274's parameter file (``-v``), removed before each run: every run starts from the
+default parameters, as ``parse`` does. Left to itself rs274 reads and rewrites the
+``rs274ngc.var`` of its working folder: LinuxCNC's example folders ship one, so their
+programs would start from the offsets the previous program there left (and the package's
+files would be rewritten)."""
 CANON = Path(__file__).with_name("linuxcnc_canon.py")
 
 PRINTED = 0.5e-4
@@ -86,8 +92,10 @@ def _numbers(args: str) -> list[float]:
 
 def run_rs274(path: Path) -> Reference:
     """Run LinuxCNC's interpreter on ``path``; its moves in SI machine coordinates."""
-    done = subprocess.run([RS274, "-g", str(path)], capture_output=True, text=True,
-                          timeout=60, stdin=subprocess.DEVNULL, cwd=path.parent,
+    for stale in (_VARS, _VARS.with_name(_VARS.name + ".bak")):
+        stale.unlink(missing_ok=True)
+    done = subprocess.run([RS274, "-v", str(_VARS), "-g", str(path)], capture_output=True,
+                          text=True, timeout=60, stdin=subprocess.DEVNULL, cwd=path.parent,
                           errors="replace", env=ENV)
     other = False
     unit, feed = MM, None
