@@ -14,7 +14,7 @@ bare MuJoCo stepping of the same model, on the default program.
   ``telemetry_share``: wall time spent building and sending telemetry over the run's wall
   time (≤ 0.10).
 * ``loop_us_per_tick``: where a tick's wall time goes, from one more run with each part
-  timed (so a little slower than ``full``: each timer costs about 0.1 µs): the driver's
+  timed (so a little slower than ``full``: each timer costs some tenths of a µs): the driver's
   read (the plant's sensors), the controller's tick, the driver's write (the plant's step,
   and the plant step alone inside it), the read-ahead, the truth row, and every 50 ticks
   the checkpoint (stop signals, the drive-rate samples, a telemetry batch); ``rest`` is

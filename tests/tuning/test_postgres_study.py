@@ -69,8 +69,8 @@ def _kill_inside_a_trial(victim: subprocess.Popen, url: str, study: str, *, comp
 
     The victim is stopped (SIGSTOP) before the trials are read for the last time, so the
     trial it is found in cannot finish between that read and the kill; were it read
-    running and then killed, it could have completed in between (it did once in CI, with
-    a 1 s trial and a slow read), and no trial would be lost. If the frozen victim is not
+    running and then killed, it could have completed in between (it did once in CI), and
+    no trial would be lost. If the frozen victim is not
     inside a trial after all, it goes on (SIGCONT) and the watch goes on."""
     deadline = time.monotonic() + timeout
 
