@@ -277,7 +277,7 @@ class Interpolator:
             item = self._pull()
             if item is None:
                 return
-            ready.append(self._activate(item) if isinstance(item, PlannedBlock) else item)
+            ready.append(item)
 
     def landing(self, tau: float) -> tuple[int, _Active, float] | None:
         """Where ``update`` would land when the active block ends before ``tau`` (s into
@@ -345,17 +345,20 @@ class Interpolator:
 
     # ------------------------------------------------------------------ internals
     def _pull(self) -> Any:
-        """Next item of the block source, or None when it is exhausted or failed."""
+        """Next item of the block source, a block made ready to run (``_activate``); None
+        when the source is exhausted or failed."""
         if self._exhausted:
             return None
         try:
-            return next(self._source)
+            item = next(self._source)
         except StopIteration:
             self._exhausted = True
+            return None
         except TwinError as exc:
             self._exhausted = True
             self.error = exc
-        return None
+            return None
+        return self._activate(item) if isinstance(item, PlannedBlock) else item
 
     def _first_start(self) -> tuple[float, float]:
         """Start point of the first block (m), reading past leading events; (0, 0) if none."""
@@ -366,7 +369,7 @@ class Interpolator:
             item = self._pull()
             if item is None:
                 return 0.0, 0.0
-            self._ready.append(self._activate(item) if isinstance(item, PlannedBlock) else item)
+            self._ready.append(item)
 
     def _advance(self) -> _Active | None:
         """The next block or dwell to run (events on the way are reported)."""
@@ -379,8 +382,6 @@ class Interpolator:
                     return None
             if isinstance(item, _Active):
                 return item
-            if isinstance(item, PlannedBlock):
-                return self._activate(item)
             if isinstance(item, Dwell):
                 if item.duration > 0.0:
                     return self._dwell(item)
