@@ -29,6 +29,7 @@ __all__ = [
     "fail",
     "parse_position",
     "summary_table",
+    "usage_text",
 ]
 
 CONTROLLER_MODEL_HELP = (
@@ -91,6 +92,38 @@ def parse_position(text: str | None, option: str = "--from") -> tuple[float, flo
     except ValueError:
         raise ConfigError(option, f"expected X,Y in mm (e.g. 50,20), got {text!r}") from None
     return (x, y)
+
+
+_PLAIN = {
+    "less_than_equal": "must be at most {le}", "less_than": "must be less than {lt}",
+    "greater_than_equal": "must be at least {ge}", "greater_than": "must be more than {gt}",
+    "int_parsing": "must be a whole number", "int_from_float": "must be a whole number",
+    "float_parsing": "must be a number", "bool_parsing": "must be true or false",
+    "finite_number": "must be a finite number",
+}
+"""Plain words for the checks typer leaves to pydantic (its ``Input should be ...``)."""
+
+
+def usage_text(exc: BaseException) -> str:
+    """The one line of a usage error (an option's bad value, an unknown option): click's
+    message on one line, and a value typer checked with pydantic in plain words, naming the
+    option and the value (``--dcu-order: must be at most 3, got 7``)."""
+    cause = exc.__cause__
+    errors = getattr(cause, "errors", None)
+    param = getattr(exc, "param", None)
+    if callable(errors) and param is not None:
+        name = (param.opts[0] if getattr(param, "opts", None) else param.name) or "value"
+        parts = []
+        for e in errors():
+            words = _PLAIN.get(e.get("type", ""))
+            text = words.format(**e.get("ctx", {})) if words else \
+                str(e.get("msg", "is not valid")).replace("Input should be", "must be")
+            parts.append(f"{text}, got {e.get('input')!s}")
+        if parts:
+            return f"{name}: {'; '.join(parts)}"
+    format_message = getattr(exc, "format_message", None)
+    message = format_message() if format_message is not None else str(exc)
+    return " ".join(message.split())    # click lists choices on lines of their own
 
 
 def fail(exc: BaseException) -> None:

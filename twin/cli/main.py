@@ -124,8 +124,9 @@ def _run(program: Path | None, machine: str, profile: str | None, planner: str |
         with _progress() as bar:
             task = bar.add_task("0.0 s", total=None)
 
-            def progress(t: float, _limit: float) -> None:
-                bar.update(task, description=f"{t:.1f} s")
+            def progress(t: float, done: float) -> None:
+                share = "" if done != done else f", {done:.0%} of the program"
+                bar.update(task, description=f"{t:.1f} s simulated{share}")
 
             def warn(message: str) -> None:
                 bar.console.print(f"[yellow]warning:[/] {message}", highlight=False,
@@ -142,8 +143,6 @@ def _run(program: Path | None, machine: str, profile: str | None, planner: str |
     summary = result.summary
     for note in summary.get("input_warnings", ()):
         err.print(f"[yellow]warning:[/] {note}", highlight=False, soft_wrap=True)
-    if rerun == "serve":
-        _keep_serving(rerun_port)
     _report(summary, out, as_json)
     if "summary_error" in summary:   # not saved: printed, so that nothing is lost
         err.print(f"[bold red]error:[/] {escape(summary['summary_error'])}", highlight=False,
@@ -151,6 +150,9 @@ def _run(program: Path | None, machine: str, profile: str | None, planner: str |
         if not as_json:
             sys.stderr.write(json_text({k: v for k, v in summary.items()
                                         if k not in ("config", "spec")}) + "\n")
+    if rerun == "serve":        # the run is over and reported; the server stays for viewers
+        sys.stdout.flush()
+        _keep_serving(rerun_port, summary)
     if summary["status"] != "FINISHED":
         raise typer.Exit(1)
 
@@ -177,11 +179,14 @@ def _report(summary: dict, out: Path, as_json: bool) -> None:
                   highlight=False, soft_wrap=True)
 
 
-def _keep_serving(port: int) -> None:
-    """After a ``--rerun serve`` run: serve the recording until Ctrl-C, SIGTERM or SIGHUP,
-    then stop the server's whole process group (nothing is left listening)."""
+def _keep_serving(port: int, summary: dict[str, Any]) -> None:
+    """After a ``--rerun serve`` run (reported already): one line saying that the run
+    ended and where it is served, then serve it until Ctrl-C, SIGTERM or SIGHUP, and stop
+    the server's whole process group (nothing is left listening)."""
+    import shlex
+
     from twin.session.run_end import stop_signals
-    from twin.telemetry.viewer import running_rerun, stop_rerun
+    from twin.telemetry.viewer import rerun_command, running_rerun, stop_rerun
 
     servers = running_rerun()
     if not servers:
@@ -189,8 +194,10 @@ def _keep_serving(port: int) -> None:
     url = f"rerun+http://127.0.0.1:{port}/proxy"
     try:
         with stop_signals([]):      # before the message: a signal right after it is caught
-            err.print(f"serving the run at {url} (connect: rerun --connect {url}); Ctrl-C "
-                      "to stop", highlight=False, soft_wrap=True)
+            err.print(f"run {summary['run_id']} {summary['status'].lower()} after "
+                      f"{summary.get('sim_time_s', 0.0):.1f} s simulated; serving it at "
+                      f"{url} (view: {shlex.quote(rerun_command())} --connect {url}); "
+                      "Ctrl-C to stop", highlight=False, soft_wrap=True)
             for proc in servers:
                 proc.wait()
     except KeyboardInterrupt:
@@ -432,10 +439,10 @@ def entry() -> None:
     except typer.Abort:
         raise SystemExit(130) from None
     except typer.TyperException as exc:    # typer's own click: a usage error
-        format_message = getattr(exc, "format_message", None)
-        message = format_message() if format_message is not None else str(exc)
-        message = " ".join(message.split())    # click lists choices on lines of their own
-        err.print(f"[bold red]error:[/] {escape(message)}", highlight=False, soft_wrap=True)
+        from twin.cli.common import usage_text
+
+        err.print(f"[bold red]error:[/] {escape(usage_text(exc))}", highlight=False,
+                  soft_wrap=True)
         raise SystemExit(getattr(exc, "exit_code", 2)) from None
     raise SystemExit(code if isinstance(code, int) else 0)
 
