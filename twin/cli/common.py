@@ -28,6 +28,7 @@ __all__ = [
     "err",
     "fail",
     "parse_position",
+    "print_paths",
     "summary_table",
     "usage_text",
 ]
@@ -150,9 +151,21 @@ RUN_ROWS = (
     ("elastic oscillation", "elastic_oscillation_um", "µm"),
     ("settling travel", "settling_travel_um", "µm"),
     ("real-time factor", "real_time_factor", "×"),
-    ("recording", "recording", ""),
 )
-"""The rows of one run's summary table (``twin run``, ``demo``, ``home``, ``jog``)."""
+"""The rows of one run's summary table (``twin run``, ``demo``, ``home``, ``jog``); the
+recording's path follows the table on a line of its own (``print_paths``), whole at any
+width."""
+
+
+def print_paths(console: Console, summary: Mapping[str, Any], out: Path | None = None
+                ) -> None:
+    """The files of a run, one line each, never cut: ``record:`` (the summary's .json in
+    ``out``) and ``recording:`` (its .rrd)."""
+    if out is not None:
+        console.print(f"record: {out / (summary['run_id'] + '.json')}", highlight=False,
+                      soft_wrap=True)
+    if summary.get("recording"):
+        console.print(f"recording: {summary['recording']}", highlight=False, soft_wrap=True)
 
 
 def _value(summary: Mapping[str, Any], key: Any) -> Any:

@@ -39,6 +39,7 @@ from twin.cli.common import (  # noqa: E402
     PlannerMode,
     err,
     fail,
+    print_paths,
     report_dry_run,
     rerun_target,
     summary_table,
@@ -84,8 +85,11 @@ def _emit(obj: dict[str, Any], as_json: bool) -> None:
 
 
 def _progress() -> Progress:
+    """A run's progress on a terminal; elsewhere nothing (not even the blank line a
+    stopped live display leaves before an error)."""
     return Progress(TextColumn("[bold]sim"), BarColumn(), TextColumn("{task.description}"),
-                    TimeElapsedColumn(), console=err, transient=True)
+                    TimeElapsedColumn(), console=err, transient=True,
+                    disable=not err.is_terminal)
 
 
 # --------------------------------------------------------------------------- run
@@ -122,7 +126,7 @@ def _run(program: Path | None, machine: str, profile: str | None, planner: str |
                 raise typer.Exit(1)
             return
         with _progress() as bar:
-            task = bar.add_task("0.0 s", total=None)
+            task = bar.add_task("starting", total=None)
 
             def progress(t: float, done: float) -> None:
                 share = "" if done != done else f", {done:.0%} of the program"
@@ -172,7 +176,7 @@ def _report(summary: dict, out: Path, as_json: bool) -> None:
                           f"{t['skipped']} skipped; start jitter p50/p99/max "
                           f"{t['jitter_p50_us']:.0f}/{t['jitter_p99_us']:.0f}/"
                           f"{t['jitter_max_us']:.0f} µs", highlight=False)
-        console.print(f"record: {out / (summary['run_id'] + '.json')}", highlight=False)
+        print_paths(console, summary, out)
     if summary.get("error") and summary.get("status") != "FINISHED":
         # why it stopped (a driver fault, a missed deadline, a program error), in words
         err.print(f"[bold red]{summary['status'].lower()}:[/] {escape(summary['error'])}",
@@ -278,6 +282,7 @@ def demo(machine: str = MachineOpt, out: Path = OutOpt, as_json: bool = JsonOpt,
         if not as_json:
             Console().print(_summary_table(result.summary, f"default program, {machine}, "
                                                            f"DCU order {order}"))
+            print_paths(Console(), result.summary, out)
     _emit({"runs": {str(k): {kk: vv for kk, vv in v.items() if kk not in ("config", "spec")}
                     for k, v in rows.items()}}, as_json)
 
@@ -345,10 +350,16 @@ def machines(
     if as_json:
         _emit({"machines": rows}, True)
         return
-    table = Table(title="machines")
+    from rich import box
+
+    table = Table(title="machines", box=box.SIMPLE_HEAD)
+    headers = {"name": "machine", "converter": "converter", "transmission": "transmission",
+               "counts_per_um": "counts\nper µm", "max_feed_mm_per_min": "max feed\n(mm/min)",
+               "period_ms": "period\n(ms)"}
     keys = [k for k in rows[0] if k != "description"]
     for key in keys:
-        table.add_column(key)
+        table.add_column(headers.get(key, key), no_wrap=True,
+                         justify="right" if isinstance(rows[0][key], float) else "left")
     for r in rows:
         table.add_row(*(f"{r[k]:g}" if isinstance(r[k], float) else str(r[k]) for k in keys))
     Console().print(table)

@@ -20,6 +20,7 @@ from twin.cli.common import (
     err,
     fail,
     parse_position,
+    print_paths,
     report_dry_run,
     rerun_target,
     summary_table,
@@ -88,9 +89,7 @@ def experiment(
                          ("elastic mode (Hz)", report["elastic_mode_hz"])):
         table.add_row(label, "—" if math.isnan(value) else f"{value:.4g}")
     Console().print(table)
-    Console().print(f"record: {Path(out) / (summary['run_id'] + '.json')}", highlight=False)
-    if summary["recording"]:
-        Console().print(f"recording: {summary['recording']}", highlight=False)
+    print_paths(Console(), summary, Path(out))
 
 
 def _manual(commands: list[str], machine: str, out: Path, as_json: bool,
@@ -122,6 +121,7 @@ def _manual(commands: list[str], machine: str, out: Path, as_json: bool,
     else:
         Console().print(summary_table({"value": s}, RUN_ROWS, title=title, skip_missing=True))
         Console().print(f"final position: X {pos[0] * 1e3:.4f} mm, Y {pos[1] * 1e3:.4f} mm")
+        print_paths(Console(), s, out)
     if s["status"] != "FINISHED":
         why = s.get("fault") or s.get("aborted") or s.get("timeout") or ""
         err.print(f"[bold red]stopped:[/] {s['status']} {why}".rstrip())

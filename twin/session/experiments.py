@@ -340,20 +340,15 @@ def record_experiment(cfg: MachineConfig, *, out_dir: str | Path, rerun: str = "
     from twin.session.record import make_sink
     from twin.telemetry.blueprint import experiment_blueprint
 
+    result, rec = run_experiment(cfg, belief=belief, **experiment)   # refused: no file
     run_id = run_id or record_id()
     out = output_dir(out_dir)
     axis = experiment["axis"]
+    open_loop = experiment.get("open_loop", False)
     sink, recording = make_sink(rerun, out, run_id,
                                 blueprint=lambda extents: experiment_blueprint(axis, extents))
-    what = describe(experiment["kind"], axis, experiment["amplitude"],
-                    experiment.get("open_loop", False))
-    try:
-        result, _ = run_experiment(cfg, sink=sink, belief=belief, **experiment)
-    except BaseException:
-        discard = getattr(sink, "discard", None)
-        if discard is not None:
-            discard()
-        raise
+    what = describe(experiment["kind"], axis, experiment["amplitude"], open_loop)
+    _record(sink, axis, rec, open_loop)
     summary = {"run_id": run_id, "status": "FINISHED", "experiment": what,
                "machine": cfg.name, "controller_model": (belief or cfg).name,
                "recording": recording, **result.to_report(),
