@@ -114,14 +114,11 @@ def usage_text(exc: BaseException) -> str:
     param = getattr(exc, "param", None)
     if callable(errors) and param is not None:
         name = (param.opts[0] if getattr(param, "opts", None) else param.name) or "value"
-        parts = []
-        for e in errors():
-            words = _PLAIN.get(e.get("type", ""))
-            text = words.format(**e.get("ctx", {})) if words else \
-                str(e.get("msg", "is not valid")).replace("Input should be", "must be")
-            parts.append(f"{text}, got {e.get('input')!s}")
-        if parts:
-            return f"{name}: {'; '.join(parts)}"
+        found = list(errors())
+        if found and all(e.get("type") in _PLAIN for e in found):
+            return f"{name}: " + "; ".join(
+                f"{_PLAIN[e['type']].format(**e.get('ctx', {}))}, got {e.get('input')!s}"
+                for e in found)
     format_message = getattr(exc, "format_message", None)
     message = format_message() if format_message is not None else str(exc)
     return " ".join(message.split())    # click lists choices on lines of their own
