@@ -214,6 +214,9 @@ def test_overlay_is_framed_on_the_whole_path_and_the_data_time_span(compared):
     assert y0 < -pts[:, 1].max() and -pts[:, 1].min() < y1
     assert max(x1 - x0, y1 - y0) <= 1.2 * max(np.ptp(pts[:, 0]), np.ptp(pts[:, 1]))
     assert "trapezoid red" in paths["name"] and "parabolic blue" in paths["name"]
+    # the view's origin lies above /laws, which flips Y: a view at /laws itself would show
+    # its data untransformed (upside down, and outside these bounds)
+    assert paths["origin"] == "/"
     t_all = np.concatenate([t for t, _ in scalars.values()])
     plots = [v for v in views if v["kind"] == "TimeSeries"]
     assert len(plots) == 5

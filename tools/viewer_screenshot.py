@@ -35,6 +35,10 @@ SETTLED = 3
 
 POLL = 1.5
 
+SHOT_TIMEOUT = 180_000
+"""Milliseconds one screenshot may take: a software-rendered 1800×1100 frame on a busy
+two-core machine takes tens of seconds while the recording loads."""
+
 
 def browser() -> str | None:
     """Chromium's executable, or None."""
@@ -59,7 +63,7 @@ def settle(page, *, least: float, most: float) -> float:
     last, same = None, 0
     while time.monotonic() - t0 < most:
         page.wait_for_timeout(POLL * 1000.0)
-        digest = hashlib.sha1(page.screenshot()).hexdigest()
+        digest = hashlib.sha1(page.screenshot(timeout=SHOT_TIMEOUT)).hexdigest()
         same = same + 1 if digest == last else 0
         last = digest
         if same >= SETTLED and time.monotonic() - t0 >= least:
@@ -114,13 +118,13 @@ def main() -> int:
             page = chrome.new_page(viewport={"width": width, "height": height})
             page.goto(url, wait_until="load")
             waited = settle(page, least=8.0, most=a.wait)     # the wasm app, then the data
-            page.screenshot(path=a.out)
+            page.screenshot(path=a.out, timeout=SHOT_TIMEOUT)
             shots.append({"file": a.out, "settled_s": round(waited, 1)})
             for name, path in tabs:
                 page.mouse.click(TABS[name], TAB_BAR_Y)
                 page.mouse.move(width / 2, height - 5)      # no hover tooltip on the shot
                 waited = settle(page, least=2.0, most=a.wait)
-                page.screenshot(path=path)
+                page.screenshot(path=path, timeout=SHOT_TIMEOUT)
                 shots.append({"file": path, "tab": name, "settled_s": round(waited, 1)})
             chrome.close()
     finally:

@@ -114,6 +114,7 @@ def test_path_view_is_framed_on_the_whole_path_with_a_grid_and_a_scale(square):
     span = max(np.ptp(mm[:, 0]), np.ptp(mm[:, 1]))
     assert max(x1 - x0, y1 - y0) <= 1.15 * span           # a margin, not a zoomed-out view
     assert "/path/grid/**" in view["contents"] and "(mm, Y up" in view["name"]
+    assert view["origin"] == "/"               # above /path, whose transform flips Y
     labels = _chunks(path, "/path/grid/labels")[-1]       # static: the last one stands
     values = [float(t) for t in labels.column("Points2D:labels").to_pylist()[0]]
     positions = labels.column("Points2D:positions").to_pylist()[0]

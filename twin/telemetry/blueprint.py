@@ -193,7 +193,8 @@ def path_view(extents: Extents | None = None, *, name: str | None = None,
                                                             "/path/grid/**"),
               frame: Sequence[str] = (PROGRAMMED, "path/actual")) -> rrb.Spatial2DView:
     """The path in machine orientation (mm, Y up) on its grid, framed on the points of
-    ``frame`` (the whole programmed and actual path)."""
+    ``frame`` (the whole programmed and actual path). ``origin`` must lie above the
+    entity that carries ``PATH_TRANSFORM`` (a view's origin frame is its own, untransformed)."""
     return rrb.Spatial2DView(
         name=name or "Path (mm, Y up; grid and scale bar in mm): programmed grey; actual "
                      "green → yellow at the contour tolerance → red at twice it",
@@ -245,7 +246,7 @@ def overlay_blueprint(laws: Mapping[str, str], extents: Extents | None = None
             rrb.Vertical(
                 path_view(extents, name=f"Paths (mm, Y up; grid and scale bar in mm): "
                                         f"programmed grey; {programmed}",
-                          origin="/laws", contents=["/laws/**"], frame=("laws/**",)),
+                          origin="/", contents=["/laws/**"], frame=("laws/**",)),
                 rrb.TextLogView(name="Events", origin="/events"),
                 row_shares=[4, 1],
             ),
