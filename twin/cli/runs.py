@@ -3,6 +3,7 @@
 
 from __future__ import annotations
 
+import os
 import sys
 from pathlib import Path
 from typing import Any
@@ -26,8 +27,9 @@ the machine files' fields."""
 
 
 def _console() -> Console:
-    """stdout: the terminal's width, or when piped a width that cuts no line."""
-    return Console(width=None if sys.stdout.isatty() else 200)
+    """stdout: the terminal's width (or ``COLUMNS``), or when piped a width that cuts no
+    line."""
+    return Console(width=None if sys.stdout.isatty() or "COLUMNS" in os.environ else 200)
 
 
 def runs(
@@ -103,8 +105,8 @@ def _list(folder: Path, do_clean: bool, yes: bool, as_json: bool) -> None:
                       *([] if one else [r["machine"] or "—"]), r["status"] or "—",
                       _figure(r["cycle_time_s"]), _figure(r["max_contour_error_um"]), record)
     console.print(table)
-    for note in notes:
-        console.print(note, highlight=False, soft_wrap=True)
+    for note in notes:              # folded at words to the width: a few lines, not 16
+        console.print(escape(note), highlight=False)
     for path in removed:
         err.print(f"removed {path}", highlight=False)
     left = len(inv.orphans)
