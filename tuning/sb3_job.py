@@ -318,8 +318,8 @@ def apply_policy(policy: Path, machine: str | MachineConfig, *, program: str = "
         action, _ = model.predict(obs, deterministic=True)
         obs, reward, terminated, _, info = env.step(action)
         trial = Trial(tuple(float(v) for v in np.clip(action, -1, 1)), -float(reward),
-                      info["terms"], info["metrics"], info["status"], info["settings"],
-                      0.0, info["sim_time"])
+                      info["terms"], dict(env.last_outcome.metrics), info["status"],
+                      info["settings"], 0.0, info["sim_time"])
         trials.append(trial)
         if on_trial is not None:
             on_trial(trial)

@@ -28,7 +28,9 @@ __all__ = [
     "err",
     "fail",
     "parse_position",
+    "print_paths",
     "summary_table",
+    "usage_text",
 ]
 
 CONTROLLER_MODEL_HELP = (
@@ -93,6 +95,35 @@ def parse_position(text: str | None, option: str = "--from") -> tuple[float, flo
     return (x, y)
 
 
+_PLAIN = {
+    "less_than_equal": "must be at most {le}", "less_than": "must be less than {lt}",
+    "greater_than_equal": "must be at least {ge}", "greater_than": "must be more than {gt}",
+    "int_parsing": "must be a whole number", "int_from_float": "must be a whole number",
+    "float_parsing": "must be a number", "bool_parsing": "must be true or false",
+    "finite_number": "must be a finite number",
+}
+"""Plain words for the checks typer leaves to pydantic (its ``Input should be ...``)."""
+
+
+def usage_text(exc: BaseException) -> str:
+    """The one line of a usage error (an option's bad value, an unknown option): click's
+    message on one line, and a value typer checked with pydantic in plain words, naming the
+    option and the value (``--dcu-order: must be at most 3, got 7``)."""
+    cause = exc.__cause__
+    errors = getattr(cause, "errors", None)
+    param = getattr(exc, "param", None)
+    if callable(errors) and param is not None:
+        name = (param.opts[0] if getattr(param, "opts", None) else param.name) or "value"
+        found = list(errors())
+        if found and all(e.get("type") in _PLAIN for e in found):
+            return f"{name}: " + "; ".join(
+                f"{_PLAIN[e['type']].format(**e.get('ctx', {}))}, got {e.get('input')!s}"
+                for e in found)
+    format_message = getattr(exc, "format_message", None)
+    message = format_message() if format_message is not None else str(exc)
+    return " ".join(message.split())    # click lists choices on lines of their own
+
+
 def fail(exc: BaseException) -> None:
     """Print ``exc`` (which names its place) on stderr and exit with code 2."""
     err.print(f"[bold red]error:[/] {escape(str(exc))}", highlight=False, soft_wrap=True)
@@ -117,9 +148,21 @@ RUN_ROWS = (
     ("elastic oscillation", "elastic_oscillation_um", "µm"),
     ("settling travel", "settling_travel_um", "µm"),
     ("real-time factor", "real_time_factor", "×"),
-    ("recording", "recording", ""),
 )
-"""The rows of one run's summary table (``twin run``, ``demo``, ``home``, ``jog``)."""
+"""The rows of one run's summary table (``twin run``, ``demo``, ``home``, ``jog``); the
+recording's path follows the table on a line of its own (``print_paths``), whole at any
+width."""
+
+
+def print_paths(console: Console, summary: Mapping[str, Any], out: Path | None = None
+                ) -> None:
+    """The files of a run, one line each, never cut: ``record:`` (the summary's .json in
+    ``out``) and ``recording:`` (its .rrd)."""
+    if out is not None:
+        console.print(f"record: {out / (summary['run_id'] + '.json')}", highlight=False,
+                      soft_wrap=True)
+    if summary.get("recording"):
+        console.print(f"recording: {summary['recording']}", highlight=False, soft_wrap=True)
 
 
 def _value(summary: Mapping[str, Any], key: Any) -> Any:

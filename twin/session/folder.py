@@ -58,8 +58,9 @@ class RunEntry:
         """The figures ``twin runs`` shows (JSON-ready)."""
         s = self.summary or {}
         spec = s.get("spec") or {}
-        program = spec.get("program") or (f"builtin {spec['builtin']}"
-                                          if spec.get("builtin") else None)
+        program = spec.get("program") or spec.get("experiment") or (
+            " then ".join(spec["commands"]) if spec.get("commands") else None) or (
+            f"builtin {spec['builtin']}" if spec.get("builtin") else None)
         return {"run_id": self.run_id, "program": program, "machine": s.get("machine"),
                 "status": s.get("status"), "reason": s.get("fault") or s.get("aborted")
                 or s.get("timeout"), "cycle_time_s": s.get("cycle_time_s"),

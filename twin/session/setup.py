@@ -68,8 +68,9 @@ class RunSpec:
     start : (float, float) or None
         Table position at the start (m); None: the home keyframe.
     commands : tuple of str
-        Manual mode instead of a program (``builtin="none"``): ``"home x"``, ``"jog x 0.01"``
-        (relative, m), ``"goto 0.05 0.02"`` (absolute, m), run one after the other.
+        Manual mode instead of a program (``builtin="none"``): ``"home x"``, ``"jog x 10
+        mm"`` (relative), ``"goto 50 20 mm"`` (absolute; without ``mm``: metres), run one
+        after the other.
     driver : str
         ``"sim"``: the twin in lock-step; or a URL of real I/O such as
         ``modbus://127.0.0.1:5020`` (``twin.hardware.drivers.open_driver``), paced in real
