@@ -226,7 +226,8 @@ class _Loop:
                                                                            1e-300)
         self._commands = commands
         self.writer = TelemetryWriter(
-            sink, p.path, truth_record=self.truth, fine_fields=FINE_FIELDS,
+            sink, p.path, truth_record=self.truth,
+            fine_fields=FINE_FIELDS if p.plant is not None else (),
             feeds={item.line: item.feed for item in p.items or ()
                    if isinstance(item, Move | MotionBlock)},
             motor_ratio=[p.cfg.axes[ax].transmission.ratio for ax in AXES],
