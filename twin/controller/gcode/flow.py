@@ -418,7 +418,7 @@ class Runner:
         if match is None:
             return None
         label = match.group(1).replace(" ", "").replace("\t", "")
-        label = label.lower() if label.startswith("<") else str(int(label))
+        label = label.lower() if label.startswith("<") else label.lstrip("0") or "0"
         keyword = match.group(2).lower()
         return label, keyword
 
