@@ -186,6 +186,12 @@ class GcodeSettings(Validated):
                                doc="most passes of one O-word loop (a runaway loop is an "
                                "error at its line)")
     call_depth: int = num(64, "1", ge=1, le=10_000, doc="most subroutine calls open at once")
+    subroutine_path: tuple[str, ...] = field(
+        default=(), metadata={"doc": "folders searched for name.ngc when O<name> call names a "
+                              "subroutine the program does not define, after the program's "
+                              "own folder (LinuxCNC's SUBROUTINE_PATH); a relative folder "
+                              "is taken from the machine file's folder. Nothing outside "
+                              "these folders is read"})
     work_offsets: dict[str, tuple[float, float]] = field(
         default_factory=dict, metadata={"doc": "work offsets of the machine, e.g. G55 = "
                                         "[0.1, 0.05]: where each coordinate system's zero is "
@@ -193,6 +199,10 @@ class GcodeSettings(Validated):
                                         "in a program changes them for that run"})
 
     def _check(self) -> None:
+        for i, folder in enumerate(self.subroutine_path):
+            if not folder or "\0" in folder:
+                raise ConfigError(f"subroutine_path[{i}]", f"must name a folder, got "
+                                  f"{folder!r}")
         for name, offset in self.work_offsets.items():
             if name not in WORK_SYSTEMS:
                 raise ConfigError(f"work_offsets.{name}", f"must be one of "
