@@ -11,6 +11,7 @@ from typing import Any
 
 import typer
 from rich.console import Console
+from rich.markup import escape
 from rich.progress import BarColumn, Progress, TextColumn, TimeElapsedColumn
 
 from twin.cli.common import CONTROLLER_MODEL_HELP, Builtin, choices, err, fail
@@ -93,7 +94,7 @@ def tune(
         watch = _Watch(method, budget_s, train_steps if training else None)
         with watch:
             result = run_job(spec, on_trial=watch.on_trial, progress=watch.on_steps,
-                             on_start=watch.on_start)
+                             on_start=watch.on_start, warn=watch.warn)
     except TwinError as exc:
         fail(exc)
     summary = result.summary()
@@ -151,6 +152,9 @@ class _Watch:
 
         err.print(f"{self.method}: job folder {folder}; {weights_text(weights)} (each term "
                   "relative to the analytic design)", highlight=False, soft_wrap=True)
+
+    def warn(self, message: str) -> None:
+        err.print(f"[yellow]warning:[/] {escape(message)}", highlight=False, soft_wrap=True)
 
     def on_trial(self, trial: Any) -> None:
         self.runs += 1
