@@ -13,8 +13,8 @@ import pytest
 
 from twin.config.loader import read_toml, toml_document
 from twin.errors import ConfigError
+from twin.nesting import MAX_DEPTH, json_too_deep, toml_too_deep
 from twin.system.jsonio import load_json
-from twin.system.nesting import MAX_DEPTH, json_too_deep, toml_too_deep
 
 CI = bool(os.environ.get("CI"))
 DECOYS = ['"[[[{{"', '"a\\"[["', '"]]}}"', '"# [ . {"']

@@ -13,7 +13,7 @@ looked up in the log, and only the evaluations it does not hold are run, so a re
 at most the evaluations that were in flight and follows the very path the uninterrupted
 job would have taken (the runs are deterministic). A line that is not a whole trial — torn
 by the kill, or of the wrong shape (a type, a length, nesting deeper than
-``twin.system.nesting.MAX_DEPTH``, a value that is not finite) — is skipped with a warning
+``twin.nesting.MAX_DEPTH``, a value that is not finite) — is skipped with a warning
 naming its line; its evaluation runs again.
 """
 

@@ -17,7 +17,7 @@ from typing import Any
 from twin.config.build import deep_merge, from_dict, to_raw
 from twin.config.schema import AXES, MachineConfig, machine_from_raw
 from twin.errors import ConfigError, byte_place
-from twin.system.nesting import MAX_DEPTH, toml_too_deep
+from twin.nesting import MAX_DEPTH, toml_too_deep
 
 __all__ = ["MACHINES_DIR", "available_machines", "diff_machines", "flatten", "from_dict",
            "load_machine", "machine_from_toml_dict", "machine_identity", "read_toml",

@@ -23,7 +23,7 @@ from twin.config import read_toml
 from twin.config.quantities import display_unit, example, is_bare_number
 from twin.config.schema import field_meta
 from twin.errors import ConfigError
-from twin.system.nesting import MAX_DEPTH, toml_too_deep
+from twin.nesting import MAX_DEPTH, toml_too_deep
 
 __all__ = ["SET_HELP", "SHORT_KEYS", "key_units", "parse_sets", "resolve_key",
            "set_file_overrides"]

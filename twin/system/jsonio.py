@@ -19,7 +19,7 @@ from pathlib import Path
 from typing import Any
 
 from twin.errors import ConfigError
-from twin.system.nesting import MAX_DEPTH, json_too_deep
+from twin.nesting import MAX_DEPTH, json_too_deep
 
 __all__ = ["LOCK_NAME", "folder_lock", "json_text", "load_json", "output_dir", "partial_path",
            "plain", "record_id", "write_json_atomic", "write_text_atomic"]

@@ -8,7 +8,9 @@ place where the nesting passes a limit, before anything is parsed. The limit, ``
 is far above anything xy-twin writes or reads (a machine file nests 4 levels, an
 identification log 4, a line of a trial log 4).
 
-Standard library only: ``twin.system.jsonio`` imports this at start-up.
+A leaf of the house (the standard library only): the machine files' loader
+(``twin.config``) and the JSON records' (``twin.system.jsonio``, imported at start-up) both
+use it.
 """
 
 from __future__ import annotations
