@@ -143,7 +143,7 @@ def compare_cmd(
             write_json_atomic(folder / "verdict.json", result["verdict"])
         result["folder"] = str(folder)
     except TwinError as exc:
-        fail(exc)
+        fail(exc, as_json)
     if as_json:
         sys.stdout.write(json_text(result) + "\n")
         return

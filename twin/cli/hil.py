@@ -79,7 +79,7 @@ def hil_server(
         except ConfigError as exc:
             raise ConfigError("--from", exc.message) from None
     except TwinError as exc:
-        fail(exc)
+        fail(exc, as_json)
 
     if rt_priority and not set_fifo_priority(rt_priority):
         err.print("[yellow]warning:[/] SCHED_FIFO not permitted here; serving with normal "
@@ -107,7 +107,7 @@ def hil_server(
     try:
         socket.getaddrinfo(host, port, type=socket.SOCK_STREAM)
     except (OSError, UnicodeError) as exc:
-        fail(ConfigError("--host", f"cannot bind {host!r}: {exc}"))
+        fail(ConfigError("--host", f"cannot bind {host!r}: {exc}"), as_json)
     try:
         stats = serve_hil(plant, rmap, host=host, port=port, watchdog=watchdog_ms * 1e-3,
                           sync_phase=None if no_sync else sync_phase,
@@ -116,7 +116,7 @@ def hil_server(
     except (OSError, RuntimeError) as exc:   # pymodbus: "Could not start listen" (in use)
         if "listen" not in str(exc) and not isinstance(exc, OSError):
             raise
-        fail(ConfigError("--port", f"cannot listen on {host}:{port}: {exc}"))
+        fail(ConfigError("--port", f"cannot listen on {host}:{port}: {exc}"), as_json)
     if as_json:  # stdout carried the one ready object; the statistics go to stderr
         sys.stderr.write(json_text({"hil_stats": dataclasses.asdict(stats)}) + "\n")
         return

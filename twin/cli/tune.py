@@ -80,7 +80,7 @@ def tune(
     from tuning.jobs import tune as run_job
 
     if method is None and not worker:
-        fail(ConfigError("--method", "is required: " + ", ".join(m.value for m in Method)))
+        fail(ConfigError("--method", "is required: " + ", ".join(m.value for m in Method)), as_json)
     method = "optuna" if method is None else method.value
     program = program.value
     try:
@@ -96,7 +96,7 @@ def tune(
             result = run_job(spec, on_trial=watch.on_trial, progress=watch.on_steps,
                              on_start=watch.on_start, warn=watch.warn)
     except TwinError as exc:
-        fail(exc)
+        fail(exc, as_json)
     summary = result.summary()
     if as_json:
         sys.stdout.write(json_text(summary) + "\n")

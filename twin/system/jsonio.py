@@ -53,6 +53,10 @@ def output_dir(path: str | Path, field: str = "out") -> Path:
     folder = Path(path)
     if folder.exists() and not folder.is_dir():
         raise ConfigError(field, f"{folder} is not a folder")
+    dangling = _dangling_link(folder)
+    if dangling is not None:   # mkdir would say "File exists", naming nothing
+        raise ConfigError(field, f"{dangling} is a symlink to {os.readlink(dangling)}, which "
+                          "does not exist: point it at a folder or remove it")
     probe = folder / f".write-check-{os.getpid()}"
     try:
         folder.mkdir(parents=True, exist_ok=True)
@@ -64,6 +68,16 @@ def output_dir(path: str | Path, field: str = "out") -> Path:
     except OSError as exc:
         raise ConfigError(field, f"cannot write in {folder}: {exc.strerror or exc}") from None
     return folder
+
+
+def _dangling_link(folder: Path) -> Path | None:
+    """The first part of ``folder`` (from the root down) that is a symlink to nothing."""
+    for part in (*reversed(folder.parents), folder):
+        if part.is_symlink() and not part.exists():
+            return part
+        if not part.exists():
+            return None
+    return None
 
 
 @contextlib.contextmanager
