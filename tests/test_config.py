@@ -149,7 +149,8 @@ def test_every_field_states_its_range_and_meaning(machine):
         # a table of pairs states its range in its meaning (checked by its own _check); a
         # list of folders has none
         assert row["range"] or row["field"].endswith((".ripple", ".work_offsets",
-                                                      ".subroutine_path")), row["field"]
+                                                      ".subroutine_path", ".owners")), \
+            row["field"]
         values = row["value"] if isinstance(row["value"], list) else [row["value"]]
         for v in values:
             if isinstance(v, bool) or not isinstance(v, int | float):

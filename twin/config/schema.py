@@ -43,6 +43,7 @@ __all__ = [
     "DeadlineConfig",
     "EncoderConfig",
     "GcodeSettings",
+    "HilSettings",
     "LimitsConfig",
     "MachineConfig",
     "MechanicsConfig",
@@ -263,6 +264,23 @@ class SimulationConfig(Validated):
     seed: int = num(0, "1", ge=0, le=2**32 - 1, doc="seed of the sensor noise")
 
 
+@dataclass(frozen=True, kw_only=True)
+class HilSettings(Validated):
+    """The twin standing in for the I/O module (``twin hil-server``)."""
+
+    owners: tuple[str, ...] = field(
+        default=(), metadata={"doc": "the clients that may claim the outputs (drive the "
+                              "table): host names, addresses or networks (10.0.0.0/24); "
+                              "others may only read. Empty: the first client to feed the "
+                              "watchdog, as an I/O module without an access list"})
+
+    def _check(self) -> None:
+        for i, owner in enumerate(self.owners):
+            if not owner.strip() or any(c.isspace() or c == "\0" for c in owner):
+                raise ConfigError(f"owners[{i}]", f"must be a host, an address or a "
+                                  f"network, got {owner!r}")
+
+
 def moving_masses(axes: Mapping[str, AxisConfig]) -> dict[str, float]:
     """Mass moved by each axis of the cross table (kg), the one place it is computed: the
     lower axis (x) carries the upper carriage (y)."""
@@ -280,6 +298,7 @@ class MachineConfig(Validated):
     axes: dict[str, AxisConfig]
     controller: ControllerSettings
     simulation: SimulationConfig = field(default_factory=SimulationConfig)
+    hil: HilSettings = field(default_factory=HilSettings)
     source: str = ""
 
     def _check(self) -> None:
