@@ -10,6 +10,9 @@ import math
 import os
 import random
 
+import pytest
+
+from tests.test_cli_hostile_input import PEAK_BOUND_MIB, twin_cli
 from tuning.cma_job import WARNED_LINES, TrialLog
 from tuning.evaluator import Trial
 
@@ -136,3 +139,32 @@ def test_many_bad_lines_are_counted_not_listed(tmp_path):
     assert "skipped 50 lines" in said[0] and f"and {50 - WARNED_LINES} more" in said[0]
     assert said[0].count("line ") == WARNED_LINES          # each of the first named
     assert "line 2 (not JSON: Expecting property name" in said[0]
+
+
+HOSTILE_LOG = ('{"generation": 0, "index": 0, "x": "hostile", "trial": {}}\n'
+               '{"generation": 0, "index": 1, "x": ' + "[" * 200_000 + "]" * 200_000 + "}\n")
+
+
+@pytest.mark.slow
+@pytest.mark.timeout(600)
+def test_a_hostile_cma_resume_log_is_skipped_with_one_warning(tmp_path):
+    """``"x": "hostile"`` and a line nested 200 000 deep: both skipped with one warning
+    naming them, the job runs them again and ends as it would have (exit 0), through the
+    command line (``tests/test_cli_hostile_input.py``). CI reads the same log with the
+    job's own ``TrialLog`` instead of running a whole job."""
+    out = tmp_path / "job"
+    out.mkdir()
+    (out / "cma_trials.jsonl").write_text(HOSTILE_LOG)
+    if CI:
+        said: list[str] = []
+        TrialLog(out / "cma_trials.jsonl", resume=True, dim=11, warn=said.append).close()
+        warnings = [f"warning: {s}" for s in said]
+    else:
+        done, peak = twin_cli(tmp_path, "tune", "--method", "cma", "--program", "tiny",
+                           "--workers", "1", "--seed", "3", "--max-runs", "2", "--budget-s",
+                           "300", "--out", str(out), "--resume", "--json")
+        assert done.returncode == 0 and "Traceback" not in done.stderr, done.stderr[-2000:]
+        assert json.loads(done.stdout)["runs"] == 2 and peak < PEAK_BOUND_MIB
+        warnings = [ln for ln in done.stderr.splitlines() if ln.startswith("warning:")]
+    assert len(warnings) == 1 and "skipped 2 lines" in warnings[0]
+    assert "line 1 (" in warnings[0] and "line 2, column" in warnings[0]
