@@ -35,6 +35,7 @@ def folder(tmp_path_factory):
     for name in ("c-killed.rrd.partial", "d-nosummary.rrd"):
         os.utime(out / name, (old, old))
     (out / "result.json").write_text(json.dumps({"cost": 1.0}))  # not a run
+    (out / "deep.json").write_text("[" * 100_000 + "]" * 100_000)  # hostile: nor this
     return out
 
 

@@ -248,7 +248,7 @@ FINISH_S = 2.0
 
 def _search(spec: TuneSpec, ev: Evaluator, files: dict[str, Path],
             progress: Callable[[int], None] | None, budget_s: float,
-            training: list[float]) -> list[Trial]:
+            training: list[float], warn: Callable[[str], None] | None = None) -> list[Trial]:
     """Run the method within ``budget_s`` (what is left of the job's budget once the
     machine is loaded and the baseline has run); returns its trials. PPO/SAC append the
     cost of every training run to ``training``."""
@@ -256,7 +256,7 @@ def _search(spec: TuneSpec, ev: Evaluator, files: dict[str, Path],
         return []
     if spec.method == "cma":
         run_cma(ev, budget_s=budget_s, max_evals=spec.max_runs, seed=spec.seed,
-                log=spec.out_dir / "cma_trials.jsonl", resume=spec.resume)
+                log=spec.out_dir / "cma_trials.jsonl", resume=spec.resume, warn=warn)
         files["log"] = spec.out_dir / "cma_trials.jsonl"
         return ev.trials
     if spec.method == "optuna":
@@ -290,7 +290,8 @@ def _search(spec: TuneSpec, ev: Evaluator, files: dict[str, Path],
 
 def tune(spec: TuneSpec, *, on_trial: Callable[[Trial], None] | None = None,
          progress: Callable[[int], None] | None = None,
-         on_start: Callable[[Path, dict[str, float]], None] | None = None) -> TuneResult:
+         on_start: Callable[[Path, dict[str, float]], None] | None = None,
+         warn: Callable[[str], None] | None = None) -> TuneResult:
     """Run the job ``spec``; write the override TOML, plot, table and JSON.
 
     Parameters
@@ -302,6 +303,8 @@ def tune(spec: TuneSpec, *, on_trial: Callable[[Trial], None] | None = None,
         PPO/SAC: called with the number of training steps done.
     on_start : callable(Path, dict), optional
         Called once the job has its folder, with the folder and the cost weights.
+    warn : callable(str), optional
+        Told what the job skips (CMA: lines of a resumed trial log that hold no trial).
     """
     start = time.perf_counter()
     if spec.out_dir is None:
@@ -317,12 +320,13 @@ def tune(spec: TuneSpec, *, on_trial: Callable[[Trial], None] | None = None,
     with folder_lock(out):
         if on_start is not None:
             on_start(out, dataclasses.asdict(Weights.from_mapping(spec.weights)))
-        return _tune_in(spec, cfg, out, start, on_trial, progress)
+        return _tune_in(spec, cfg, out, start, on_trial, progress, warn)
 
 
 def _tune_in(spec: TuneSpec, cfg: MachineConfig, out: Path, start: float,
              on_trial: Callable[[Trial], None] | None,
-             progress: Callable[[int], None] | None) -> TuneResult:
+             progress: Callable[[int], None] | None,
+             warn: Callable[[str], None] | None = None) -> TuneResult:
     """The job, in its locked folder ``out``."""
     files: dict[str, Path] = {}
     with Evaluator.create(cfg, spec.program, weights=Weights.from_mapping(spec.weights),
@@ -333,7 +337,7 @@ def _tune_in(spec: TuneSpec, cfg: MachineConfig, out: Path, start: float,
         # settings as written, which follows the search)
         left = spec.budget_s - (time.perf_counter() - start) - FINISH_S
         training: list[float] = []
-        trials = _search(spec, ev, files, progress, left, training)
+        trials = _search(spec, ev, files, progress, left, training, warn)
         baseline = ev.baseline
         found = min([baseline, *trials], key=lambda t: t.cost)
         best = ev.settings_trial(rounded_settings(found.settings), found.x)

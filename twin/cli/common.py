@@ -1,8 +1,8 @@
 """What every ``twin`` command shares: the stderr console and the one way to fail.
 
 Human output goes to stderr (tables may go to stdout when no ``--json`` is asked for);
-``--json`` prints exactly one JSON object on stdout; bad input exits with code 2 and a
-message naming the place.
+``--json`` prints exactly one JSON object on stdout, a refusal's too (``refusal``); bad
+input exits with code 2 and a message naming the place.
 """
 
 from __future__ import annotations
@@ -11,14 +11,14 @@ import enum
 import sys
 from collections.abc import Mapping, Sequence
 from pathlib import Path
-from typing import Any
+from typing import Any, NoReturn
 
 import typer
 from rich.console import Console
 from rich.markup import escape
 from rich.table import Table
 
-from twin.errors import ConfigError
+from twin.errors import ConfigError, GCodeError
 from twin.system.jsonio import json_text
 
 __all__ = [
@@ -29,6 +29,7 @@ __all__ = [
     "fail",
     "parse_position",
     "print_paths",
+    "refusal",
     "summary_table",
     "usage_text",
 ]
@@ -124,10 +125,29 @@ def usage_text(exc: BaseException) -> str:
     return " ".join(message.split())    # click lists choices on lines of their own
 
 
-def fail(exc: BaseException) -> None:
-    """Print ``exc`` (which names its place) on stderr and exit with code 2."""
+def refusal(exc: BaseException, status: str = "REFUSED") -> dict[str, Any]:
+    """The one JSON object ``--json`` prints when a command stops on ``exc``: its status,
+    the message's first line as ``error``, and the place it names (``field``; ``line``,
+    ``column``, ``code`` and ``file`` of a G-code error)."""
+    doc: dict[str, Any] = {"status": status, "error": str(exc).splitlines()[0] if str(exc)
+                           else type(exc).__name__}
+    if isinstance(exc, ConfigError):
+        doc["field"] = exc.field
+    if isinstance(exc, GCodeError):
+        doc.update(line=exc.line, column=exc.column, code=exc.code, file=exc.file)
+    return doc
+
+
+def fail(exc: BaseException, as_json: bool = False, *, code: int = 2,
+         status: str = "REFUSED") -> NoReturn:
+    """Print ``exc`` (which names its place) on stderr and exit with ``code`` (2: bad
+    input); with ``as_json``, first its ``refusal`` object on stdout, the one object
+    ``--json`` promises."""
+    if as_json:
+        sys.stdout.write(json_text(refusal(exc, status)) + "\n")
+        sys.stdout.flush()
     err.print(f"[bold red]error:[/] {escape(str(exc))}", highlight=False, soft_wrap=True)
-    raise typer.Exit(2)
+    raise typer.Exit(code)
 
 
 METRIC_ROWS = (

@@ -156,7 +156,7 @@ def compare_cmd(
     except TwinError as exc:
         if folder is not None:      # refused: this call's own folder goes with it
             shutil.rmtree(folder, ignore_errors=True)
-        fail(exc)
+        fail(exc, as_json)
     if as_json:
         sys.stdout.write(json_text(result) + "\n")
         return

@@ -143,7 +143,7 @@ def _run(program: Path | None, machine: str, profile: str | None, planner: str |
         _report(exc.result.summary, out, as_json)
         raise typer.Exit(128 + exc.signum) from None
     except TwinError as exc:
-        fail(exc)
+        fail(exc, as_json)
     summary = result.summary
     for note in summary.get("input_warnings", ()):
         err.print(f"[yellow]warning:[/] {note}", highlight=False, soft_wrap=True)
@@ -253,7 +253,7 @@ def run_cmd(
     try:
         rerun = rerun_target(rerun, live=True)
     except TwinError as exc:
-        fail(exc)
+        fail(exc, as_json)
     _run(program, machine, None if profile is None else profile.value,
          None if planner is None else planner.value, dcu_order, period, sets, rerun, out,
          as_json, dry_run, builtin.value, driver, rt_priority, set_file, controller_model,
@@ -277,7 +277,7 @@ def demo(machine: str = MachineOpt, out: Path = OutOpt, as_json: bool = JsonOpt,
                              progress=lambda t, _m, task=task, bar=bar, o=order:
                              bar.update(task, description=f"DCU {o}: {t:.1f} s"))
         except TwinError as exc:
-            fail(exc)
+            fail(exc, as_json)
         rows[order] = result.summary
         if not as_json:
             Console().print(_summary_table(result.summary, f"default program, {machine}, "
@@ -336,7 +336,7 @@ def machines(
         try:
             cfg = load_machine(name)
         except TwinError as exc:
-            fail(exc)
+            fail(exc, as_json)
         ax = cfg.axes["x"]
         rows.append({
             "name": name,
@@ -374,7 +374,7 @@ def _machine_fields(machine: str, as_json: bool) -> None:
     try:
         cfg = load_machine(machine)
     except TwinError as exc:
-        fail(exc)
+        fail(exc, as_json)
     rows = []
     for path, value in flatten(cfg).items():
         meta = field_meta(path)
@@ -402,7 +402,7 @@ def _machine_diff(a: str, b: str, as_json: bool) -> None:
     try:
         ma, mb = load_machine(a), load_machine(b)
     except TwinError as exc:
-        fail(exc)
+        fail(exc, as_json)
     rows = [{"field": path, "unit": field_unit(path), a: va, b: vb}
             for path, va, vb in diff_machines(ma, mb)]
     if as_json:

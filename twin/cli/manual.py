@@ -70,7 +70,7 @@ def experiment(
                                             amplitude=amplitude * scale, duration=duration,
                                             open_loop=open_loop)
     except TwinError as exc:
-        fail(exc)
+        fail(exc, as_json)
     report = result.to_report()
     if as_json:
         sys.stdout.write(json_text({**report, "run_id": summary["run_id"],
@@ -111,7 +111,7 @@ def _manual(commands: list[str], machine: str, out: Path, as_json: bool,
             return
         result = run(spec, out_dir=out)
     except TwinError as exc:
-        fail(exc)
+        fail(exc, as_json)
     s = result.summary
     pos = result.record["position"][-1] if len(result.record["t"]) else [math.nan] * 2
     s["final_position_mm"] = {"x": pos[0] * 1e3, "y": pos[1] * 1e3}
@@ -148,7 +148,7 @@ def home(
             pos = tuple(0.5 * (a.switches.limit_min + a.switches.limit_max)
                         for a in cfg.axes.values())
     except TwinError as exc:
-        fail(exc)
+        fail(exc, as_json)
     _manual([f"home {a}" for a in axes], machine, out, as_json, pos, False, False,
             title=f"home {', '.join(a.upper() for a in axes)}")
 
@@ -173,7 +173,7 @@ def jog(
     try:
         pos = parse_position(start)
     except TwinError as exc:
-        fail(exc)
+        fail(exc, as_json)
     _manual([f"jog {axis} {distance:.15g} mm"], machine, out, as_json, pos, dry_run,
             ignore_soft_limits, title=f"jog {axis.upper()} {distance:+g} mm")
 

@@ -90,7 +90,7 @@ def tune(
     from tuning.jobs import tune as run_job
 
     if method is None and not worker:
-        fail(ConfigError("--method", "is required: " + ", ".join(m.value for m in Method)))
+        fail(ConfigError("--method", "is required: " + ", ".join(m.value for m in Method)), as_json)
     method = "optuna" if method is None else method.value
     program = program.value
     try:
@@ -107,11 +107,11 @@ def tune(
         watch = _Watch(method, budget_s, train_steps if training else None)
         with watch:
             result = run_job(spec, on_trial=watch.on_trial, progress=watch.on_steps,
-                             on_start=watch.on_start)
+                             on_start=watch.on_start, warn=watch.warn)
             watch.runs = len(result.trials)     # the job's (an Optuna study's: every worker's)
             watch.best = result.best.cost
     except TwinError as exc:
-        fail(exc)
+        fail(exc, as_json)
     summary = result.summary()
     if as_json:
         sys.stdout.write(json_text(summary) + "\n")
@@ -210,6 +210,9 @@ class _Watch:
 
         err.print(f"{self.method}: job folder {folder}; {weights_text(weights)} (each term "
                   "relative to the analytic design)", highlight=False, soft_wrap=True)
+
+    def warn(self, message: str) -> None:
+        err.print(f"[yellow]warning:[/] {escape(message)}", highlight=False, soft_wrap=True)
 
     def on_trial(self, trial: Any) -> None:
         self.runs += 1

@@ -44,6 +44,7 @@ __all__ = [
     "DeadlineConfig",
     "EncoderConfig",
     "GcodeSettings",
+    "HilSettings",
     "LimitsConfig",
     "MachineConfig",
     "MechanicsConfig",
@@ -188,6 +189,12 @@ class GcodeSettings(Validated):
                                doc="most passes of one O-word loop (a runaway loop is an "
                                "error at its line)")
     call_depth: int = num(64, "1", ge=1, le=10_000, doc="most subroutine calls open at once")
+    subroutine_path: tuple[str, ...] = field(
+        default=(), metadata={"doc": "folders searched for name.ngc when O<name> call names a "
+                              "subroutine the program does not define, after the program's "
+                              "own folder (LinuxCNC's SUBROUTINE_PATH); a relative folder "
+                              "is taken from the machine file's folder. Nothing outside "
+                              "these folders is read"})
     work_offsets: dict[str, tuple[float, float]] = field(
         default_factory=dict, metadata={"doc": "work offsets of the machine, e.g. G55 = "
                                         "[0.1, 0.05]: where each coordinate system's zero is "
@@ -195,6 +202,10 @@ class GcodeSettings(Validated):
                                         "in a program changes them for that run"})
 
     def _check(self) -> None:
+        for i, folder in enumerate(self.subroutine_path):
+            if not folder or "\0" in folder:
+                raise ConfigError(f"subroutine_path[{i}]", f"must name a folder, got "
+                                  f"{folder!r}")
         for name, offset in self.work_offsets.items():
             if name not in WORK_SYSTEMS:
                 raise ConfigError(f"work_offsets.{name}", f"must be one of "
@@ -255,6 +266,23 @@ class SimulationConfig(Validated):
     seed: int = num(0, "1", ge=0, le=2**32 - 1, doc="seed of the sensor noise")
 
 
+@dataclass(frozen=True, kw_only=True)
+class HilSettings(Validated):
+    """The twin standing in for the I/O module (``twin hil-server``)."""
+
+    owners: tuple[str, ...] = field(
+        default=(), metadata={"doc": "the clients that may claim the outputs (drive the "
+                              "table): host names, addresses or networks (10.0.0.0/24); "
+                              "others may only read. Empty: the first client to feed the "
+                              "watchdog, as an I/O module without an access list"})
+
+    def _check(self) -> None:
+        for i, owner in enumerate(self.owners):
+            if not owner.strip() or any(c.isspace() or c == "\0" for c in owner):
+                raise ConfigError(f"owners[{i}]", f"must be a host, an address or a "
+                                  f"network, got {owner!r}")
+
+
 def moving_masses(axes: Mapping[str, AxisConfig]) -> dict[str, float]:
     """Mass moved by each axis of the cross table (kg), the one place it is computed: the
     lower axis (x) carries the upper carriage (y)."""
@@ -272,6 +300,7 @@ class MachineConfig(Validated):
     axes: dict[str, AxisConfig]
     controller: ControllerSettings
     simulation: SimulationConfig = field(default_factory=SimulationConfig)
+    hil: HilSettings = field(default_factory=HilSettings)
     source: str = ""
 
     def _check(self) -> None:

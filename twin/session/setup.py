@@ -228,11 +228,17 @@ def shipped_program(name: str) -> Path:
 
 
 def reader_options(cfg: MachineConfig) -> ReaderOptions:
-    """The G-code reader's options from the machine's ``controller.gcode`` section."""
+    """The G-code reader's options from the machine's ``controller.gcode`` section; its
+    relative subroutine folders are taken from the machine file's folder (the working
+    folder for a machine built in memory)."""
     g = cfg.controller.gcode
+    home = Path(cfg.source).parent if cfg.source and Path(cfg.source).is_file() else Path()
     return ReaderOptions(z=g.z, tool_z=g.tool_z,
                          limits=Limits(loop_iterations=int(g.loop_iterations),
-                                       call_depth=int(g.call_depth)),
+                                       call_depth=int(g.call_depth),
+                                       subroutine_path=tuple(
+                                           str(home / folder) for folder in
+                                           g.subroutine_path)),
                          work_offsets={WORK_SYSTEMS.index(name) + 1: offset
                                        for name, offset in g.work_offsets.items()})
 
