@@ -81,7 +81,7 @@ def test_clean_asks_first_and_removes_only_the_leftovers(folder, tmp_path):
     assert removed == ["c-killed.rrd.partial", "d-nosummary.rrd"]
     left = sorted(p.name for p in work.iterdir())
     assert left == ["a-good.json", "a-good.rrd", "b-timeout.json", "b-timeout.rrd",
-                    "e-live.rrd.partial", "result.json"]
+                    "deep.json", "e-live.rrd.partial", "result.json"]
     assert clean(inventory(work)) == []
 
 
