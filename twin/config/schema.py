@@ -369,7 +369,9 @@ def field_meta(path: str) -> dict[str, Any]:
             value_type = typing.get_args(tp)[1]
             if i + 1 == len(parts) - 1:
                 return (spec("N/m", ge=STIFFNESS_RANGE[0], le=STIFFNESS_RANGE[1],
-                             doc="one component of the series stiffness, at the table")
+                             doc="one component of the chain's stiffness, at the table "
+                             "(gear, coupling: rotor to screw body; others: axial; screw: "
+                             "where it is weakest over the travel)")
                         if f.name == "stiffness" else {})
             node, i = value_type, i + 2
             continue
