@@ -11,7 +11,6 @@ from __future__ import annotations
 
 import copy
 import dataclasses
-import math
 from collections.abc import Mapping
 from dataclasses import dataclass, field
 from typing import Any
@@ -319,27 +318,34 @@ class MachineConfig(Validated):
         self._check_elastic_modes()
 
     def _check_elastic_modes(self) -> None:
-        """The physics step must resolve each axis' fastest elastic mode: the screw spring
-        between the moving mass (the X axis carries the Y carriage) and the rotor reflected
-        to the table, ω² = k·(1/m + r²/J). MuJoCo integrates the spring explicitly; with
-        ω·timestep ≤ ELASTIC_STEP a period of the mode spans at least 2π/0.5 ≈ 12.6 steps
-        (a longer step diverges, and a run would stop with a diverged plant)."""
+        """The physics step must resolve each axis' fastest elastic mode
+        (``TransmissionConfig.fastest_mode``: the chain of rotor, screw and moving mass,
+        the X axis carrying the Y carriage, where the screw is stiffest). MuJoCo integrates
+        the springs explicitly; with ω·timestep ≤ ELASTIC_STEP a period of the mode spans
+        at least 2π/0.5 ≈ 12.6 steps (a longer step diverges, and a run would stop with a
+        diverged plant). Also: the nut stays on its screw over the travel."""
         dt = self.simulation.timestep
         mass = self.moving_masses()
         for ax in AXES:
             a = self.axes[ax]
-            k, r, j = a.transmission.axial_stiffness, a.transmission.ratio, \
-                a.mechanics.rotor_inertia
-            omega = math.sqrt(k * (1.0 / mass[ax] + r * r / j))
+            tr, travel = a.transmission, a.mechanics.travel
+            try:
+                tr.check_travel(travel)
+            except ConfigError as exc:
+                raise ConfigError(f"axes.{ax}.transmission.{exc.field}", exc.message) from None
+            k, j = tr.axial_stiffness, a.mechanics.rotor_inertia
+            omega = tr.fastest_mode(mass[ax], j, travel)
             if omega * dt > ELASTIC_STEP:
+                screw = (f", the screw body (axes.{ax}.transmission.screw_diameter, "
+                         f"screw_length, nut_start)" if tr.screw_diameter > 0.0 else "")
                 raise ConfigError(
                     "simulation.timestep", f"{dt:g} s is too long for the elastic mode of "
                     f"axis {ax}: ω = {omega:.4g} rad/s from axes.{ax}.transmission.stiffness "
                     f"({k:.4g} N/m in series), the moving mass {mass[ax]:g} kg "
                     f"(axes.{ax}.mechanics.carriage_mass"
                     + (", axes.y.mechanics.carriage_mass" if ax == "x" else "")
-                    + f") and axes.{ax}.mechanics.rotor_inertia ({j:g} kg·m² through the "
-                    f"axes.{ax}.transmission); it needs simulation.timestep <= "
+                    + f"){screw} and axes.{ax}.mechanics.rotor_inertia ({j:g} kg·m² through "
+                    f"the axes.{ax}.transmission); it needs simulation.timestep <= "
                     f"{ELASTIC_STEP:g}/ω = {ELASTIC_STEP / omega:.3g} s")
 
     def moving_masses(self) -> dict[str, float]:
@@ -394,7 +400,9 @@ def field_meta(path: str) -> dict[str, Any]:
             value_type = typing.get_args(tp)[1]
             if i + 1 == len(parts) - 1:
                 return (spec("N/m", ge=STIFFNESS_RANGE[0], le=STIFFNESS_RANGE[1],
-                             doc="one component of the series stiffness, at the table")
+                             doc="one component of the chain's stiffness, at the table "
+                             "(gear, coupling: rotor to screw body; others: axial; screw: "
+                             "where it is weakest over the travel)")
                         if f.name == "stiffness" else {})
             node, i = value_type, i + 2
             continue

@@ -33,6 +33,7 @@ from twin.controller.io import Inputs, Outputs
 from twin.controller.signals import SIGNALS
 from twin.errors import ConfigError
 from twin.plant import FINE_FIELDS, TRUTH_FIELDS
+from twin.plant.model import axis_mechanics
 from twin.session.loop import TickLoop
 from twin.session.setup import wire
 from twin.system.jsonio import output_dir, record_id, write_json_atomic
@@ -40,7 +41,7 @@ from twin.telemetry.channels import style_series, to_shown
 from twin.telemetry.sink import NullSink, Sink
 
 __all__ = ["ExperimentResult", "converter_lines", "describe", "dominant_frequency",
-           "record_experiment", "response_figures", "run_experiment"]
+           "elastic_band", "record_experiment", "response_figures", "run_experiment"]
 
 FINE_FIELDS_INDEX = tuple((name, k) for k, (name, _) in enumerate(FINE_FIELDS))
 """(field, index of its x column / 2) of the plant's drive-rate samples."""
@@ -126,7 +127,8 @@ class ExperimentResult:
 
 
 def dominant_frequency(t: np.ndarray, signal: np.ndarray, *, f_min: float = 8.0,
-                       exclude: tuple[float, ...] = (), width: float = 5.0) -> float:
+                       exclude: tuple[float, ...] = (), width: float = 5.0,
+                       f_max: float = math.inf) -> float:
     """Frequency (Hz) of the largest spectral peak above ``f_min`` of a uniformly sampled
     signal's derivative (detrended), refined by parabolic interpolation of the
     log-magnitude.
@@ -135,7 +137,8 @@ def dominant_frequency(t: np.ndarray, signal: np.ndarray, *, f_min: float = 8.0,
     presets' first elastic modes (16 Hz belt, 90-160 Hz screws) lie well above it. Lines of
     a known forced excitation are left out within ``width`` (Hz) of each frequency in
     ``exclude``: a thyristor converter's torque pulses at p·f_mains and its harmonics drive
-    the screw harder than the ringing of its mode, but they are not the mode."""
+    the screw harder than the ringing of its mode, but they are not the mode. ``f_max``
+    (Hz) bounds the search from above (:func:`elastic_band`)."""
     dt = float(t[1] - t[0])
     x = np.diff(signal) / dt     # weights the spectrum by f: the slow loop response fades
     x = x - np.polyval(np.polyfit(t[1:], x, 1), t[1:])
@@ -143,7 +146,7 @@ def dominant_frequency(t: np.ndarray, signal: np.ndarray, *, f_min: float = 8.0,
     n = 1 << (math.ceil(math.log2(len(x))) + 2)
     spec = np.abs(np.fft.rfft(x, n))
     freqs = np.fft.rfftfreq(n, dt)
-    band = freqs >= f_min
+    band = (freqs >= f_min) & (freqs <= f_max)
     for f in exclude:
         band &= np.abs(freqs - f) > width
     k = int(np.argmax(np.where(band, spec, 0.0)))
@@ -152,6 +155,21 @@ def dominant_frequency(t: np.ndarray, signal: np.ndarray, *, f_min: float = 8.0,
         shift = 0.5 * (a - c) / (a - 2 * b + c) if (a - 2 * b + c) != 0 else 0.0
         return float((k + shift) * (freqs[1] - freqs[0]))
     return float(freqs[k])
+
+
+def elastic_band(cfg: MachineConfig, axis: str) -> tuple[float, float]:
+    """Where to look for the first elastic mode of ``axis`` (Hz): from half the machine
+    file's lowest first mode over the travel (rotor locked, as the speed loop tends to hold
+    it), but not below 8 Hz, to 1.5 times its highest (rotor free)
+    (``twin.plant.model.axis_mechanics``; the screw stiffens towards the motor). A
+    three-mass axis' second mode (the screw between gear and nut, 2.2 krad/s on tomsk_xy)
+    lies above it, and so, on tomsk_xy, do the converter's 300 Hz torque pulses, whose
+    skirt that mode amplifies beyond the lines' ±5 Hz."""
+    travel = cfg.axes[axis].mechanics.travel
+    chains = [axis_mechanics(cfg, axis, p) for p in (None, *travel)]
+    low = min(c.locked_rotor_frequency for c in chains)
+    high = max(c.free_rotor_frequency for c in chains)
+    return max(8.0, 0.25 * low / math.pi), 0.75 * high / math.pi
 
 
 def converter_lines(cfg: MachineConfig, axis: str, dt: float) -> tuple[float, ...]:
@@ -296,7 +314,8 @@ def run_experiment(cfg: MachineConfig, *, kind: str, axis: str, amplitude: float
     else:
         ref_speed = rec["reference"]
     figs = response_figures(rec["t"], response, ref_speed, kind=kind)
-    mode = dominant_frequency(rec["fine_t"], rec["screw_deflection"],
+    low, high = elastic_band(cfg, axis)
+    mode = dominant_frequency(rec["fine_t"], rec["screw_deflection"], f_min=low, f_max=high,
                               exclude=converter_lines(cfg, axis, plant.drive_dt))
     result = ExperimentResult(kind=kind, axis=axis, open_loop=open_loop,
                               amplitude=float(amplitude), elastic_mode=mode, **figs)
