@@ -79,9 +79,13 @@ def _small_lags(d: DriveDesign) -> tuple[float, float]:
     return t_v, d.converter_time_constant - t_v   # pulse mean T_p/2, or 0 (mean model)
 
 
-def _current_loop(d: DriveDesign, mains_gain: float) -> tuple[np.ndarray, np.ndarray]:
-    """(q, den) with I/I* = q·(T_f·s + 1)/den (the module docstring's loop, cleared of
-    fractions and of the common factor s)."""
+def _current_loop(axis: AxisConfig, moving_mass: float | None
+                  ) -> tuple[DriveDesign, np.ndarray, np.ndarray]:
+    """(the design, q, den) with I/I* = q·(T_f·s + 1)/den (the module docstring's loop,
+    cleared of fractions and of the common factor s)."""
+    d = design(axis, moving_mass=moving_mass)
+    conv = axis.converter
+    mains_gain = 1.0 + conv.mains_deviation if conv.kind == "thyristor" else 1.0
     t_v, t_m = _small_lags(d)
     dv, dm, df = _lag(t_v), _lag(t_m), _lag(d.tacho_filter)
     j, k, tii = d.inertia, d.emf_constant, d.current_ti
@@ -92,12 +96,7 @@ def _current_loop(d: DriveDesign, mains_gain: float) -> tuple[np.ndarray, np.nda
                                                 df),
                                 j * _mul(pi_num, df)),
                      k * k * tii * _mul(dm, np.polysub(_mul(dv, df), [c * mains_gain])))
-    return q, den
-
-
-def _mains_gain(axis: AxisConfig) -> float:
-    conv = axis.converter
-    return 1.0 + conv.mains_deviation if conv.kind == "thyristor" else 1.0
+    return d, q, den
 
 
 def current_transfer_function(axis: AxisConfig, *, moving_mass: float | None = None
@@ -113,8 +112,7 @@ def current_transfer_function(axis: AxisConfig, *, moving_mass: float | None = N
         Polynomial coefficients in s, highest power first, ``den[0] == 1``; DC gain 1 with
         the EMF compensation at the rated mains.
     """
-    d = design(axis, moving_mass=moving_mass)
-    q, den = _current_loop(d, _mains_gain(axis))
+    d, q, den = _current_loop(axis, moving_mass)
     num = np.polymul(q, _lag(d.tacho_filter))
     return num / den[0], den / den[0]
 
@@ -136,8 +134,7 @@ def speed_transfer_function(axis: AxisConfig, *, moving_mass: float | None = Non
         Polynomial coefficients in s, highest power first, ``den[0] == 1``. The DC gain
         num[-1]/den[-1] is 1/K_C.
     """
-    d = design(axis, moving_mass=moving_mass)
-    q, den_i = _current_loop(d, _mains_gain(axis))
+    d, q, den_i = _current_loop(axis, moving_mass)
     # G = K_pω·(T_iω s + 1)·k·q·(T_f s + 1)/(T_iω·J·s²·den_i); closing the loop through
     # K_C/(T_f s + 1) cancels the tacho filter's factor from the loop's denominator
     pi_q = d.speed_kp * d.emf_constant * _mul(_lag(d.speed_ti), q)
