@@ -68,6 +68,7 @@ def _lag(t: float) -> np.ndarray:
 
 
 def _mul(*polys) -> np.ndarray:
+    """Product of polynomials (highest power first)."""
     return reduce(np.polymul, polys, np.array([1.0]))
 
 
@@ -92,11 +93,11 @@ def _current_loop(axis: AxisConfig, moving_mass: float | None
     c = 1.0 if d.emf_compensation else 0.0
     pi_num = d.current_kp * mains_gain * _lag(tii)
     q = j * _mul(pi_num, dm)
-    den = np.polyadd(np.polyadd(j * tii * _mul([1.0, 0.0], [d.inductance, d.resistance], dv, dm,
-                                                df),
-                                j * _mul(pi_num, df)),
-                     k * k * tii * _mul(dm, np.polysub(_mul(dv, df), [c * mains_gain])))
-    return d, q, den
+    # the armature, the regulator through the measurement, the EMF left uncompensated
+    armature = j * tii * _mul([1.0, 0.0], [d.inductance, d.resistance], dv, dm, df)
+    regulator = j * _mul(pi_num, df)
+    emf = k * k * tii * _mul(dm, np.polysub(_mul(dv, df), [c * mains_gain]))
+    return d, q, np.polyadd(np.polyadd(armature, regulator), emf)
 
 
 def current_transfer_function(axis: AxisConfig, *, moving_mass: float | None = None
