@@ -217,7 +217,7 @@ def test_the_belief_follows_a_mistuned_drive(k):
     """Random settings off their design, both loops at once, digital and analog (seeded;
     the full run draws 16, CI the first 2): the written-out current loop follows the
     pulse-level drive in continuous conduction (measured: within 1.4 % of the final speed,
-    lag areas within 1.5 %; the first-order lag R·T_ii/K_pi it replaces was 1-14 % off)."""
+    lag areas within 1.5 %; the first-order lag R·T_ii/K_pi it replaces was 1.3-9.4 % off)."""
     kind, ax = mistuned_drives(29, MISTUNED)[k]
     t, dw, dtheta = step_pair(ax, 1.0, T_P / 10, 1.5, 10)
     deviation, lag_error = deviation_from_model(ax, t, dw, dtheta, 10)
