@@ -161,7 +161,8 @@ class RunResult:
 
 
 def axis_models(cfg: MachineConfig) -> list[LinearAxisModel]:
-    """The linear reference → position model of each axis, from the drive model.
+    """The linear reference → position model of each axis, from the drive model; the X
+    axis moves the Y carriage too (``MachineConfig.moving_masses``), as the plant's drives do.
 
     Raises
     ------
@@ -169,9 +170,11 @@ def axis_models(cfg: MachineConfig) -> list[LinearAxisModel]:
         Naming the axis, when its motor, converter, tacho and speed-loop settings give a
         model the controller cannot derive its gains from (an unstable speed loop)."""
     models = []
+    masses = cfg.moving_masses()
     for a in AXES:
         try:
-            models.append(LinearAxisModel(*axis_transfer_function(cfg.axes[a])))
+            models.append(LinearAxisModel(*axis_transfer_function(cfg.axes[a],
+                                                                  moving_mass=masses[a])))
         except ConfigError as exc:
             raise ConfigError(f"axes.{a}", f"the drive these motor, converter, tacho and "
                               f"speed_loop settings give is not a stable linear model "
