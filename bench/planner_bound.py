@@ -40,9 +40,10 @@ Then the chord-independence table: full circles of r = 0.5 … 20 mm as a G3 arc
 of 0.001 … 0.5 mm (written exactly) and as chords within a chordal tolerance of 0.001 …
 0.02 mm (written with 3 decimals, as CAM posts do); a polygon whose sagitta exceeds the
 blend tolerance is not that circle within tolerance and is left out; the feed moves'
-cycle time per law and its spread over the representations; and the planner's throughput on a 100 000-block chord
-program in memory (also with every block's profile made, as the interpolator makes it)
-and streamed from a file through the G-code reader (peak RSS).
+cycle time per law and its spread over the representations; and the planner's
+throughput on a 100 000-block chord program in memory (also with every block's profile
+made, as the interpolator makes it) and streamed from a file through the G-code reader
+(peak RSS).
 
 Prints one JSON object; ``--markdown`` also prints the summary tables to stderr.
 ``--quick``: smaller programs, one instance per class, two laws (a sanity run).
@@ -378,6 +379,54 @@ def chord_independence(cfg, laws, radii=RADII) -> dict:
             rows[f"r{r:g}"] = {"s": {k: round(x, 4) for k, x in times.items()},
                                "spread": round(max(v) / min(v) - 1.0, 4)}
         out[law] = {"radii": rows, "worst_spread": max(x["spread"] for x in rows.values())}
+    return out
+
+
+_STREAM = """
+import sys, time
+from twin.config import load_machine
+from twin.controller.gcode import read_file
+from twin.controller.planner import Planner
+cfg = load_machine(sys.argv[2])
+planner = Planner.from_settings(cfg.controller, cfg.axes, law=sys.argv[3], work_zone=None)
+t0 = time.perf_counter()
+count = sum(1 for _ in planner.plan(read_file(sys.argv[1], start=(0.01, 0.01))))
+seconds = time.perf_counter() - t0
+with open("/proc/self/status") as status:
+    hwm = next(line.split()[1] for line in status if line.startswith("VmHWM:"))
+print(count, seconds, hwm)
+"""
+
+
+def throughput(cfg, machine: str, laws, blocks: int) -> dict:
+    text = cam.chords(blocks)
+    items = list(parse(text, start=(0.01, 0.01)))
+    lines = sum(type(i).__name__ == "Move" for i in items)
+    out = {"program_blocks": lines}
+    with tempfile.TemporaryDirectory() as tmp:
+        path = Path(tmp) / "chords.ngc"
+        path.write_text(text)
+        for law in laws:
+            planner = Planner.from_settings(cfg.controller, cfg.axes, law=law, work_zone=None)
+            t0 = time.perf_counter()
+            planned = sum(1 for _ in planner.plan(items))
+            mem = time.perf_counter() - t0
+            # the same, with every block's speed profile made as the interpolator makes it
+            # when it reaches the block (plan_move, or the block's part of its run's move)
+            planner = Planner.from_settings(cfg.controller, cfg.axes, law=law, work_zone=None)
+            t0 = time.perf_counter()
+            for block in planner.plan(items):
+                if type(block) is PlannedBlock:
+                    block.profile()
+            profiled = time.perf_counter() - t0
+            done = subprocess.run([sys.executable, "-c", _STREAM, str(path), machine, law],
+                                  capture_output=True, text=True, check=True)
+            _, seconds, hwm = done.stdout.split()
+            out[law] = {"in_memory_blocks_per_s": round(lines / mem),
+                        "in_memory_with_profiles_blocks_per_s": round(lines / profiled),
+                        "planned_items": planned,
+                        "streamed_blocks_per_s": round(lines / float(seconds)),
+                        "streamed_peak_rss_mb": round(int(hwm) / 1024, 1)}
     return out
 
 
