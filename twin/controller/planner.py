@@ -276,7 +276,8 @@ class Planner:
         error: TwinError | None = None
         rules = self._rules
         rules.count = 0
-        block_of, joins_of = rules.block, rules.joins
+        block_of, joins_of, follow = rules.block, rules.joins, rules.follow
+        last: WindowBlock | None = None      # the feed block before, for `follow`
         self._time_bound = 0.0
         self._length = 0.0
         # the blocks that leave the window (_pop) gather here and are yielded after each
@@ -300,6 +301,12 @@ class Planner:
                 break
             if type(item) is BlendedBlock:
                 block = block_of(*item)
+                if block.rapid:
+                    last = None
+                else:
+                    if last is not None:
+                        follow(last, block)
+                    last = block
                 if exact_stop:                  # G61.1: every block ends at rest
                     if run is not None:
                         end_run(window, held, run)
@@ -312,6 +319,7 @@ class Planner:
                 exact_stop = item.mode == "exact_stop"
                 continue
             else:
+                last = None
                 if run is not None:
                     end_run(window, held, run)
                     run = held = None
