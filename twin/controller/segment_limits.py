@@ -16,7 +16,7 @@ on curved segments — the acceleration and jerk that the curvature itself deman
   ``3·v·a_t·κ ≤ J/2``, the components summed):
 
   ===========================  ==================================================
-  speed cap, centripetal       ``v²κ ≤ CENTRIPETAL·A`` (0.9: at the cap a_t ≥ 0.44·A)
+  speed cap, centripetal       ``v²κ ≤ CENTRIPETAL·A`` (0.8: at the cap a_t ≥ 0.6·A)
   speed cap, jerk at cruise    ``v³·√(κ⁴ + κ'²) ≤ CRUISE_JERK·J`` (one half)
   tangential acceleration      ``a_t = √(A² − (v²κ)²)``, so ``|a| ≤ A``
   jerk, tangential component   ``|s⃛| + v³κ² ≤ 0.8·J``: ``j_t = 0.8·J − v³κ² ≥ 0.3·J``
@@ -42,9 +42,10 @@ from twin.controller.profiles import Limits
 
 __all__ = ["CENTRIPETAL", "CRUISE_JERK", "JERK_NORMAL", "JERK_TANGENTIAL", "SegmentLimits"]
 
-CENTRIPETAL = 0.9
+CENTRIPETAL = 0.8
 """Share of the total acceleration A that a curve's speed cap may give the centripetal
-acceleration v²κ (the rest, ≥ √(1 − 0.81)·A, is the tangential acceleration's)."""
+acceleration v²κ (the rest, ≥ √(1 − 0.64)·A = 0.6·A, is the tangential acceleration's: a
+block has one tangential limit, and a whole circle must still get up to speed on it)."""
 CRUISE_JERK = 0.5
 """Share of the total jerk J that a curve's speed cap may give the jerk of cruising along
 it, v³·√(κ⁴ + κ'²)."""
