@@ -12,7 +12,8 @@ class of ``twin.analysis.studies.cam_classes`` (small text, densely chorded smal
   per-axis velocity and acceleration, the contour feed and acceleration (its circumscribed
   16-gon: a relaxation, so the bound stays a bound), stops where the program stops —
   computed by TOPP-RA (``toppra``, a bench-only dependency: ``pip install -e '.[bench]'``)
-  on grid points every ``GRID`` and at every segment end, with the path acceleration also
+  on grid points every ``GRID`` (at least ``MIN_STEPS`` per block) and at every segment
+  end, with the path acceleration also
   held to |s̈| ≤ A/k_a, the law's mean acceleration over one speed change at peak A:
 
   ========================  ==================================================
@@ -28,6 +29,9 @@ class of ``twin.analysis.studies.cam_classes`` (small text, densely chorded smal
   from rest to the feed (|Δv|/A + A/J per change); a smaller change has a lower mean, a
   change that does not start at rest may save the ramps. Hence its target is 1.10×;
 * ``ratio`` = lookahead / yardstick; ``ratio_to_bound``: lookahead / the plain bound;
+  ``ratio_to_capped``: lookahead / the yardstick with the speed also held to the planner's
+  own caps of blocks and nodes (the curves' acceleration and jerk caps, the corner model,
+  the velocity and curvature steps): what the speed profiles lose, apart from the caps;
 * ``axis_acceleration``, ``axis_jerk``: the largest |Δ²p|/T² and |Δ³p|/T³ of the sampled
   position reference per axis (every controller period T, as the interpolator produces
   it) over the axis' max_acceleration and max_jerk. A velocity step at a node counts as
@@ -76,6 +80,7 @@ from twin.controller.profiles import LAWS
 GRID = 0.25e-3                 # m: the bound's largest grid step
 ARC_STEP = 0.05                # rad: the bound's largest grid step on arcs
 POLYGON = 16                   # sides of the contour-acceleration polygon
+MIN_STEPS = 8                  # grid steps per block at least (short chords, small text)
 
 
 # ----------------------------------------------------------------------------- planning
@@ -171,7 +176,7 @@ def _grid(blocks: list[PlannedBlock]) -> tuple[np.ndarray, list[tuple[int, float
         kappa = _max_curvature(seg)
         if kappa > 0.0:
             step = min(step, ARC_STEP / kappa)
-        n = max(1, math.ceil(seg.length / step))
+        n = max(MIN_STEPS, math.ceil(seg.length / step))
         local = np.linspace(0.0, seg.length, n + 1)
         if k < len(blocks) - 1:
             local = local[:-1]
@@ -188,10 +193,29 @@ def _feed_cap(cfg, b: PlannedBlock) -> float:
     return cfg.controller.rapid_velocity if b.rapid else min(b.feed, contour.max_velocity)
 
 
-def bound_time(blocks: list[PlannedBlock], cfg, mean: float | None = None) -> float:
+def rule_caps(cfg, law: str, blocks: list[PlannedBlock]) -> list[tuple[float, float]]:
+    """Per block of a piece, the planner's own caps for ``law`` (m/s): the block's speed cap
+    (`BlockRules.block`: feed, axes, a curve's acceleration and jerk) and its start node's
+    (`BlockRules.node_cap`: corner model, velocity and curvature steps)."""
+    rules = Planner.from_settings(cfg.controller, cfg.axes, law=law, work_zone=None)._rules
+    out, prev = [], None
+    for b in blocks:
+        wb = rules.block(b.segment, b.feed, b.line, b.blend)
+        node = 0.0
+        if prev is not None:
+            rules.follow(prev, wb)
+            node = rules.node_cap(prev, wb)
+        out.append((wb.v_nom, node))
+        prev = wb
+    return out
+
+
+def bound_time(blocks: list[PlannedBlock], cfg, mean: float | None = None,
+               caps: list[tuple[float, float]] | None = None) -> float:
     """TOPP-RA's time for one piece that starts and ends at rest (s). With ``mean`` the
     path acceleration is also held to |s̈| ≤ mean (m/s²): a law's mean acceleration over a
-    speed change (its peak stays within the same limits as above)."""
+    speed change (its peak stays within the same limits as above). With ``caps``
+    (`rule_caps`) the speed is also held to the planner's caps of blocks and nodes."""
     import toppra
     import toppra.algorithm as algo
     from toppra.constraint import DiscretizationType, LinearConstraint
@@ -210,6 +234,10 @@ def bound_time(blocks: list[PlannedBlock], cfg, mean: float | None = None) -> fl
         for comp, lim in ((abs(t0), axes[0]), (abs(t1), axes[1])):
             if comp * v > lim.max_velocity:
                 v = lim.max_velocity / comp
+        if caps is not None:
+            v = min(v, caps[k][0])
+            if u == 0.0 and k > 0:
+                v = min(v, caps[k][1])
         cap[i] = v
     # at a block boundary both blocks' speed caps hold (the speed is continuous there)
     for i in range(1, n):
@@ -285,9 +313,12 @@ def yardstick_acceleration(cfg, law: str, blocks: list[PlannedBlock]) -> float |
     return a / (1.0 + a * a / (j * v))
 
 
-def yardstick(cfg, law: str, parts: list, dwell: float) -> float:
-    """A law's yardstick for a whole plan (s): its pieces' bounds and the dwells."""
-    return sum(bound_time(p, cfg, yardstick_acceleration(cfg, law, p)) for p in parts) + dwell
+def yardstick(cfg, law: str, parts: list, dwell: float, capped: bool = False) -> float:
+    """A law's yardstick for a whole plan (s): its pieces' bounds and the dwells; ``capped``:
+    also under the planner's caps of blocks and nodes (`rule_caps`)."""
+    return sum(bound_time(p, cfg, yardstick_acceleration(cfg, law, p),
+                          rule_caps(cfg, law, p) if capped else None)
+               for p in parts) + dwell
 
 
 # ----------------------------------------------------------------------------- limits
@@ -317,9 +348,10 @@ def program_figures(cfg, text: str, laws, check_limits: bool) -> dict:
         stick = bound if law == "trapezoid" else yardstick(cfg, law, parts, dwell)
         blocks = sum(isinstance(i, PlannedBlock) for i in items)
         la = cycle_time(items)
+        capped = yardstick(cfg, law, parts, dwell, capped=True)
         row = {"lookahead_s": round(la, 3), "yardstick_s": round(stick, 3),
                "ratio": round(la / stick, 4), "ratio_to_bound": round(la / bound, 4),
-               "blocks_per_s": round(blocks / seconds)}
+               "ratio_to_capped": round(la / capped, 4), "blocks_per_s": round(blocks / seconds)}
         if check_limits:
             acc, jerk = sampled_limits(items, cfg)
             row["axis_acceleration"] = [round(r, 3) for r in acc]
