@@ -95,23 +95,8 @@ def plan(cfg, text: str, law: str, mode: str = "lookahead") -> tuple[list, float
 
 
 def cycle_time(items: list, feed_only: bool = False) -> float:
-    """Sum of the blocks' profile durations and the dwells (s); a run's one move counted
-    once. ``feed_only``: the feed moves alone."""
-    total = 0.0
-    runs: set[int] = set()
-    for it in items:
-        if isinstance(it, PlannedBlock):
-            if feed_only and it.rapid:
-                continue
-            piece = it.piece
-            if piece is None:
-                total += it.profile().duration
-            elif id(piece[0]) not in runs:
-                runs.add(id(piece[0]))
-                total += piece[0].duration
-        elif hasattr(it, "duration") and not feed_only:
-            total += it.duration
-    return total
+    """Sum of the blocks' profile durations and the dwells (s) (`cam.planned_time`)."""
+    return cam.planned_time(items, feed_only)
 
 
 def pieces(items: list) -> tuple[list[list[PlannedBlock]], float]:

@@ -86,16 +86,8 @@ def test_the_planned_speed_is_never_above_a_cap(name, seed, law):
 
 
 def feed_time(text: str, law: str) -> float:
-    """The feed moves' cycle time (s), a run's move once."""
-    total, runs = 0.0, set()
-    for b in plan(text, law):
-        if isinstance(b, PlannedBlock) and not b.rapid:
-            if b.piece is None:
-                total += b.profile().duration
-            elif id(b.piece[0]) not in runs:
-                runs.add(id(b.piece[0]))
-                total += b.piece[0].duration
-    return total
+    """The feed moves' cycle time (s)."""
+    return cam.planned_time(plan(text, law), feed_only=True)
 
 
 @pytest.mark.parametrize("law", LAWS if FULL else ("trapezoid", "jerk-limited"))
@@ -112,3 +104,38 @@ def test_a_circle_takes_the_same_time_whatever_its_chords(radius, law):
     rounded = feed_time(cam.circle(radius, chord=chord_length(radius, 0.005), decimals=3), law)
     assert max(exact, g3) <= 1.05 * min(exact, g3), (g3, exact)
     assert max(coarse, rounded, g3) <= 1.10 * min(coarse, rounded, g3), (g3, coarse, rounded)
+
+
+def exact_path_program(seed: int) -> str:
+    """G61 (no rounding): a random walk of lines and arcs meeting at random angles, some
+    tangent (a curvature step only), some not (a kink)."""
+    rng = np.random.default_rng(seed)
+    x, y, heading = 100.0, 100.0, 0.0
+    lines = ["G21 G90 G61 F3000", f"G0 X{x:.4f} Y{y:.4f}", "M3"]
+    for _ in range(12):
+        if rng.random() < 0.5:
+            heading += rng.uniform(-2.5, 2.5) if rng.random() < 0.5 else 0.0
+            length = rng.uniform(0.5, 5.0)
+            x, y = x + length * math.cos(heading), y + length * math.sin(heading)
+            lines.append(f"G1 X{x:.4f} Y{y:.4f}")
+        else:
+            r, turn = rng.uniform(0.5, 5.0), 1.0 if rng.random() < 0.5 else -1.0
+            cx, cy = x - turn * r * math.sin(heading), y + turn * r * math.cos(heading)
+            heading += turn * rng.uniform(0.3, 3.0)
+            x, y = cx + turn * r * math.sin(heading), cy - turn * r * math.cos(heading)
+            word = "G3" if turn > 0 else "G2"           # sweeps below π: R > 0 is the one
+            lines.append(f"{word} X{x:.4f} Y{y:.4f} R{r:.4f}")
+    lines += ["M5", "M30"]
+    return "\n".join(lines) + "\n"
+
+
+@pytest.mark.parametrize("seed", range(6 if FULL else 2))
+def test_exact_path_corners_and_curvature_steps_keep_the_jerk(seed):
+    """G61 kinks and arcs meeting lines: every smooth law's sampled jerk within the axes'."""
+    axes = [LASER.axes[a].limits for a in "xy"]
+    for law in SMOOTH if FULL else ("jerk-limited",):
+        items = plan(exact_path_program(seed), law)
+        acc, jerk = cam.sampled_extremes(cam.sampled_reference(items, LASER.controller.period),
+                                         LASER.controller.period)
+        assert np.all(acc <= 1.05 * np.array([a.max_acceleration for a in axes])), acc
+        assert np.all(jerk <= 1.05 * np.array([a.max_jerk for a in axes])), (law, jerk)

@@ -6,8 +6,10 @@ window's speed passes (see `twin.controller.planner`'s module doc for the rules'
 the rapid speed within the contour limit and the per-axis and curve caps of
 `twin.controller.segment_limits`), its tangential limits, its end tangents and curvatures.
 ``BlockRules.node_cap`` is the speed limit of a node: both blocks' caps, at a kink the
-corner model and the velocity step the axes take in one period, where the curvature jumps
-the step of the normal acceleration. ``BlockRules.joins`` says whether a block may join a
+corner model and the velocity step the axes take in one period (for a law that limits
+jerk, the jerk that step shows), where the curvature jumps the step of the normal
+acceleration as the samples see it; ``BlockRules.follow`` lets a sliver of line between
+two curves carry the curvature across. ``BlockRules.joins`` says whether a block may join a
 run; ``open_run``, ``absorb`` and ``close_run`` grow a run and close it into one window
 block.
 """
@@ -35,7 +37,7 @@ view at the higher. So caps within about 5 % join, and so does a short block, or
 start of a run, whose cap is further off: a run cut at every scatter of the caps of a
 chorded curve would confine its changes of speed to pieces a few chords long."""
 
-RUN_LIMIT_SHARE = 0.8
+RUN_LIMIT_SHARE = 0.6
 """A block joins a run only if its tangential acceleration and jerk limits agree with the
 run's within this share, or the part whose limits the joining lowers (the block, or the run
 so far) is short (5 % of the run with it): the run's changes of speed use the lowest of its
@@ -109,6 +111,12 @@ class BlockRules:
         # a node where the curvature jumps (a line meets an arc, a blend of another radius)
         # steps the normal acceleration by v²·|Δκ| within one period: at most J·T for a law
         # that limits jerk
+        # for a law that limits jerk, a kink's velocity step Δv shows in the sampled
+        # reference's third difference as up to Δv/T²: v·|Δt̂_k| ≤ J_k·T² (an exact stop,
+        # nearly: 0.3 mm/s at a right angle on laser_belt; G61 corners, arcs meeting lines)
+        self._kink_jerk = None if period is None or not jerk else (
+            axis_limits[0].max_jerk * period**2, axis_limits[1].max_jerk * period**2,
+            limits.max_jerk * period**2)
         j_total = min(limits.max_jerk, axis_limits[0].max_jerk, axis_limits[1].max_jerk)
         self._jerk_step = None if period is None or not jerk else (
             period * j_total / STEP_SEEN)
@@ -192,8 +200,12 @@ class BlockRules:
                 step = step_speed(self._step, b.t0x - prev.t1x, b.t0y - prev.t1y)
                 if step < emax:
                     emax = step
+            if self._kink_jerk is not None:         # v·|Δt̂| ≤ J·T²
+                step = step_speed(self._kink_jerk, b.t0x - prev.t1x, b.t0y - prev.t1y)
+                if step < emax:
+                    emax = step
         dk = abs(b.k0 - prev.k1)
-        if dk > 0.0 and self._jerk_step is not None:    # v²·|Δκ| ≤ J·T
+        if dk > 0.0 and self._jerk_step is not None:    # v²·|Δκ|·STEP_SEEN ≤ J·T
             jump = math.sqrt(self._jerk_step / dk)
             if jump < emax:
                 emax = jump

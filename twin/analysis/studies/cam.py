@@ -15,10 +15,11 @@ every contour and rapids between contours:
   check);
 * ``chords`` — one long free-form curve as a given number of chords (the throughput check).
 
-And what the bench and the tests measure on their plans: ``middle_speed`` (the planned
-speed halfway along the feed moves), ``sampled_reference`` (the position reference period
-by period), ``sampled_extremes`` and ``sampled_acceleration`` (the acceleration and jerk of
-that reference as the axes receive it). The random program classes of issue 30 are in
+And what the bench and the tests measure on their plans: ``planned_time`` (the cycle time
+of a plan), ``middle_speed`` (the planned speed halfway along the feed moves),
+``sampled_reference`` (the position reference period by period), ``sampled_extremes`` and
+``sampled_acceleration`` (the acceleration and jerk of that reference as the axes receive
+it). The random program classes of issue 30 are in
 `twin.analysis.studies.cam_classes`.
 
 Coordinates are written with ``decimals`` places (3 by default, as CAM posts round them); a
@@ -38,7 +39,7 @@ from twin.controller.blocks import PlannedBlock
 from twin.controller.interpolator import Interpolator, InterpolatorStatus
 
 __all__ = ["Writer", "chorded_nest", "chords", "circle", "glyph_contours", "lettering",
-           "middle_speed", "nearest_first", "pocket", "sampled_acceleration",
+           "middle_speed", "nearest_first", "planned_time", "pocket", "sampled_acceleration",
            "sampled_extremes", "sampled_reference"]
 
 _HEADER = "G21 G90 G17 G94"
@@ -238,6 +239,26 @@ def chords(blocks: int, *, chord: float = 0.005, center: tuple[float, float] = (
         pts.append(point(t))
     w.contour(pts)
     return w.text((10.0, 10.0))
+
+
+def planned_time(items: Iterable[Any], feed_only: bool = False) -> float:
+    """A plan's cycle time (s): its blocks' profile durations (a run's one move counted
+    once) and its dwells; ``feed_only``: the feed moves alone."""
+    total = 0.0
+    runs: set[int] = set()
+    for it in items:
+        if isinstance(it, PlannedBlock):
+            if feed_only and it.rapid:
+                continue
+            piece = it.piece
+            if piece is None:
+                total += it.profile().duration
+            elif id(piece[0]) not in runs:
+                runs.add(id(piece[0]))
+                total += piece[0].duration
+        elif hasattr(it, "duration") and not feed_only:
+            total += it.duration
+    return total
 
 
 def middle_speed(items: Iterable[Any]) -> float:
