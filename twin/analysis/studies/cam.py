@@ -245,7 +245,7 @@ def planned_time(items: Iterable[Any], feed_only: bool = False) -> float:
     """A plan's cycle time (s): its blocks' profile durations (a run's one move counted
     once) and its dwells; ``feed_only``: the feed moves alone."""
     total = 0.0
-    runs: set[int] = set()
+    run = None                       # the run being counted: its members are consecutive
     for it in items:
         if isinstance(it, PlannedBlock):
             if feed_only and it.rapid:
@@ -253,9 +253,9 @@ def planned_time(items: Iterable[Any], feed_only: bool = False) -> float:
             piece = it.piece
             if piece is None:
                 total += it.profile().duration
-            elif id(piece[0]) not in runs:
-                runs.add(id(piece[0]))
-                total += piece[0].duration
+            elif piece[0] is not run:
+                run = piece[0]
+                total += run.duration
         elif hasattr(it, "duration") and not feed_only:
             total += it.duration
     return total

@@ -9,10 +9,13 @@ twin on two such programs:
 * ``small_lettering`` — the outlines of "xy-twin 2026" with capitals 5 mm tall, chorded
   within 0.01 mm (`twin.analysis.studies.cam.lettering`).
 
-For each: the cycle time (first to last commanded motion) and the largest distance of the
-table's true path from the program (`twin.analysis.compare.true_contour_error`). ``BEFORE``
-holds the same figures measured with this study's code on the planner before issue 30
-(main at 985b40a), for the comparison the issue asks for.
+For each law: the planned cycle time of the whole program (the blocks' profile durations,
+`cam.planned_time`), and on the twin, for one part of the nest and the word "xy 26" (the
+twin runs much slower than the planner plans), the cycle time (first to last commanded
+motion) and the largest distance of the table's true path from the program
+(`twin.analysis.compare.true_contour_error`). ``BEFORE`` holds the same figures measured
+with this study's code on the planner before issue 30 (main at 985b40a), for the
+comparison the issue asks for.
 """
 
 from __future__ import annotations
@@ -25,7 +28,9 @@ import numpy as np
 from twin.analysis.compare import true_contour_error
 from twin.analysis.studies import cam
 from twin.analysis.studies.common import run_items
+from twin.config import load_machine
 from twin.controller.gcode import parse
+from twin.controller.planner import Planner
 from twin.controller.profiles import LAWS
 from twin.session.run import RunSpec
 
@@ -33,16 +38,25 @@ __all__ = ["BEFORE", "MACHINE", "programs", "run_study"]
 
 MACHINE = "laser_belt"
 
-BEFORE: dict[str, dict[str, dict[str, float]]] = {}
-"""{program: {law: {"cycle_time_s", "max_contour_error_um"}}} measured on main at 985b40a
-(the planner before issue 30), full programs."""
+BEFORE: dict[str, dict[str, Any]] = {}
+"""``runs`` as `run_study` gives them, measured on main at 985b40a (the planner before
+issue 30)."""
 
 
-def programs(quick: bool = False) -> dict[str, str]:
-    """The study's programs by name (``quick``: one nest part, a short word)."""
-    return {"chorded_nest": cam.chorded_nest(*((1, 1) if quick else (6, 4))),
-            "small_lettering": cam.lettering("xy" if quick else "xy-twin 2026", height=5.0,
-                                             chord=0.01)}
+def programs(twin: bool, quick: bool = False) -> dict[str, str]:
+    """The study's programs by name: whole (``twin`` False) or the twin's short versions;
+    ``quick``: the lettering alone, one letter."""
+    if quick:
+        return {"small_lettering": cam.lettering("x", height=5.0, chord=0.01)}
+    nest, text = ((1, 1), "xy 26") if twin else ((6, 4), "xy-twin 2026")
+    return {"chorded_nest": cam.chorded_nest(*nest),
+            "small_lettering": cam.lettering(text, height=5.0, chord=0.01)}
+
+
+def _planned(gcode: str, law: str) -> float:
+    cfg = load_machine(MACHINE)
+    planner = Planner.from_settings(cfg.controller, cfg.axes, law=law, work_zone=None)
+    return cam.planned_time(planner.plan(parse(gcode, start=(0.01, 0.01))))
 
 
 def _run(gcode: str, law: str) -> dict[str, Any]:
@@ -59,21 +73,23 @@ def _run(gcode: str, law: str) -> dict[str, Any]:
 
 
 def run_study(*, quick: bool = False) -> dict[str, Any]:
-    """Every law on both programs.
+    """Every law on both programs, planned and on the twin (``quick``: the trapezoid and the
+    jerk-limited law on one letter).
 
     Returns
     -------
     dict
-        JSON-ready: per program and law the run's figures, the trapezoid's ratio, and
-        ``BEFORE``.
+        JSON-ready: per program and law the planned cycle time of the whole program and
+        the twin's figures on its short version, and ``BEFORE``.
     """
     t0 = time.perf_counter()
+    whole, short = programs(False, quick), programs(True, quick)
     runs: dict[str, dict[str, Any]] = {}
-    for name, text in programs(quick).items():
-        runs[name] = {law: _run(text, law) for law in LAWS}
-        base = runs[name]["trapezoid"]["cycle_time_s"]
-        for row in runs[name].values():
-            row["ratio_to_trapezoid"] = row["cycle_time_s"] / base
+    for name in whole:
+        runs[name] = {}
+        for law in ("trapezoid", "jerk-limited") if quick else LAWS:
+            runs[name][law] = {"planned_s": _planned(whole[name], law),
+                               "twin": _run(short[name], law)}
     return {"study": "laws_on_cam",
             "title": "The acceleration laws on CAM output: chorded nest, small lettering",
             "machine": MACHINE, "runs": runs, "before": {} if quick else BEFORE,

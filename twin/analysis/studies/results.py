@@ -362,8 +362,42 @@ def _steps(r: Mapping[str, Any]) -> str:
     return "\n".join(out)
 
 
+def _cam_laws(r: Mapping[str, Any]) -> str:
+    before = r.get("before") or {}
+    out = [
+        "## 7. The acceleration laws on CAM output (laser_belt, issue 30)",
+        "",
+        "Two programs as CAM writes them: seed 001's nest of 24 parts with every arc as chords "
+        "within 0.01 mm, and the outlines of \"xy-twin 2026\" with capitals 5 mm tall "
+        "chorded within 0.01 mm (small lettering: short contours, chords of a few tenths of "
+        "a millimetre, blends of 0.1 to a few millimetres). Planned: the whole program's "
+        "cycle time (the blocks' speed profiles, rapids included). Twin: one part of the nest "
+        "and the word \"xy 26\" run through the full controller and the twin: cycle time and "
+        "largest distance of the table's true path from the program. Before: the planner on "
+        "main before issue 30 (985b40a), the same code measuring.",
+        "",
+        "| program | law | planned (s): before | after | after / trapezoid | "
+        "twin cycle (s): before | after | max contour error (µm): before | after |",
+        "|---|---|---|---|---|---|---|---|---|",
+    ]
+    for name, laws in r["runs"].items():
+        base = laws["trapezoid"]["planned_s"]
+        for law, row in laws.items():
+            b = before.get(name, {}).get(law)
+            pb, tb, eb = (("—",) * 3 if b is None else (
+                _f(b["planned_s"], 4), _f(b["twin"]["cycle_time_s"], 4),
+                _f(b["twin"]["max_contour_error_um"])))
+            out.append(f"| {name} | {law} | {pb} | {_f(row['planned_s'], 4)} | "
+                       f"{row['planned_s'] / base:.2f} | {tb} | "
+                       f"{_f(row['twin']['cycle_time_s'], 4)} | {eb} | "
+                       f"{_f(row['twin']['max_contour_error_um'])} |")
+    out += ["", r.get("discussion", "")]
+    return "\n".join(out)
+
+
 _SECTIONS = (("seed000_dcu", _dcu), ("seed000_laws", _laws), ("seed001_corner", _corner),
-             ("seed001_laser", _laser), ("seed004_feed", _feed), ("seed002_steps", _steps))
+             ("seed001_laser", _laser), ("seed004_feed", _feed), ("seed002_steps", _steps),
+             ("laws_on_cam", _cam_laws))
 
 
 def render(results: Mapping[str, Mapping[str, Any]]) -> str:
