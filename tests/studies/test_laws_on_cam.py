@@ -14,7 +14,7 @@ def test_the_short_study_runs_and_the_jerk_limited_law_is_not_held_back():
         "trapezoid": "FINISHED", "jerk-limited": "FINISHED"}
     # the S-curve from rest to the feed takes 1 + A²/(J·v) = 1.32 times the trapezoid's
     # ramp on laser_belt: on a letter of short contours, where every contour starts and
-    # ends at rest, the law may cost at most that much (before issue 30: 1.55)
+    # ends at rest, the law may cost at most that much (1.25 before issue 30, 1.23 after)
     ratio = laws["jerk-limited"]["planned_s"] / laws["trapezoid"]["planned_s"]
     assert 1.0 < ratio <= 1.32, ratio
     for row in laws.values():

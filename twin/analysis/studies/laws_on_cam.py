@@ -38,7 +38,32 @@ __all__ = ["BEFORE", "MACHINE", "programs", "run_study"]
 
 MACHINE = "laser_belt"
 
-BEFORE: dict[str, dict[str, Any]] = {}
+BEFORE: dict[str, dict[str, Any]] = {
+    "chorded_nest": {
+        "trapezoid": {"planned_s": 761.625, "twin": {"cycle_time_s": 63.3535,
+            "max_contour_error_um": 73.4, "rms_contour_error_um": 34.5}},
+        "parabolic": {"planned_s": 852.155, "twin": {"cycle_time_s": 65.5690,
+            "max_contour_error_um": 73.1, "rms_contour_error_um": 34.4}},
+        "cosine": {"planned_s": 854.068, "twin": {"cycle_time_s": 65.8630,
+            "max_contour_error_um": 72.0, "rms_contour_error_um": 34.3}},
+        "cubic": {"planned_s": 875.028, "twin": {"cycle_time_s": 67.0705,
+            "max_contour_error_um": 75.1, "rms_contour_error_um": 34.2}},
+        "jerk-limited": {"planned_s": 831.070, "twin": {"cycle_time_s": 63.7245,
+            "max_contour_error_um": 73.8, "rms_contour_error_um": 34.5}},
+    },
+    "small_lettering": {
+        "trapezoid": {"planned_s": 12.793, "twin": {"cycle_time_s": 5.6700,
+            "max_contour_error_um": 78.6, "rms_contour_error_um": 30.6}},
+        "parabolic": {"planned_s": 21.337, "twin": {"cycle_time_s": 9.2645,
+            "max_contour_error_um": 64.2, "rms_contour_error_um": 30.3}},
+        "cosine": {"planned_s": 20.855, "twin": {"cycle_time_s": 9.0895,
+            "max_contour_error_um": 65.6, "rms_contour_error_um": 30.3}},
+        "cubic": {"planned_s": 21.876, "twin": {"cycle_time_s": 9.5550,
+            "max_contour_error_um": 62.6, "rms_contour_error_um": 30.1}},
+        "jerk-limited": {"planned_s": 19.759, "twin": {"cycle_time_s": 8.5365,
+            "max_contour_error_um": 63.5, "rms_contour_error_um": 30.7}},
+    },
+}
 """``runs`` as `run_study` gives them, measured on main at 985b40a (the planner before
 issue 30)."""
 
