@@ -7,18 +7,12 @@ the place (G-code line and column, config field).
 
 from __future__ import annotations
 
-import signal
-
-
-def _interrupted_while_starting(signum: int, frame: object) -> None:
-    raise SystemExit(128 + signum)
-
+from twin.system import interrupts
 
 # A Ctrl-C while the command is still importing (numpy, MuJoCo, ...) ends it quietly with the
-# shell's 130 instead of a KeyboardInterrupt traceback; Python's own handler is back once
-# the commands are registered, and a run installs its own (twin.session.run_end).
-if signal.getsignal(signal.SIGINT) is signal.default_int_handler:
-    signal.signal(signal.SIGINT, _interrupted_while_starting)
+# shell's 130 instead of a KeyboardInterrupt traceback, even where an import drops the
+# exception (twin.system.interrupts); a run installs its own handlers (twin.session.run_end).
+interrupts.install()
 
 import sys  # noqa: E402
 from pathlib import Path  # noqa: E402
@@ -438,8 +432,7 @@ def _register_more() -> None:
 
 
 _register_more()
-if signal.getsignal(signal.SIGINT) is _interrupted_while_starting:
-    signal.signal(signal.SIGINT, signal.default_int_handler)
+interrupts.honour()   # a Ctrl-C dropped during the imports ends the command now
 
 def entry() -> None:
     """The ``twin`` entry point. Click's usage errors (an unknown option, a value that is

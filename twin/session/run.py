@@ -406,7 +406,8 @@ class _Loop:
                                    "driver": spec.driver,
                                    "machine_file": machine_identity(p.cfg),
                                    "controller_model_file": machine_identity(p.belief or p.cfg)}
-        summary.update(self.summary.result())
+        if self.summary.samples:    # a run stopped before its first tick has no metrics
+            summary.update(self.summary.result())
         if self.events:
             summary["events"] = dict(sorted(self.events.items()))
         if self.meter is not None:
