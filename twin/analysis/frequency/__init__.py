@@ -76,5 +76,9 @@ def measure(machine, *, driver: str = "sim", axis: str = "x", loop: str = "mecha
         A safety stop (limit switch, following error, the table leaving its room, a drive
         fault); the machine was stopped.
     """
-    raise NotImplementedError("twin.analysis.frequency.measure: being implemented "
-                              "(issue 31, branch i-measure)")
+    from twin.analysis.frequency.measure import measure as run
+
+    return run(machine, driver=driver, axis=axis, loop=loop, sensor=sensor,
+               amplitude=amplitude, offset=offset, averages=averages, f_min=f_min,
+               f_max=f_max, excitation=excitation, out_dir=out_dir,
+               controller_model=controller_model, noise=noise, progress=progress)

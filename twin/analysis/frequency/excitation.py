@@ -5,7 +5,9 @@ Both repeat every ``N`` periods, so every period of the record has the same spec
 the lines fall on the bins of a period's DFT (no leakage, no window); ``N`` is chosen so
 that a period spans a whole number of accelerometer samples as well. The multisine puts
 equal power on every bin from ``f_min`` to ``f_max``; Schroeder's phases
-φ_k = −π·k·(k − 1)/K keep its crest factor near 1.7 instead of √(2K). The PRBS is a
+φ_k = −π·k·(k − 1)/K keep its crest factor near 1.7 instead of √(2K); random phases make
+realisations whose nonlinear distortions differ (the measurement averages several, so that
+distortions lower the coherence instead of biasing the response unseen). The PRBS is a
 maximal-length sequence held ``hold`` periods per bit: its power falls off as sinc² towards
 1/(hold·T).
 """
@@ -79,8 +81,12 @@ def period_length(minimum: int, period: float, sample_rate: float | None) -> int
                       "near the one asked for")
 
 
-def multisine(length: int, period: float, f_min: float, f_max: float) -> Excitation:
-    """A multisine over the bins in [f_min, f_max] (Hz) of an N = ``length`` period."""
+def multisine(length: int, period: float, f_min: float, f_max: float, *,
+              seed: int | None = None) -> Excitation:
+    """A multisine over the bins in [f_min, f_max] (Hz) of an N = ``length`` period:
+    Schroeder's phases, or with ``seed`` random phases (uniform, of that seed's stream): a
+    new realisation whose nonlinear distortions differ from another's, so that they show
+    as noise in the coherence over several realisations."""
     df = 1.0 / (length * period)
     first = max(1, math.ceil(f_min / df - 1e-9))
     last = min(length // 2 - (1 if length % 2 == 0 else 0), math.floor(f_max / df + 1e-9))
@@ -89,7 +95,8 @@ def multisine(length: int, period: float, f_min: float, f_max: float) -> Excitat
                           f"{f_max:g}] Hz")
     lines = np.arange(first, last + 1)
     count = len(lines)
-    phases = -math.pi * np.arange(count) * np.arange(1, count + 1) / count
+    phases = (-math.pi * np.arange(count) * np.arange(1, count + 1) / count if seed is None
+              else np.random.default_rng([seed, 0x5105]).uniform(0.0, 2.0 * math.pi, count))
     t = np.arange(length)
     values = np.cos(2.0 * math.pi * np.outer(t, lines) / length + phases).sum(axis=1)
     return Excitation("multisine", values / np.abs(values).max(), period, lines)
