@@ -6,9 +6,10 @@ over one period has the response on the excited lines only (no window, no leakag
 the per-period spectra Y_p, U_p and D_p of the output, the DAC and the excitation, the
 response is S_YD/S_UD, their cross spectra with the excitation summed over the periods
 (the noise falls as 1/√P), and the coherence of each line is γ² = γ²_YD·γ²_UD, the
-coherence of each with the excitation D over the periods. The periods are of several realisations of a random-phase multisine: a nonlinear distortion
-differs from one to the next and lowers the coherence as noise does, where with one
-realisation it would repeat every period and pass for the response.
+coherence of each with the excitation D over the periods. The periods are of several
+realisations of a random-phase multisine: a nonlinear distortion differs from one to the
+next and lowers the coherence as noise does, where with one realisation it would repeat
+every period and pass for the response.
 
 The DAC is held for a controller period T, the accelerometer averages over its sample
 interval T_s: its spectrum is compared with the held input's continuous spectrum,
