@@ -83,12 +83,13 @@ def period_length(minimum: int, period: float, sample_rate: float | None) -> int
 
 def multisine(length: int, period: float, f_min: float, f_max: float, *,
               seed: int | None = None) -> Excitation:
-    """A multisine over the bins in [f_min, f_max] (Hz) of an N = ``length`` period:
+    """A multisine over the bins of an N = ``length`` period from the one at or below
+    ``f_min`` to ``f_max`` (Hz):
     Schroeder's phases, or with ``seed`` random phases (uniform, of that seed's stream): a
     new realisation whose nonlinear distortions differ from another's, so that they show
     as noise in the coherence over several realisations."""
     df = 1.0 / (length * period)
-    first = max(1, math.ceil(f_min / df - 1e-9))
+    first = max(1, math.floor(f_min / df + 1e-9))
     last = min(length // 2 - (1 if length % 2 == 0 else 0), math.floor(f_max / df + 1e-9))
     if last < first:
         raise ConfigError("f_min", f"no line of the {df:.3g} Hz grid lies in [{f_min:g}, "
@@ -128,7 +129,7 @@ def prbs(minimum: int, period: float, f_min: float, f_max: float) -> Excitation:
     values = np.repeat(mls(bits), hold)
     length = len(values)
     df = 1.0 / (length * period)
-    lines = np.arange(max(1, math.ceil(f_min / df - 1e-9)),
+    lines = np.arange(max(1, math.floor(f_min / df + 1e-9)),
                       min((length - 1) // 2, math.floor(f_max / df + 1e-9)) + 1)
     lines = lines[lines % ((1 << bits) - 1) != 0] if hold > 1 else lines
     return Excitation("prbs", values, period, lines)

@@ -147,7 +147,7 @@ def _resonances(f: np.ndarray, h: np.ndarray, good: np.ndarray, rigid: np.ndarra
     """The resonances of the trusted lines: peaks of |H/H_rigid| (dB), each the pole of a
     second-order model fitted to H/H_rigid (the measurement over the rigid twin's
     prediction: what the speed loop does to both divides out) over ±50 % of its
-    frequency."""
+    frequency (at least its six nearest lines)."""
     if good.sum() < 5:
         return []
     fg, hg = f[good], h[good]
@@ -155,13 +155,14 @@ def _resonances(f: np.ndarray, h: np.ndarray, good: np.ndarray, rigid: np.ndarra
     found = []
     for i in estimate.peaks(fg, ratio):
         near = (fg >= fg[i] / 1.5) & (fg <= fg[i] * 1.5)
-        if near.sum() < 5:
-            continue
+        if near.sum() < 6:                # too coarse a grid: the six nearest lines
+            near = np.zeros(len(fg), dtype=bool)
+            near[np.argsort(np.abs(fg - fg[i]))[:6]] = True
         pole = estimate.fit_mode(fg[near], hg[near] / rigid[good][near])
         if pole is None:
             continue
         freq, zeta = abs(pole) / (2.0 * math.pi), -pole.real / abs(pole)
-        if not (fg[near][0] <= freq <= fg[near][-1] and 0.0 < zeta < 1.0):
+        if not (fg[near].min() <= freq <= fg[near].max() and 0.0 < zeta < 1.0):
             continue
         found.append(Resonance(freq, zeta, float(ratio[i]), axis, seen_by))
     return sorted(found, key=lambda r: r.frequency)
@@ -272,6 +273,8 @@ def measure(machine, *, driver: str = "sim", axis: str = "x", loop: str = "mecha
         design = estimate.margins(dense, design_loop(axis_models(belief)[k], gains, axis,
                                                      period, dense))
         info["design_margins"] = design.to_dict()
+    info["accelerometer_rate_hz"] = (base.accelerometer.sample_rate
+                                     if seen_by == "accelerometer" else None)
     top = float(f[good].max()) if good.any() else 0.0
     unseen = _unseen(belief, axis, position, seen_by, loop, top)
     info.update(_info(base, belief, driver, exc, amplitude, offset, averages, rec, f,
