@@ -187,7 +187,7 @@ def measure(machine, *, driver: str = "sim", axis: str = "x", loop: str = "mecha
     period = base.controller.period
     top_limit = nyquist(base, loop, sensor)
     f_min = 1.0 if f_min is None else float(f_min)
-    f_max = (min(top_limit, 1.0 / period) if sensor == "accelerometer" and loop != "position"
+    f_max = (min(top_limit, 0.75 / period) if sensor == "accelerometer" and loop != "position"
              else 0.999 * top_limit) if f_max is None else float(f_max)
     if not (math.isfinite(f_max) and 0.0 < f_max <= top_limit):
         who = "accelerometer" if top_limit > 0.5 / period else "controller"
