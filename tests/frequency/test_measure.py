@@ -4,7 +4,9 @@ of the closed loop's analytic pole (``closed_loop_modes``: Muller's iteration on
 the fit), the position loop's phase margin within 3° of the linearised design; on the
 presets and on randomly perturbed machines (seeded).
 
-Under CI a short version: coarse lines (f_min 4 Hz), four realisations, one perturbed
+The 1 dB and 5° are checked up to the controller's Nyquist frequency (the accelerometer
+measures further, where the twin's physics step departs from the continuous model by a few
+degrees). Under CI a short version: coarse lines (f_min 4 Hz), four realisations, one perturbed
 machine. The full version measures more machines with finer lines.
 """
 
@@ -25,7 +27,10 @@ COARSE = {"f_min": 4.0, "averages": 4} if CI else {"f_min": 2.0, "averages": 8}
 
 
 def perturbed(seed: int):
-    """laser_belt with its masses, belt stiffness and damping scaled at random (seeded)."""
+    """laser_belt with its masses and belt stiffness scaled at random, its damping ratio
+    drawn from 0.1 … 0.4 (seeded). Above 0.4 a mode's frequency is ill-conditioned: on one
+    machine with ζ ≈ 0.49 a response within 0.5 dB of the analytic one put the fitted mode
+    2.3 % off."""
     rng = np.random.default_rng(seed)
     base = load_machine("laser_belt")
     over = {}
@@ -35,7 +40,7 @@ def perturbed(seed: int):
             rng.uniform(0.7, 1.4))
         over[f"axes.{a}.transmission.stiffness"] = {
             "belt": ax.transmission.stiffness["belt"] * float(rng.uniform(0.6, 1.6))}
-        over[f"axes.{a}.transmission.damping_ratio"] = float(rng.uniform(0.15, 0.5))
+        over[f"axes.{a}.transmission.damping_ratio"] = float(rng.uniform(0.1, 0.4))
     return base.with_overrides(over)
 
 
@@ -44,6 +49,9 @@ def check_mechanics(cfg, axis: str):
                 **COARSE)
     good = r.coherence >= 0.9
     assert good.sum() >= 0.8 * len(good)
+    # the claim holds up to the controller's Nyquist frequency; above it the twin's own
+    # physics step (ω·h ≈ 0.3 at 200 Hz) bends the phase by up to 6°
+    good &= r.frequency <= 0.5 / cfg.controller.period
     ratio = r.response[good] / r.prediction[good]
     assert np.abs(20 * np.log10(np.abs(ratio))).max() < 1.0
     assert np.abs(np.degrees(np.angle(ratio))).max() < 5.0
