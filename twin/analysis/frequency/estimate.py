@@ -75,6 +75,12 @@ class Spectra:
         s_ud, g_u = cross(self.dac)
         return s_yd / s_ud, g_y * g_u
 
+    def without(self, period: int) -> Spectra:
+        """The spectra with one period left out (for a jackknife)."""
+        keep = np.arange(len(self.dac)) != period
+        return Spectra(self.frequency, self.excitation[keep], self.dac[keep],
+                       self.output[keep])
+
 
 def _periods(rec: Recording, length: int, measured: list[int]) -> list[np.ndarray]:
     """Indices into the recording of each complete period of ``measured`` (the numbers of
@@ -105,11 +111,11 @@ def spectra(rec: Recording, exc: Excitation, *, loop: str, sensor: str,
         No complete period was recorded, or the accelerometer lost samples in every one.
     """
     n, period = exc.length, exc.period
+    if sensor == "accelerometer" and loop != "position":
+        return _accel_spectra(rec, exc, measured, loop, sample_rate, f_max)
     chunks = _periods(rec, n, measured)
     if not chunks:
         raise ValueError("no complete period of the excitation was recorded")
-    if sensor == "accelerometer" and loop != "position":
-        return _accel_spectra(rec, exc, chunks, loop, sample_rate, f_max)
     lines = exc.lines[exc.lines * exc.resolution <= f_max + 1e-9]
     f = lines * exc.resolution
     w = 2.0 * math.pi * f
@@ -128,8 +134,12 @@ def spectra(rec: Recording, exc: Excitation, *, loop: str, sensor: str,
     return Spectra(f, np.array(exc_), np.array(dac), np.array(out))
 
 
-def _accel_spectra(rec: Recording, exc: Excitation, chunks: list[np.ndarray], loop: str,
+def _accel_spectra(rec: Recording, exc: Excitation, measured: list[int], loop: str,
                    sample_rate: float | None, f_max: float) -> Spectra:
+    """The accelerometer's spectra against the DAC's held volts as they were applied:
+    each tick's value from its tick to the next (its read's time on the lock-step twin; on
+    real I/O its place on the sensor's clock, ``_tick_times``), so that a late or a lost
+    tick enters the input as it happened."""
     if sample_rate is None or not len(rec.accel):
         raise ValueError("the accelerometer returned no samples")
     n, period = exc.length, exc.period
@@ -150,26 +160,60 @@ def _accel_spectra(rec: Recording, exc: Excitation, chunks: list[np.ndarray], lo
     w = 2.0 * math.pi * f
     hold = hold[keep]
     average = _hold(w, ts)
+    times, origin = _tick_times(rec, period, sample_rate)
+    ends = np.append(times[1:], times[-1] + period)
     exc_, dac, out = [], [], []
-    for idx in chunks:
-        tau = float(rec.time[idx[0]])
+    for p in measured:
+        tau = origin + p * n * period
         i0 = math.floor(tau * sample_rate + 1e-6) + 1      # first sample after tau
         j = i0 - first_seq
-        if j < 0 or j + m > len(by_seq):
+        span = (ends > tau) & (times < tau + n * period)
+        if j < 0 or j + m > len(by_seq) or not span.any() or times[span][0] > tau + 1e-9:
             continue
         a = by_seq[j:j + m]
         if not np.all(np.isfinite(a)):    # samples lost in this period
             continue
-        u = np.fft.fft(rec.dac[idx])[bins % n] / n * hold
-        exc_.append(u)
+        lo = np.maximum(times[span], tau) - tau
+        hi = np.minimum(ends[span], tau + n * period) - tau
+        pieces = (np.exp(-1j * np.outer(w, lo)) - np.exp(-1j * np.outer(w, hi))) / (
+            1j * w[:, None])
+        u = pieces @ rec.dac[span] / (n * period)
+        d = np.fft.fft(rec.excitation[p * n:(p + 1) * n])[bins % n] / n * hold
         y = np.fft.fft(a)[bins] / m * np.exp(-1j * w * (i0 * ts - tau)) / average
         if loop == "speed":
             y = y / (1j * w)
+        exc_.append(d)
         dac.append(u)
         out.append(y)
     if not dac:
         raise ValueError("the accelerometer lost samples in every period")
     return Spectra(f, np.array(exc_), np.array(dac), np.array(out))
+
+
+def _tick_times(rec: Recording, period: float, sample_rate: float
+                ) -> tuple[np.ndarray, float]:
+    """When each tick wrote the DAC, and where slot 0 lies, on the clock of the
+    accelerometer's samples (s): the driver's time stamps on the lock-step twin (the plant's
+    clock); on real I/O (a paced recording, whose time stamps are the host's) each tick at
+    (last + ½)/f_s, the newest sample its read returned (within ±½ sample), slot 0 where
+    their mean says (``_sensor_clock``)."""
+    if rec.stats is None:
+        return rec.time, float(rec.time[0] - rec.slot[0] * period)
+    origin = _sensor_clock(rec, period, sample_rate)
+    nominal = origin + rec.slot * period
+    seen = (rec.accel_last + 0.5) / sample_rate
+    return np.where(np.isfinite(seen), seen, nominal), origin
+
+
+def _sensor_clock(rec: Recording, period: float, sample_rate: float) -> float:
+    """Where slot 0 lies on the accelerometer's clock (s), for a paced recording whose
+    driver time stamps are another clock: a read at sensor time t returns the samples up to
+    number ⌊t·f_s⌋, so t lies in [last/f_s, (last + 1)/f_s); with ticks every period T,
+    the mean of (last + ½)/f_s − slot·T over the ticks (each within ±½ sample)."""
+    ok = np.isfinite(rec.accel_last)
+    if not ok.any():
+        raise ValueError("the accelerometer returned no samples")
+    return float(np.mean((rec.accel_last[ok] + 0.5) / sample_rate - rec.slot[ok] * period))
 
 
 def _crossing(f: np.ndarray, values: np.ndarray, level: float) -> float:
@@ -204,16 +248,18 @@ def margins(frequency: np.ndarray, loop: np.ndarray) -> Margins:
     return Margins(gain_margin=gm, phase_margin=pm, crossover=crossover, bandwidth=bandwidth)
 
 
-def fit_mode(frequency: np.ndarray, response: np.ndarray, *, iterations: int = 8
-             ) -> complex | None:
+def fit_mode(frequency: np.ndarray, response: np.ndarray, *, iterations: int = 8,
+             weight: np.ndarray | None = None) -> complex | None:
     """The pole s (1/s, Im s > 0) of a second-order fit H ≈ (b₂s² + b₁s + b₀)/(s² + a₁s +
     a₀) to ``response`` at ``frequency`` (Hz), by Sanathanan-Koerner iterations of the
-    linearised least squares; None when the fit has no oscillating pole."""
+    linearised least squares (each line weighted by ``weight``, default 1); None when the
+    fit has no oscillating pole."""
     f = np.asarray(frequency, dtype=float)
     h = np.asarray(response, dtype=complex)
     scale = 2.0 * math.pi * float(np.median(f))
     s = 2j * math.pi * f / scale
-    weight = np.ones(len(f))
+    trust = np.ones(len(f)) if weight is None else np.asarray(weight, dtype=float)
+    weight = trust.copy()
     a1 = a0 = math.nan
     for _ in range(iterations):
         cols = np.stack([s**2, s, np.ones_like(s), -h * s, -h], axis=1) * weight[:, None]
@@ -222,7 +268,7 @@ def fit_mode(frequency: np.ndarray, response: np.ndarray, *, iterations: int = 8
         b = np.concatenate([rhs.real, rhs.imag])
         x = np.linalg.lstsq(a, b, rcond=None)[0]
         a1, a0 = x[3], x[4]
-        weight = 1.0 / np.maximum(np.abs(s**2 + a1 * s + a0), 1e-12)
+        weight = trust / np.maximum(np.abs(s**2 + a1 * s + a0), 1e-12)
     roots = np.roots([1.0, a1, a0])
     roots = roots[roots.imag > 0]
     if not len(roots) or roots[0].real >= 0:

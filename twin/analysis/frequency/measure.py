@@ -29,6 +29,7 @@ from twin.analysis.frequency.result import LOOPS, SENSORS, FrequencyResponse, Re
 from twin.config import AXES, MachineConfig, load_machine
 from twin.controller.loop_defaults import loop_gains
 from twin.errors import ConfigError
+from twin.hardware.register_map import MAPS
 from twin.plant.model import axis_mechanics
 from twin.session.machine_io import move_to, open_experiment_driver
 from twin.session.setup import axis_models, measured_position
@@ -40,6 +41,8 @@ MARGIN = 1e-3
 """Room kept between the measurement and the end switches (m)."""
 HOLD = 0.2e-3
 """How far the axis that is not measured may move from where it is held (m)."""
+USABLE = 0.5
+"""Coherence from which a line enters the resonance fit (weighted by its γ²/(1 − γ²))."""
 UNITS = {"mechanics": "m/(s²·V)", "speed": "m/(s·V)", "position": "1"}
 
 
@@ -142,30 +145,58 @@ def _unseen(belief: MachineConfig, axis: str, position: float, sensor: str, loop
     return out
 
 
-def _resonances(f: np.ndarray, h: np.ndarray, good: np.ndarray, rigid: np.ndarray,
+def _resonances(f: np.ndarray, h: np.ndarray, coherence: np.ndarray, rigid: np.ndarray,
                 axis: str, seen_by: str) -> list[Resonance]:
-    """The resonances of the trusted lines: peaks of |H/H_rigid| (dB), each the pole of a
-    second-order model fitted to H/H_rigid (the measurement over the rigid twin's
-    prediction: what the speed loop does to both divides out) over ±50 % of its
-    frequency (at least its six nearest lines)."""
-    if good.sum() < 5:
+    """The resonances: peaks of |H/H_rigid| (dB) on the lines with γ² ≥ ``USABLE``, each
+    the pole of a second-order model fitted to H/H_rigid (the measurement over the rigid
+    twin's prediction: what the speed loop does to both divides out) over half to twice
+    its frequency (at least its eight nearest lines), each line weighted by its
+    signal-to-noise ratio γ²/(1 − γ²)."""
+    usable = coherence >= USABLE
+    if usable.sum() < 8:
         return []
-    fg, hg = f[good], h[good]
-    ratio = 20.0 * np.log10(np.abs(hg / rigid[good]))
+    fg, ratio = f[usable], h[usable] / rigid[usable]
+    trust = np.sqrt(coherence[usable] / np.maximum(1.0 - coherence[usable], 1e-4))
+    level = 20.0 * np.log10(np.abs(ratio))
     found = []
-    for i in estimate.peaks(fg, ratio):
-        near = (fg >= fg[i] / 1.5) & (fg <= fg[i] * 1.5)
-        if near.sum() < 6:                # too coarse a grid: the six nearest lines
+    for i in estimate.peaks(fg, level):
+        near = (fg >= fg[i] / 2.0) & (fg <= fg[i] * 2.0)
+        if near.sum() < 8:                # too coarse a grid: the eight nearest lines
             near = np.zeros(len(fg), dtype=bool)
-            near[np.argsort(np.abs(fg - fg[i]))[:6]] = True
-        pole = estimate.fit_mode(fg[near], hg[near] / rigid[good][near])
+            near[np.argsort(np.abs(fg - fg[i]))[:8]] = True
+        pole = estimate.fit_mode(fg[near], ratio[near], weight=trust[near])
         if pole is None:
             continue
         freq, zeta = abs(pole) / (2.0 * math.pi), -pole.real / abs(pole)
         if not (fg[near].min() <= freq <= fg[near].max() and 0.0 < zeta < 1.0):
             continue
-        found.append(Resonance(freq, zeta, float(ratio[i]), axis, seen_by))
+        found.append(Resonance(freq, zeta, float(level[i]), axis, seen_by))
     return sorted(found, key=lambda r: r.frequency)
+
+
+def _jackknife(spec: estimate.Spectra, resonances: list[Resonance], rigid: np.ndarray,
+               axis: str, seen_by: str) -> list[float | None]:
+    """The standard deviation of each resonance's frequency (Hz) by the jackknife over the
+    averaged periods: the fit repeated with each left out, √((P − 1)/P·Σ(f_i − f̄)²); None
+    where a leave-one-out fit lost it or fewer than three periods were averaged."""
+    periods = len(spec.dac)
+    if periods < 3 or not resonances:
+        return [None] * len(resonances)
+    runs = []
+    for p in range(periods):
+        h, g = spec.without(p).response()
+        runs.append([r.frequency for r in _resonances(spec.frequency, h, g, rigid, axis,
+                                                      seen_by)])
+    out: list[float | None] = []
+    for r in resonances:
+        near = [min(run, key=lambda f: abs(f - r.frequency)) for run in runs if run]
+        near = [f for f in near if abs(f - r.frequency) < 0.25 * r.frequency]
+        if len(near) < periods:
+            out.append(None)
+            continue
+        f = np.array(near)
+        out.append(float(math.sqrt((periods - 1) / periods * np.sum((f - f.mean()) ** 2))))
+    return out
 
 
 def measure(machine, *, driver: str = "sim", axis: str = "x", loop: str = "mechanics",
@@ -226,9 +257,11 @@ def measure(machine, *, driver: str = "sim", axis: str = "x", loop: str = "mecha
     io, paced = open_experiment_driver(driver, base, noise=noise,
                                        accelerometer=sensor == "accelerometer")
     try:
-        if sensor == "accelerometer" and loop != "position" and (
-                getattr(getattr(io, "plant", None), "accelerometer", 1) is None):
-            raise ConfigError("sensor", "the machine serves no accelerometer")
+        if sensor == "accelerometer" and loop != "position" and paced and (
+                io.map.module.accelerometer is None):   # type: ignore[attr-defined]
+            raise ConfigError("sensor", "the I/O module's register map has no accelerometer "
+                              "(module.accelerometer; e.g. ?map=" + str(MAPS["accelerometer"])
+                              + "); or measure with --sensor motor")
         here = measured_position(io.read().encoder_counts, base)
         target, window = plan_room(base, axis, (lo, hi), here)
         say(f"{driver}: moving to x {1e3 * target[0]:.2f} mm, y {1e3 * target[1]:.2f} mm")
@@ -264,7 +297,7 @@ def measure(machine, *, driver: str = "sim", axis: str = "x", loop: str = "mecha
     prediction = predict(belief, axis, position, loop, seen_by, f, gains)
     rigid = predict(belief, axis, position, loop, seen_by, f, gains, rigid=True)
     good = coherence >= estimate.COHERENT
-    resonances = _resonances(f, response, good, rigid, axis, seen_by)
+    resonances = _resonances(f, response, coherence, rigid, axis, seen_by)
     margins = None
     info: dict[str, Any] = {}
     if loop == "position":
@@ -273,6 +306,7 @@ def measure(machine, *, driver: str = "sim", axis: str = "x", loop: str = "mecha
         design = estimate.margins(dense, design_loop(axis_models(belief)[k], gains, axis,
                                                      period, dense))
         info["design_margins"] = design.to_dict()
+    info["resonance_sd_hz"] = _jackknife(spec, resonances, rigid, axis, seen_by)
     info["accelerometer_rate_hz"] = (base.accelerometer.sample_rate
                                      if seen_by == "accelerometer" else None)
     top = float(f[good].max()) if good.any() else 0.0

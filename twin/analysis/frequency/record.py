@@ -16,6 +16,7 @@ ramp the offset asks for, so a drive that runs away is caught as well).
 
 from __future__ import annotations
 
+import math
 from collections.abc import Sequence
 from dataclasses import dataclass, field
 
@@ -52,10 +53,16 @@ class Recording:
         The measured axis' encoder position (m).
     tacho : ndarray
         Its tacho as read (V).
+    accel_last : ndarray
+        Per tick, the number of the newest accelerometer sample the read returned (nan:
+        none): it places the tick on the sensor's clock where the driver's clock is
+        another (real I/O).
     accel_sequence : ndarray of int
         The accelerometer's sample numbers (empty without one).
     accel : ndarray
         Those samples' channel of the measured axis (m/s²).
+    excitation : ndarray
+        The excitation's volts by slot (what each slot was to add).
     lost : int
         Accelerometer samples the FIFO dropped.
     stats : TickStats or None
@@ -68,8 +75,10 @@ class Recording:
     regulator: np.ndarray
     position: np.ndarray
     tacho: np.ndarray
+    accel_last: np.ndarray
     accel_sequence: np.ndarray = field(default_factory=lambda: np.zeros(0, dtype=np.int64))
     accel: np.ndarray = field(default_factory=lambda: np.zeros(0))
+    excitation: np.ndarray = field(default_factory=lambda: np.zeros(0))
     lost: int = 0
     stats: TickStats | None = None
 
@@ -114,7 +123,9 @@ class _Runner:
         inputs = self.driver.read()
         pos = self.encoder.update(inputs.encoder_counts)
         self._check(inputs, pos, slot)
+        last = math.nan
         if self.accelerometer and inputs.accel_count:
+            last = inputs.accel_sequence + inputs.accel_count - 1
             n = inputs.accel_count
             self.accel.append(inputs.accel_samples[:n, self.k].copy())
             self.accel_seq.append(inputs.accel_sequence + np.arange(n, dtype=np.int64))
@@ -141,7 +152,7 @@ class _Runner:
         self.out.enable = True
         self.driver.write(self.out)
         self.rows.append((slot, inputs.time, dac[self.k], fed_back, pos[self.k],
-                          inputs.tacho_volts[self.k]))
+                          inputs.tacho_volts[self.k], last))
         return True
 
     def _check(self, inputs, pos, slot: int) -> None:
@@ -166,12 +177,13 @@ class _Runner:
             pass
 
     def recording(self, stats: TickStats | None) -> Recording:
-        table = np.array(self.rows, dtype=float).reshape(-1, 6)
+        table = np.array(self.rows, dtype=float).reshape(-1, 7)
         seq = (np.concatenate(self.accel_seq) if self.accel_seq
                else np.zeros(0, dtype=np.int64))
         acc = np.concatenate(self.accel) if self.accel else np.zeros(0)
         return Recording(table[:, 0].astype(np.int64), table[:, 1], table[:, 2],
-                         table[:, 3], table[:, 4], table[:, 5], seq, acc, self.lost, stats)
+                         table[:, 3], table[:, 4], table[:, 5], table[:, 6], seq, acc,
+                         self.volts, self.lost, stats)
 
 
 def run_excitation(driver: MachineIO, base: MachineConfig, belief: MachineConfig, *,
