@@ -98,8 +98,9 @@ def multisine(length: int, period: float, f_min: float, f_max: float, *,
     count = len(lines)
     phases = (-math.pi * np.arange(count) * np.arange(1, count + 1) / count if seed is None
               else np.random.default_rng([seed, 0x5105]).uniform(0.0, 2.0 * math.pi, count))
-    t = np.arange(length)
-    values = np.cos(2.0 * math.pi * np.outer(t, lines) / length + phases).sum(axis=1)
+    spectrum = np.zeros(length // 2 + 1, dtype=complex)
+    spectrum[lines] = np.exp(1j * phases)
+    values = np.fft.irfft(spectrum, n=length)          # Σ cos(2πkn/N + φ_k), scaled
     return Excitation("multisine", values / np.abs(values).max(), period, lines)
 
 

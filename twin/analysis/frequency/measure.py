@@ -41,6 +41,8 @@ MARGIN = 1e-3
 """Room kept between the measurement and the end switches (m)."""
 HOLD = 0.2e-3
 """How far the axis that is not measured may move from where it is held (m)."""
+MAX_PERIOD = 2**16
+"""Most controller periods in one period of the excitation (the lowest f_min)."""
 USABLE = 0.5
 """Coherence from which a line enters the resonance fit (weighted by its γ²/(1 − γ²))."""
 UNITS = {"mechanics": "m/(s²·V)", "speed": "m/(s·V)", "position": "1"}
@@ -224,9 +226,10 @@ def measure(machine, *, driver: str = "sim", axis: str = "x", loop: str = "mecha
         who = "accelerometer" if top_limit > 0.5 / period else "controller"
         raise ConfigError("f_max", f"must lie in (0, {top_limit:g}] Hz, the Nyquist "
                           f"frequency of the {who}, got {f_max:g} Hz")
-    if not (math.isfinite(f_min) and 0.0 < f_min < min(f_max, 0.5 / period)):
-        raise ConfigError("f_min", f"must lie in (0, {min(f_max, 0.5 / period):g}) Hz, got "
-                          f"{f_min:g} Hz")
+    lowest = 1.0 / (MAX_PERIOD * period)
+    if not (math.isfinite(f_min) and lowest <= f_min < min(f_max, 0.5 / period)):
+        raise ConfigError("f_min", f"must lie in [{lowest:.3g}, "
+                          f"{min(f_max, 0.5 / period):g}) Hz, got {f_min:g} Hz")
     v_max = min(base.axes[axis].limits.max_velocity, base.controller.limits.max_velocity)
     amplitude = 0.25 * v_max if amplitude is None else float(amplitude)
     offset = 0.5 * v_max if offset is None else float(offset)
@@ -251,6 +254,8 @@ def measure(machine, *, driver: str = "sim", axis: str = "x", loop: str = "mecha
         values = np.tile(exc.values, 1 + averages)
         measured = list(range(1, 1 + averages))
     lo, hi = _excursion(values, period, amplitude, offset, loop)
+    middle = np.array([0.5 * sum(base.axes[a].mechanics.travel) for a in AXES])
+    plan_room(base, axis, (lo, hi), middle)   # room anywhere at all: before the machine
     if out_dir is not None:
         from twin.system.jsonio import output_dir
         output_dir(out_dir)
