@@ -201,16 +201,18 @@ def _jackknife(spec: estimate.Spectra, resonances: list[Resonance], rigid: np.nd
     return out
 
 
-def measure(machine, *, driver: str = "sim", axis: str = "x", loop: str = "mechanics",
-            sensor: str = "accelerometer", amplitude: float | None = None,
-            offset: float | None = None, averages: int = 8, f_min: float | None = None,
-            f_max: float | None = None, excitation: str = "multisine",
-            out_dir=None, controller_model=None, noise: bool = True,
-            progress: Callable[[str], None] | None = None) -> FrequencyResponse:
-    """See ``twin.analysis.frequency.measure``."""
-    say = progress or (lambda _m: None)
-    base = _machine(machine)
-    belief = _machine(controller_model) if controller_model is not None else base
+def _options(base: MachineConfig, belief: MachineConfig, axis: str, loop: str,
+             sensor: str, excitation: str, averages: int, amplitude: float | None,
+             offset: float | None, f_min: float | None, f_max: float | None
+             ) -> tuple[float, float, float, float]:
+    """The options checked and their defaults filled in: (amplitude, offset (m/s), f_min,
+    f_max (Hz)).
+
+    Raises
+    ------
+    ConfigError
+        Naming the option.
+    """
     _choice("axis", axis, AXES)
     _choice("loop", loop, LOOPS)
     _choice("sensor", sensor, SENSORS)
@@ -244,6 +246,23 @@ def measure(machine, *, driver: str = "sim", axis: str = "x", loop: str = "mecha
     if dac_peak > base.axes[axis].dac.full_scale:
         raise ConfigError("amplitude", f"needs {dac_peak:.2f} V at the DAC, beyond its "
                           f"{base.axes[axis].dac.full_scale:g} V")
+    return amplitude, offset, f_min, f_max
+
+
+def measure(machine, *, driver: str = "sim", axis: str = "x", loop: str = "mechanics",
+            sensor: str = "accelerometer", amplitude: float | None = None,
+            offset: float | None = None, averages: int = 8, f_min: float | None = None,
+            f_max: float | None = None, excitation: str = "multisine",
+            out_dir=None, controller_model=None, noise: bool = True,
+            progress: Callable[[str], None] | None = None) -> FrequencyResponse:
+    """See ``twin.analysis.frequency.measure``."""
+    say = progress or (lambda _m: None)
+    base = _machine(machine)
+    belief = _machine(controller_model) if controller_model is not None else base
+    amplitude, offset, f_min, f_max = _options(base, belief, axis, loop, sensor,
+                                               excitation, averages, amplitude, offset,
+                                               f_min, f_max)
+    period = base.controller.period
     excs = _excitations(excitation, base, sensor, loop, f_min, f_max, averages)
     exc = excs[0]
     # each realisation: a period to settle, then one measured (one PRBS: settle, then all)
