@@ -155,9 +155,11 @@ def test_the_elastic_speed_loop_with_a_rigid_rotor_is_the_drive_s_own(name):
 def test_a_motor_sensor_says_it_cannot_see_tomsk_s_screw_mode():
     cfg = load_machine("tomsk_xy")
     unseen = _unseen(cfg, "x", 0.15, "motor", "mechanics", 99.0)
-    assert len(unseen) == 2 and "mount an accelerometer" in unseen[0]
-    assert "above the measured band" in unseen[1]
+    assert len(unseen) == 2 and all("mount an accelerometer" in u for u in unseen)
+    above = _unseen(cfg, "x", 0.15, "accelerometer", "mechanics", 200.0)
+    assert len(above) == 1 and "mode 2" in above[0] and "above the measured band" in above[0]
     assert _unseen(cfg, "x", 0.15, "accelerometer", "mechanics", 400.0) == []
+    assert "no line" in _unseen(cfg, "x", 0.15, "accelerometer", "mechanics", 0.0)[0]
     belt = load_machine("laser_belt")        # its light rotor: the belt mode shows
     assert _unseen(belt, "x", 0.6, "motor", "speed", 140.0) == []
 

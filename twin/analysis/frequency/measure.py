@@ -135,15 +135,19 @@ def _unseen(belief: MachineConfig, axis: str, position: float, sensor: str, loop
     motor = sensor == "motor" or loop == "position"
     out = []
     for i, f in enumerate(free):
-        if f > top:
-            out.append(f"mode {i + 1} at {f:.1f} Hz: above the measured band "
-                       f"({top:.1f} Hz)")
-        elif motor and i < len(locked) and 40.0 * math.log10(f / locked[i]) < 1.0:
+        if motor and i < len(locked) and 40.0 * math.log10(f / locked[i]) < 1.0:
             out.append(f"mode {i + 1} at {f:.1f} Hz: the motor barely moves in it (its "
                        f"anti-resonance at {locked[i]:.2f} Hz, "
                        f"{40.0 * math.log10(f / locked[i]):.3f} dB deep: the rotor's "
                        f"reflected mass {chain.reflected_mass:.3g} kg against "
                        f"{chain.moving_mass:.3g} kg); mount an accelerometer")
+        elif top <= 0.0:
+            out.append(f"mode {i + 1} at {f:.1f} Hz: no line of the measurement reached "
+                       f"a coherence of {estimate.COHERENT:g} (noise or distortion)")
+        elif f > top:
+            out.append(f"mode {i + 1} at {f:.1f} Hz: above the measured band "
+                       f"({top:.1f} Hz, the highest line with a coherence of "
+                       f"{estimate.COHERENT:g})")
     return out
 
 
