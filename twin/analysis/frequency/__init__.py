@@ -47,16 +47,17 @@ def measure(machine, *, driver: str = "sim", axis: str = "x", loop: str = "mecha
         On ``sim`` an accelerometer is mounted on the table for the measurement when the
         machine file has none; over Modbus the module must serve one.
     amplitude : float, optional
-        Peak of the excitation as table speed (m/s); default 20 % of the axis' speed limit
-        (capped by the room in the work zone).
+        Peak of the excitation as table speed (m/s); default 25 % of the axis' speed limit.
     offset : float, optional
         Table speed the axis keeps meanwhile (m/s), so that friction does not reverse;
-        default 10 % of the speed limit.
+        default 50 % of the speed limit.
     averages : int
-        Periods averaged (after one period that lets the transient settle).
+        Multisine: realisations (random phases), each a period to settle and one measured;
+        PRBS: periods averaged after one that settles.
     f_min, f_max : float, optional
-        The band (Hz); ``f_max`` at most the loop's Nyquist frequency (the accelerometer's,
-        for the mechanics seen by an accelerometer).
+        The band (Hz): ``f_min`` sets the resolution (default 1 Hz); ``f_max`` at most the
+        loop's Nyquist frequency (the accelerometer's, for what an accelerometer sees;
+        default 0.75/T there, else the controller's Nyquist frequency).
     excitation : {"multisine", "prbs"}
     out_dir : path, optional
         Where ``measure-<id>/`` goes (JSON, Bode PNG, ``.rrd``); None: nothing written.
