@@ -9,6 +9,7 @@ Arrays are indexed by axis in the order ``AXES = ("x", "y")``.
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass, field
 from typing import Protocol, runtime_checkable
 
@@ -66,6 +67,9 @@ class Inputs:
         time and see a gap.
     accel_overrun : bool
         The FIFO overflowed since the last read: samples were lost.
+    accel_clock : float
+        When the read was taken on the sensor's clock (sample periods: the newest sample's
+        number plus the elapsed fraction of the next); nan without an accelerometer.
     """
 
     encoder_counts: np.ndarray = field(default_factory=_zeros_i64)
@@ -79,6 +83,7 @@ class Inputs:
     accel_count: int = 0
     accel_sequence: int = 0
     accel_overrun: bool = False
+    accel_clock: float = math.nan
 
 
 @dataclass(slots=True)

@@ -362,7 +362,9 @@ class HilModule:
         if count > block:                 # the map holds fewer than the sensor's FIFO
             fifo[:block] = fifo[count - block:count]
             first, count, lost = first + count - block, block, True
-        return accelerometer_words(count, first, lost, fifo, m.accelerometer_lsb, block)
+        clock = self.plant.time * sensor.config.sample_rate
+        return accelerometer_words(count, first, lost, fifo, m.accelerometer_lsb, block,
+                                   phase=max(0.0, clock - (first + count - 1)))
 
     def reads_accelerometer(self, address: int, count: int) -> bool:
         """Whether input registers [address, address + count) include the

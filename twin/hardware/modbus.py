@@ -230,14 +230,15 @@ class ModbusDriver:
         m = self.map.module
         words = [ir[a] for a in range(m.accelerometer, m.accelerometer
                                       + m.accelerometer_words)]
-        count, low, lost, samples = accelerometer_samples(words, m.accelerometer_lsb,
-                                                          m.accelerometer_block)
+        count, low, lost, phase, samples = accelerometer_samples(
+            words, m.accelerometer_lsb, m.accelerometer_block)
         last = self._accel_next
         first = low if last is None else last + ((low - last + 0x8000) & 0xFFFF) - 0x8000
         if count:
             self._accel_next = first + count
         inputs.accel_samples, inputs.accel_count = samples, count
         inputs.accel_sequence, inputs.accel_overrun = first, lost
+        inputs.accel_clock = first + count - 1 + phase
 
     def _check_plausible(self, counts: list[int], sent: float, now: float) -> None:
         """(With ``counts_per_s``.) Modbus/TCP has no checksum: a flipped byte in a counter

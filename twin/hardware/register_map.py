@@ -154,7 +154,9 @@ class ModuleSettings:
         First of the table accelerometer's input registers (``[accelerometer]`` of the
         machine): its FIFO as one read takes it, which empties it. Register +0: the
         samples read (bits 0-14) and bit 15 set when samples were lost since the last
-        read; +1: the sensor's sample number of the first of them (its low 16 bits); then
+        read; +1: the sensor's sample number of the first of them (its low 16 bits); +2:
+        where in the sensor's sample interval the read fell (0 … 65535 for 0 … 1, the
+        time stamp that places the read on the sensor's clock); then
         ``accelerometer_block`` pairs x, y (int16, counts of ``accelerometer_lsb``).
         None: no accelerometer.
     accelerometer_block : int
@@ -196,8 +198,8 @@ class ModuleSettings:
 
     @property
     def accelerometer_words(self) -> int:
-        """Input registers the accelerometer takes: 2 + 2·block."""
-        return 2 + 2 * self.accelerometer_block
+        """Input registers the accelerometer takes: 3 + 2·block."""
+        return 3 + 2 * self.accelerometer_block
 
 
 _TABLES = ("input registers", "holding registers", "discrete inputs", "coils")
@@ -299,7 +301,8 @@ class RegisterMap:
                "enable": "1 = drives enabled", "watchdog_tripped": "1 = outputs zeroed",
                "status": "bit n = discrete input n", "control": "bit 0 = drive enable",
                "drive_ready": "1 = no drive fault",
-               "accelerometer": f"count (bit 15: lost), first sample number, then "
+               "accelerometer": f"count (bit 15: lost), first sample number, phase of "
+                                f"the read in 1/65536 of a sample, then "
                                 f"{m.accelerometer_block} × (x, y) int16 of "
                                 f"{m.accelerometer_lsb:g} m/s²"}
         rows = []
@@ -429,10 +432,12 @@ def words_to_counter(first: int, second: int, word_order: str = "high_first") ->
 
 
 def accelerometer_words(count: int, first: int, lost: bool, samples: np.ndarray,
-                        lsb: float, block: int) -> list[int]:
+                        lsb: float, block: int, phase: float = 0.0) -> list[int]:
     """The accelerometer's registers (``ModuleSettings.accelerometer``) for ``count``
-    samples (m/s², rows x, y) from sample number ``first``."""
-    words = [(count & 0x7FFF) | (0x8000 if lost else 0), first & 0xFFFF]
+    samples (m/s², rows x, y) from sample number ``first``, read at ``phase`` (0 … 1) of
+    the sensor's sample interval."""
+    words = [(count & 0x7FFF) | (0x8000 if lost else 0), first & 0xFFFF,
+             min(int(phase * 65536.0), 0xFFFF)]
     codes = np.zeros((block, 2), dtype=np.int64)
     if count:
         codes[:count] = np.clip(np.rint(samples[:count] / lsb), -32768, 32767)
@@ -441,10 +446,11 @@ def accelerometer_words(count: int, first: int, lost: bool, samples: np.ndarray,
 
 
 def accelerometer_samples(words: list[int], lsb: float, block: int
-                          ) -> tuple[int, int, bool, np.ndarray]:
-    """(count, the low 16 bits of the first sample number, samples lost, samples (block, 2)
-    m/s²) from the accelerometer's registers."""
+                          ) -> tuple[int, int, bool, float, np.ndarray]:
+    """(count, the low 16 bits of the first sample number, samples lost, the read's phase
+    (0 … 1), samples (block, 2) m/s²) from the accelerometer's registers."""
     head = int(words[0])
-    codes = np.array(words[2:2 + 2 * block], dtype=np.int64).reshape(block, 2)
+    codes = np.array(words[3:3 + 2 * block], dtype=np.int64).reshape(block, 2)
     codes = np.where(codes >= 0x8000, codes - 0x10000, codes)
-    return head & 0x7FFF, int(words[1]), bool(head & 0x8000), codes * lsb
+    return (head & 0x7FFF, int(words[1]), bool(head & 0x8000), int(words[2]) / 65536.0,
+            codes * lsb)

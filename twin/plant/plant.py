@@ -417,6 +417,7 @@ class Plant:
             inputs.accel_samples = np.zeros((sensor.config.block, 2))
         inputs.accel_count, inputs.accel_sequence, inputs.accel_overrun = sensor.pop(
             inputs.accel_samples)
+        inputs.accel_clock = self.data.time * sensor.config.sample_rate
 
     def read(self, *, accelerometer: bool = True) -> Inputs:
         """A new I/O sample (`twin.controller.io.Inputs`; see :meth:`read_into`)."""

@@ -194,26 +194,24 @@ def _tick_times(rec: Recording, period: float, sample_rate: float
                 ) -> tuple[np.ndarray, float]:
     """When each tick wrote the DAC, and where slot 0 lies, on the clock of the
     accelerometer's samples (s): the driver's time stamps on the lock-step twin (the plant's
-    clock); on real I/O (a paced recording, whose time stamps are the host's) each tick at
-    (last + ½)/f_s, the newest sample its read returned (within ±½ sample), slot 0 where
-    their mean says (``_sensor_clock``)."""
+    clock); on real I/O (a paced recording, whose time stamps are the host's) each tick
+    where its read fell on the sensor's clock (``Inputs.accel_clock``), slot 0 where
+    ``_sensor_clock`` puts it."""
     if rec.stats is None:
         return rec.time, float(rec.time[0] - rec.slot[0] * period)
     origin = _sensor_clock(rec, period, sample_rate)
-    nominal = origin + rec.slot * period
-    seen = (rec.accel_last + 0.5) / sample_rate
-    return np.where(np.isfinite(seen), seen, nominal), origin
+    seen = rec.accel_clock / sample_rate
+    return np.where(np.isfinite(seen), seen, origin + rec.slot * period), origin
 
 
 def _sensor_clock(rec: Recording, period: float, sample_rate: float) -> float:
     """Where slot 0 lies on the accelerometer's clock (s), for a paced recording whose
-    driver time stamps are another clock: a read at sensor time t returns the samples up to
-    number ⌊t·f_s⌋, so t lies in [last/f_s, (last + 1)/f_s); with ticks every period T,
-    the mean of (last + ½)/f_s − slot·T over the ticks (each within ±½ sample)."""
-    ok = np.isfinite(rec.accel_last)
+    driver time stamps are another clock: the median over the ticks of their reads' time
+    on the sensor's clock less slot·T (a late tick does not move it)."""
+    ok = np.isfinite(rec.accel_clock)
     if not ok.any():
         raise ValueError("the accelerometer returned no samples")
-    return float(np.mean((rec.accel_last[ok] + 0.5) / sample_rate - rec.slot[ok] * period))
+    return float(np.median(rec.accel_clock[ok] / sample_rate - rec.slot[ok] * period))
 
 
 def _crossing(f: np.ndarray, values: np.ndarray, level: float) -> float:

@@ -53,10 +53,10 @@ class Recording:
         The measured axis' encoder position (m).
     tacho : ndarray
         Its tacho as read (V).
-    accel_last : ndarray
-        Per tick, the number of the newest accelerometer sample the read returned (nan:
-        none): it places the tick on the sensor's clock where the driver's clock is
-        another (real I/O).
+    accel_clock : ndarray
+        Per tick, when the read was taken on the accelerometer's clock (sample periods,
+        ``Inputs.accel_clock``; nan: no accelerometer): it places the tick on the sensor's
+        clock where the driver's clock is another (real I/O).
     accel_sequence : ndarray of int
         The accelerometer's sample numbers (empty without one).
     accel : ndarray
@@ -75,7 +75,7 @@ class Recording:
     regulator: np.ndarray
     position: np.ndarray
     tacho: np.ndarray
-    accel_last: np.ndarray
+    accel_clock: np.ndarray
     accel_sequence: np.ndarray = field(default_factory=lambda: np.zeros(0, dtype=np.int64))
     accel: np.ndarray = field(default_factory=lambda: np.zeros(0))
     excitation: np.ndarray = field(default_factory=lambda: np.zeros(0))
@@ -123,9 +123,8 @@ class _Runner:
         inputs = self.driver.read()
         pos = self.encoder.update(inputs.encoder_counts)
         self._check(inputs, pos, slot)
-        last = math.nan
+        clock = inputs.accel_clock if self.accelerometer else math.nan
         if self.accelerometer and inputs.accel_count:
-            last = inputs.accel_sequence + inputs.accel_count - 1
             n = inputs.accel_count
             self.accel.append(inputs.accel_samples[:n, self.k].copy())
             self.accel_seq.append(inputs.accel_sequence + np.arange(n, dtype=np.int64))
@@ -152,7 +151,7 @@ class _Runner:
         self.out.enable = True
         self.driver.write(self.out)
         self.rows.append((slot, inputs.time, dac[self.k], fed_back, pos[self.k],
-                          inputs.tacho_volts[self.k], last))
+                          inputs.tacho_volts[self.k], clock))
         return True
 
     def _check(self, inputs, pos, slot: int) -> None:
