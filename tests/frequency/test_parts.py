@@ -172,3 +172,23 @@ def test_no_room_for_the_excursion_names_the_amplitude():
     target, window = plan_room(cfg, "x", (-0.01, 0.05), np.array([0.005, 0.1]))
     assert window[0][0] >= cfg.axes["x"].switches.limit_min
     assert target[0] - 0.01 >= cfg.axes["x"].switches.limit_min
+
+
+@pytest.mark.parametrize("seed", SEEDS)
+def test_the_accelerometer_registers_carry_the_fifo_as_it_was(seed):
+    from twin.hardware.register_map import accelerometer_samples, accelerometer_words
+
+    rng = np.random.default_rng(seed)
+    block = int(rng.integers(1, 57))
+    lsb = float(rng.uniform(0.001, 0.1))
+    count = int(rng.integers(0, block + 1))
+    first = int(rng.integers(0, 10**7))
+    lost, phase = bool(rng.integers(2)), float(rng.uniform(0, 1))
+    samples = rng.uniform(-1000 * lsb, 1000 * lsb, (block, 2))
+    words = accelerometer_words(count, first, lost, samples, lsb, block, phase)
+    assert len(words) == 3 + 2 * block and all(0 <= w <= 0xFFFF for w in words)
+    n, low, flag, got_phase, got = accelerometer_samples(words, lsb, block)
+    assert (n, low, flag) == (count, first & 0xFFFF, lost)
+    assert got_phase == pytest.approx(phase, abs=1 / 65536)
+    assert np.abs(got[:count] - samples[:count]).max(initial=0.0) <= 0.5 * lsb + 1e-12
+    assert not got[count:].any()
