@@ -86,7 +86,9 @@ def test_over_modbus_against_twin_hil_server_as_on_sim():
     the response within the noise (three standard deviations of the ratio, from both
     coherences) on 95 % of the lines. The accelerometer samples at 800 Hz here: its FIFO
     of 32 then holds 40 ms, which a loaded host's late ticks do not overrun (at 3.2 kHz,
-    10 ms, they did); and the first mode within 2 % of the one on sim. Each read is placed
+    10 ms, they did); and the first mode within 2 % of the one on sim, or within three
+    standard deviations of its jackknife over the realisations when late ticks make it
+    noisier. Each read is placed
     on the sensor's clock by the module's time stamp (register +2 of the accelerometer's),
     not by the host's clock: without it a loaded host's late ticks put the mode off by up
     to 12 %."""
@@ -111,8 +113,9 @@ def test_over_modbus_against_twin_hil_server_as_on_sim():
     sigma = np.sqrt(variance(hil.coherence[good]) + variance(sim.coherence[good]))
     deviation = np.abs(hil.response[good] / sim.response[good] - 1)
     assert np.mean(deviation <= 3 * sigma + 0.02) >= 0.95
-    assert hil.resonances[0].frequency == pytest.approx(sim.resonances[0].frequency,
-                                                        rel=0.02)
+    sd = hil.info["resonance_sd_hz"][0] or 0.0   # its spread over the realisations
+    assert abs(hil.resonances[0].frequency - sim.resonances[0].frequency) <= max(
+        0.02 * sim.resonances[0].frequency, 3.0 * sd)
 
 
 @pytest.mark.parametrize("seed", [11] if CI else [11, 12, 13, 14])
