@@ -16,7 +16,7 @@ from twin.cli import app
 
 ENV = {**os.environ, "RERUN_ANALYTICS": "0", "COLUMNS": "200"}
 COMMANDS = ("run", "demo", "view", "machines", "experiment", "home", "jog", "hil-server",
-            "compare", "tune", "identify", "runs")
+            "compare", "tune", "identify", "measure", "runs")
 
 BAD = [
     # (arguments, what the one line must contain); more are in test_cli_bad_input.py,
@@ -58,6 +58,13 @@ BAD = [
     (("tune", "--method", "cma", "--budget-s", "-1"), "budget_s"),
     (("identify",), "Missing option '--output'"),
     (("identify", "-o", "x.toml", "--axes", "z"), "Invalid value for '--axes'"),
+    (("measure", "--axis", "z"), "Invalid value for '--axis'"),
+    (("measure", "--f-max", "5000"), "--f-max: must lie in (0, 1600] Hz, the Nyquist "
+                                     "frequency of the accelerometer"),
+    (("measure", "--sensor", "motor", "--f-max", "150"), "--f-max: must lie in (0, 100] "
+                                                          "Hz"),
+    (("measure", "--f-min", "0.05"), "--amplitude: axis x: the measurement travels"),
+    (("measure", "--amplitude", "500"), "--amplitude: must lie in (0, 15] mm/s"),
 ]
 
 

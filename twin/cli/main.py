@@ -422,13 +422,14 @@ def _cell(value: Any) -> str:
 
 def _register_more() -> None:
     """Commands that live in their own modules (imported lazily by their functions)."""
-    from twin.cli import compare, hil, identify, manual, runs, tune
+    from twin.cli import compare, hil, identify, manual, measure, runs, tune
 
     manual.register(app)
     hil.register(app)
     compare.register(app)
     tune.register(app)
     identify.register(app)
+    measure.register(app)
     runs.register(app)
 
 

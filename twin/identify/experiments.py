@@ -23,7 +23,6 @@ from collections.abc import Callable, Sequence
 import numpy as np
 
 from twin.config import AXES, MachineConfig
-from twin.controller.controller import Controller, ControllerStatus
 from twin.controller.encoder import EncoderUnwrapper
 from twin.controller.io import MachineIO, Outputs
 from twin.controller.loop_defaults import loop_gains
@@ -33,8 +32,8 @@ from twin.errors import ConfigError, ExperimentAborted
 from twin.hardware.realtime import RealTimeLoop, TickStats
 from twin.identify.log import COLUMNS, IdentLog, io_signature
 from twin.identify.plan import Piece, excursion, phases
-from twin.session.loop import TickLoop
-from twin.session.run import axis_models, measured_position, model_options
+from twin.session.machine_io import move_to
+from twin.session.run import axis_models, measured_position
 
 __all__ = ["HOLD", "MARGIN", "REPEATS", "disturbed", "run_plan", "timing"]
 
@@ -226,25 +225,6 @@ def _coast_bound(base: MachineConfig, axis: str) -> Callable[[float], float]:
     return lambda v: 2.0 * inertia * v * v / (2.0 * torque * r)
 
 
-def _move_to(driver: MachineIO, base: MachineConfig, belief: MachineConfig,
-             target: np.ndarray, paced: bool) -> None:
-    """The controller's own planned jog to ``target`` (m), run to FINISHED."""
-    here = _position(driver, base)
-    if np.allclose(here, target, atol=2.0 / min(base.axes[a].counts_per_metre for a in AXES)):
-        return
-    ctrl = Controller.from_machine(base, None, start=here, **model_options(belief))
-    ctrl.jog(list(target))
-    loop = TickLoop(ctrl, driver)
-    limit = round(120.0 / base.controller.period)  # two minutes: a jog never needs more
-    if paced:
-        loop.run_paced(base.controller.period, max_ticks=limit)
-    else:
-        loop.run(limit)
-    if ctrl.status != ControllerStatus.FINISHED:
-        raise ExperimentAborted(f"the move to the experiments' start point ended "
-                                f"{ctrl.status.name}: {ctrl.error or ''}".rstrip(": "))
-
-
 def run_plan(driver: MachineIO, base: MachineConfig, plan: Sequence[Piece], *,
              belief: MachineConfig | None = None, paced: bool = False,
              driver_name: str = "sim", progress: Callable[[float], None] | None = None,
@@ -328,7 +308,7 @@ def _run_part(driver: MachineIO, base: MachineConfig, belief: MachineConfig,
     report, None lock-step; where the table started, m). The machine is stopped (outputs
     zero, drives disabled) however it ends."""
     target, window = _room(base, part, _position(driver, base), moving)
-    _move_to(driver, base, belief, target, paced)
+    move_to(driver, base, belief, target, paced)
     runner = _Runner(driver, base, belief, numbered, window, rows, moving)
     counts = driver.read().encoder_counts
     here = measured_position(counts, base)
