@@ -27,8 +27,8 @@ keeps the design point where the undamped shaper has it, and the vibration there
 ``V_TOL·K^(n−1)/ΣA_iK^i`` (below ``V_TOL``; ``design_residual``): the damped EI shapers of
 Singhose's later curve fits are not used.
 
-Residual vibration (Singer & Seering), the vibration left after the shaper relative to that
-of an unshaped step::
+Residual vibration (Singer & Seering): the vibration left when the last impulse is given,
+relative to the vibration an unshaped step starts with::
 
     V(ω, ζ) = e^(−ζω·t_n) · |Σ A_i e^(ζω·t_i) e^(jω√(1−ζ²)·t_i)|
 
