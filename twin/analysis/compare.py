@@ -20,6 +20,10 @@ elastic oscillation
     deflection is sampled every drive interval (the twin's drive-rate samples), because the
     modes (93 and 161 Hz on tomsk_xy) lie near or above the Nyquist rate of the controller
     period. Every run summary has it (``elastic_oscillation_um``).
+residual vibration
+    The free vibration of the same deflection left once the (shaped) reference stops
+    accelerating, about its settled value (``twin.analysis.vibration``): what an input shaper
+    cancels, where the elastic oscillation above also counts the quasi-static ``m·a/k``.
 contour error (max and RMS)
     Of the table's true path, searched over the whole program (``true_contour_error``);
     they replace the run summary's, which measures the encoder position near the active
@@ -44,6 +48,7 @@ from typing import Any
 
 import numpy as np
 
+from twin.analysis.vibration import residual_vibration
 from twin.controller.metrics import contour_error, oscillation
 from twin.plant.model import mode_periods
 from twin.session.run import RunResult, RunSpec, run
@@ -66,6 +71,7 @@ FIGURES = (
     ("peak reference jerk |Δa|/T", "peak_reference_jerk_m_per_s3", "m/s³"),
     ("speed jump at junctions", "junction_speed_jump_mm_per_s", "mm/s"),
     ("elastic oscillation", "elastic_oscillation_um", "µm"),
+    ("residual vibration", "residual_vibration_um", "µm"),
     ("settling travel (loop lag)", "settling_travel_um", "µm"),
 )
 """The figures laws are compared by: label, summary key (or (key, axis)), unit. Smaller is
@@ -162,7 +168,10 @@ def law_figures(result: RunResult, contour: np.ndarray | None = None) -> dict[st
         t, d = result.fine["t"], result.fine["screw_deflection"]
     else:
         t, d = rec["t"], rec["screw_deflection"]
-    out["elastic_oscillation_um"] = elastic_oscillation(t, d, mode_periods(cfg)) * 1e6
+    periods = mode_periods(cfg)
+    out["elastic_oscillation_um"] = elastic_oscillation(t, d, periods) * 1e6
+    out["residual_vibration_um"] = residual_vibration(rec["t"], rec["ref_acceleration"], t, d,
+                                                      periods) * 1e6
     contour = true_contour_error(result) if contour is None else contour
     out["max_contour_error_um"] = float(contour.max()) * 1e6
     out["rms_contour_error_um"] = float(np.sqrt(np.mean(contour**2))) * 1e6
