@@ -16,7 +16,7 @@ from twin.cli import app
 
 ENV = {**os.environ, "RERUN_ANALYTICS": "0", "COLUMNS": "200"}
 COMMANDS = ("run", "demo", "view", "machines", "experiment", "home", "jog", "hil-server",
-            "compare", "tune", "identify", "runs")
+            "compare", "tune", "identify", "runs", "shaper")
 
 BAD = [
     # (arguments, what the one line must contain); more are in test_cli_bad_input.py,
@@ -24,7 +24,12 @@ BAD = [
     (("bogus",), "No such command 'bogus'"),
     (("--nope",), "No such option: --nope"),
     (("run", "--builtin", "nope"), "Invalid value for '--builtin'"),
-    (("run", "--profile", "sinus"), "Invalid value for '--profile'"),
+    (("run", "--profile", "sinus"), "--profile: unknown law 'sinus'"),
+    (("run", "--profile", "trapezoid+foo"), "--profile: unknown shaper 'foo'"),
+    (("compare", "--profiles", "trapezoid,parabolic+foo"), "--profiles: unknown shaper 'foo'"),
+    (("shaper", "--shapers", "zv,foo"), "--shapers: unknown shaper 'foo'"),
+    (("shaper", "--driver", "sim"), "--driver: twin measure is not in this build"),
+    (("shaper", "--frequency-spread", "1.5"), "--frequency-spread: must lie in [0, 1)"),
     (("run", "--planner", "maybe"), "Invalid value for '--planner'"),
     (("run", "--dcu-order", "7"), "--dcu-order: must be at most 3, got 7"),
     (("run", "--rerun", "foo"), "--rerun: must be file, none, spawn, serve"),

@@ -426,7 +426,7 @@ def _cell(value: Any) -> str:
 
 def _register_more() -> None:
     """Commands that live in their own modules (imported lazily by their functions)."""
-    from twin.cli import compare, hil, identify, manual, runs, tune
+    from twin.cli import compare, hil, identify, manual, runs, shaper, tune
 
     manual.register(app)
     hil.register(app)
@@ -434,6 +434,7 @@ def _register_more() -> None:
     tune.register(app)
     identify.register(app)
     runs.register(app)
+    shaper.register(app)
 
 
 _register_more()

@@ -46,7 +46,7 @@ from typing import Any
 import numpy as np
 
 from twin.config import AXES, AxisConfig, ControllerSettings, MachineConfig
-from twin.controller.corner import CornerModel
+from twin.controller.corner import CornerModel, NoCornerLimit
 from twin.controller.cyclic import FALLBACK, steady_tick, warm_up
 from twin.controller.encoder import EncoderUnwrapper
 from twin.controller.gains import RegulatorGains
@@ -59,6 +59,7 @@ from twin.controller.manual import ManualCommands
 from twin.controller.planner import MotionBlock, PlannedBlock, Planner
 from twin.controller.record import Record
 from twin.controller.regulator import PositionRegulator, RegulatorStatus
+from twin.controller.shaped_corner import ShapedCornerModel
 from twin.controller.shaping import NO_TAPS, InputShaper, ReferenceShaper, axis_shapers
 from twin.controller.status import INTEGER_FIELDS, RECORD_FIELDS, ControllerStatus
 from twin.errors import ConfigError, PlanningError, TwinError
@@ -107,7 +108,9 @@ class Controller(ManualCommands):
         Interpolator interface (seed 004).
     corner_model : CornerModel, optional
         For the planner; default the seed-001 model of these axes with the servo time
-        constant of the regulator (``loop_defaults.default_corner_model``).
+        constant of the regulator (``loop_defaults.default_corner_model``). With shapers,
+        the planner gets it plus the corner the shapers cut
+        (``shaped_corner.ShapedCornerModel``; not for a ``NoCornerLimit``).
     lookahead : int, optional
         Window (blocks); default ``settings.lookahead``.
     planner_options : mapping, optional
@@ -175,6 +178,11 @@ class Controller(ManualCommands):
         if corner_model is None:
             corner_model = default_corner_model(settings, axes, model_axes=believed,
                                                 axis_models=models, gains=gains)
+        if shapers is None:
+            shapers = axis_shapers(settings.shaper, believed, self.period)
+        shaper = ReferenceShaper(shapers, self.period)
+        if shaper.active and not isinstance(corner_model, NoCornerLimit):
+            corner_model = ShapedCornerModel(corner_model, shaper.shapers)
         options: dict[str, Any] = {"law": profile or settings.profile,
                                    "mode": planner or settings.planner,
                                    "lookahead": lookahead or settings.lookahead,
@@ -183,9 +191,6 @@ class Controller(ManualCommands):
         """Planner: the look-ahead planner (its ``work_zone`` holds the soft limits)."""
         self._free_planner = Planner.from_settings(settings, axes, **options, work_zone=None)
         self.regulator = PositionRegulator(gains, self.period, n_axes=2)
-        if shapers is None:
-            shapers = axis_shapers(settings.shaper, believed, self.period)
-        shaper = ReferenceShaper(shapers, self.period)
         self.shaper: ReferenceShaper | None = shaper if shaper.active else None
         """ReferenceShaper or None: the input shapers of the position reference."""
         if self.shaper is not None:
