@@ -59,7 +59,7 @@ from twin.controller.manual import ManualCommands
 from twin.controller.planner import MotionBlock, PlannedBlock, Planner
 from twin.controller.record import Record
 from twin.controller.regulator import PositionRegulator, RegulatorStatus
-from twin.controller.shaped_corner import ShapedCornerModel
+from twin.controller.shaped_corner import ShapedCornerModel, curve_acceleration
 from twin.controller.shaping import NO_TAPS, InputShaper, ReferenceShaper, axis_shapers
 from twin.controller.status import INTEGER_FIELDS, RECORD_FIELDS, ControllerStatus
 from twin.errors import ConfigError, PlanningError, TwinError
@@ -110,7 +110,8 @@ class Controller(ManualCommands):
         For the planner; default the seed-001 model of these axes with the servo time
         constant of the regulator (``loop_defaults.default_corner_model``). With shapers,
         the planner gets it plus the corner the shapers cut
-        (``shaped_corner.ShapedCornerModel``; not for a ``NoCornerLimit``).
+        (``shaped_corner.ShapedCornerModel``) and caps the centripetal acceleration on
+        curves (``shaped_corner.curve_acceleration``); not with a ``NoCornerLimit``.
     lookahead : int, optional
         Window (blocks); default ``settings.lookahead``.
     planner_options : mapping, optional
@@ -181,12 +182,16 @@ class Controller(ManualCommands):
         if shapers is None:
             shapers = axis_shapers(settings.shaper, believed, self.period)
         shaper = ReferenceShaper(shapers, self.period)
+        shaped: dict[str, Any] = {}
         if shaper.active and not isinstance(corner_model, NoCornerLimit):
             corner_model = ShapedCornerModel(corner_model, shaper.shapers)
+            shaped["curve_acceleration"] = curve_acceleration(shaper.shapers,
+                                                              settings.contour_tolerance)
         options: dict[str, Any] = {"law": profile or settings.profile,
                                    "mode": planner or settings.planner,
                                    "lookahead": lookahead or settings.lookahead,
-                                   "corner_model": corner_model, **(planner_options or {})}
+                                   "corner_model": corner_model, **shaped,
+                                   **(planner_options or {})}
         self.planner = Planner.from_settings(settings, axes, **options)
         """Planner: the look-ahead planner (its ``work_zone`` holds the soft limits)."""
         self._free_planner = Planner.from_settings(settings, axes, **options, work_zone=None)

@@ -10,6 +10,12 @@ over t and over the orientation of the corner on the table (it matters only when
 have different shapers). ``ShapedCornerModel`` adds κ(α) to the relative error
 ``δ* = tolerance / V_node`` of the planner's model: the loop's error and the shaper's
 are added, a bound (the loop follows the shaped, smoother corner at least as well).
+
+Curves. A curve of radius R run at v through the shapers shrinks by ``≈ v²σ²/(2R)``
+(``shaping.circle_error``; σ² the impulses' time variance): by the centripetal acceleration
+times σ²/2, whatever the radius. ``curve_acceleration`` is the centripetal acceleration
+that keeps this within ``SHAPER_SHARE`` of the contour tolerance; the planner caps the
+speed on arcs, blends and splines by it (``Planner(curve_acceleration=...)``).
 """
 
 from __future__ import annotations
@@ -22,7 +28,11 @@ import numpy as np
 from twin.controller.corner import CornerModel
 from twin.controller.shaping import InputShaper
 
-__all__ = ["ShapedCornerModel", "shaper_corner_error"]
+__all__ = ["SHAPER_SHARE", "ShapedCornerModel", "curve_acceleration", "shaper_corner_error"]
+
+SHAPER_SHARE = 0.25
+"""Share of the contour tolerance a shaped curve may lose to the shapers (the blends take
+``corner_blend``, half by default, and the loop the rest)."""
 
 _ANGLES = np.linspace(0.0, math.pi, 61)
 _ORIENTATIONS = np.linspace(0.0, math.pi, 8, endpoint=False)
@@ -89,3 +99,11 @@ class ShapedCornerModel:
         rel = (tolerance / v if math.isfinite(v) and v > 0.0 else
                (math.inf if v == 0.0 else 0.0)) + self.relative_error(angle)
         return tolerance / rel if rel > 0.0 else math.inf
+
+
+def curve_acceleration(shapers: Sequence[InputShaper | None], tolerance: float) -> float:
+    """The centripetal acceleration (m/s²) at which a curve through ``shapers`` shrinks by
+    ``SHAPER_SHARE·tolerance`` (m): ``2·SHAPER_SHARE·tolerance/σ²`` with σ the larger
+    axis' impulse spread (``InputShaper.spread``); ``inf`` without a shaper."""
+    spread = max((s.spread for s in shapers if s is not None), default=0.0)
+    return 2.0 * SHAPER_SHARE * tolerance / spread**2 if spread > 0.0 else math.inf
