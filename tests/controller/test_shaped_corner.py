@@ -62,3 +62,32 @@ def test_a_reversal_is_not_cut_and_the_model_only_slows():
         assert v <= v0
         # the relative errors add: tolerance / v = tolerance / v0 + κ(α)
         assert 50e-6 / v == pytest.approx(50e-6 / v0 + model.relative_error(angle), rel=1e-12)
+
+
+def test_the_curve_cap_keeps_a_shaped_circle_within_its_share():
+    """At the centripetal acceleration ``curve_acceleration`` allows, a circle through the
+    shapers shrinks by about SHAPER_SHARE·tolerance (``circle_error``, exact for the
+    steady circle), for random shapers, radii and tolerances; and the planner's segment caps
+    hold v²/R to it."""
+    from twin.controller.geometry import Arc
+    from twin.controller.profiles import Limits
+    from twin.controller.segment_limits import SegmentLimits
+    from twin.controller.shaped_corner import SHAPER_SHARE, curve_acceleration
+    from twin.controller.shaping import circle_error
+
+    rng = np.random.default_rng(11)
+    for _ in range(20):
+        s = design(str(rng.choice(SHAPERS)), float(rng.uniform(5, 80)),
+                   float(rng.uniform(0, 0.5)))
+        tol = float(rng.uniform(5e-6, 100e-6))
+        a = curve_acceleration((s, None), tol)
+        radius = float(rng.uniform(1e-3, 0.1))
+        v = math.sqrt(a * radius)
+        if v * s.spread / radius < 0.5:       # the small-angle regime of the v²σ²/2R law
+            assert circle_error(s, radius, v) == pytest.approx(SHAPER_SHARE * tol, rel=0.15)
+        lim = Limits(max_velocity=10.0, max_acceleration=50.0, max_jerk=1e4)
+        caps = SegmentLimits(lim, (lim, lim), jerk=False, curve_acceleration=a)
+        arc = Arc((radius, 0.0), (0.0, radius), (0.0, 0.0), ccw=True)
+        cap, _, _ = caps.curve_caps(arc, 10.0)
+        assert cap * cap / radius == pytest.approx(min(a, 0.8 * 50.0), rel=1e-9)
+    assert curve_acceleration((None, None), 1e-5) == math.inf
