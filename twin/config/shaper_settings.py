@@ -8,6 +8,9 @@ A machine file::
     frequency = 16.0      # Hz; unset: the first elastic mode of the controller's model
     damping = 0.1         # 1;  unset: the model's transmission damping ratio
 
+    [controller.shaper]
+    curve_share = 0.25    # of the contour tolerance a shaped curve may lose; 0: no cap
+
 ``--profile trapezoid+mzv`` (``twin run``, ``twin compare --profiles``, ``RunSpec.profile``)
 is the law ``trapezoid`` with the shaper ``mzv`` on both axes, at the frequency and damping
 of the machine file (or its model); ``trapezoid+none`` turns shaping off; a bare law keeps
@@ -54,6 +57,11 @@ class ShaperAxes(Validated):
 
     x: ShaperSettings = field(default_factory=_axis)
     y: ShaperSettings = field(default_factory=_axis)
+    curve_share: float = num(0.25, "1", ge=0.0, le=4.0, doc="share of the contour tolerance "
+                             "a curve may lose to the shapers: the planner caps the "
+                             "centripetal acceleration at 2·share·tolerance/σ² (σ the "
+                             "shaper's impulse spread); 0: no cap (shaped circles shrink by "
+                             "a·σ²/2)")
 
     def check_nyquist(self, period: float) -> None:
         """A frequency the controller period cannot shape (at or above its Nyquist rate

@@ -185,8 +185,8 @@ class Controller(ManualCommands):
         shaped: dict[str, Any] = {}
         if shaper.active and not isinstance(corner_model, NoCornerLimit):
             corner_model = ShapedCornerModel(corner_model, shaper.shapers)
-            shaped["curve_acceleration"] = curve_acceleration(shaper.shapers,
-                                                              settings.contour_tolerance)
+            shaped["curve_acceleration"] = curve_acceleration(
+                shaper.shapers, settings.contour_tolerance, settings.shaper.curve_share)
         options: dict[str, Any] = {"law": profile or settings.profile,
                                    "mode": planner or settings.planner,
                                    "lookahead": lookahead or settings.lookahead,
