@@ -26,7 +26,7 @@ from twin.config.fields import Validated, choice, num
 from twin.errors import ConfigError
 
 __all__ = ["SHAPER_TYPES", "ShaperAxes", "ShaperSettings", "profile_overrides",
-           "split_profile"]
+           "shaper_overrides", "split_profile"]
 
 SHAPER_TYPES = ("none", "zv", "mzv", "zvd", "ei", "2hump-ei", "3hump-ei")
 """"none" and the shapers of ``twin.controller.shaping.SHAPERS`` (a test keeps them equal)."""
@@ -99,11 +99,25 @@ def split_profile(text: str, field: str = "profile") -> tuple[str, str | None]:
     return law, shaper
 
 
+def shaper_overrides(name: str, field: str = "shaper") -> dict[str, Any]:
+    """The machine overrides that put shaper ``name`` (``SHAPER_TYPES``) on both axes.
+
+    Raises
+    ------
+    ConfigError
+        Naming ``field``: an unknown shaper.
+    """
+    shaper = str(name).strip().lower().replace("_", "-")
+    if shaper not in SHAPER_TYPES:
+        raise ConfigError(field, f"unknown shaper {name!r}; one of {', '.join(SHAPER_TYPES)}")
+    return {f"controller.shaper.{a}.type": shaper for a in ("x", "y")}
+
+
 def profile_overrides(text: str, field: str = "profile") -> dict[str, Any]:
     """The machine overrides ``text`` (``split_profile``) stands for: the law, and the
     shaper type of both axes when one is named."""
     law, shaper = split_profile(text, field)
     out: dict[str, Any] = {"controller.profile": law}
     if shaper is not None:
-        out.update({f"controller.shaper.{a}.type": shaper for a in ("x", "y")})
+        out.update(shaper_overrides(shaper, field))
     return out
