@@ -61,6 +61,7 @@ BAD = [
     (("tune", "--method", "grid"), "Invalid value for '--method'"),
     (("tune", "--method", "cma", "--program", "nope"), "Invalid value for '--program'"),
     (("tune", "--method", "cma", "--budget-s", "-1"), "budget_s"),
+    (("tune", "--method", "cma", "--shaper", "foo"), "--shaper: unknown shaper 'foo'"),
     (("identify",), "Missing option '--output'"),
     (("identify", "-o", "x.toml", "--axes", "z"), "Invalid value for '--axes'"),
 ]
