@@ -48,6 +48,7 @@ from typing import Any
 
 import numpy as np
 
+from twin.analysis.spectrum import amplitude_density, peak
 from twin.analysis.vibration import residual_vibration
 from twin.controller.metrics import contour_error, oscillation
 from twin.plant.model import mode_periods
@@ -57,7 +58,7 @@ from twin.telemetry.sink import Sink
 
 __all__ = ["FIGURES", "LAW_COLOURS", "LAW_COLOUR_NAMES", "Comparison", "LawRun", "compare",
            "elastic_oscillation", "figure_value", "junction_speed_jump", "junctions",
-           "law_figures", "mode_periods",
+           "law_colour", "law_colour_name", "law_figures", "mode_periods",
            "true_contour_error", "verdict", "widest_difference"]
 
 FIGURES = (
@@ -88,6 +89,23 @@ LAW_COLOURS = {"trapezoid": (214, 39, 40), "parabolic": (31, 119, 180),
 LAW_COLOUR_NAMES = {"trapezoid": "red", "parabolic": "blue", "cosine": "green",
                     "cubic": "purple", "jerk-limited": "orange"}
 """The names of ``LAW_COLOURS``, for the overlay's titles (its plots name their series)."""
+
+
+def law_colour(profile: str) -> tuple[int, int, int]:
+    """The colour of a profile (RGB): its law's (``LAW_COLOURS``), darkened by half for
+    ``law+shaper``; grey for an unknown law."""
+    law, _, shaper = profile.partition("+")
+    rgb = LAW_COLOURS.get(law, (90, 90, 90))
+    if shaper and shaper != "none":
+        return (rgb[0] // 2, rgb[1] // 2, rgb[2] // 2)
+    return rgb
+
+
+def law_colour_name(profile: str) -> str:
+    """``law_colour``'s name: the law's (``LAW_COLOUR_NAMES``), "dark …" when shaped."""
+    law, _, shaper = profile.partition("+")
+    name = LAW_COLOUR_NAMES.get(law, "grey")
+    return f"dark {name}" if shaper and shaper != "none" else name
 
 
 # --------------------------------------------------------------------------- metrics
@@ -169,6 +187,9 @@ def law_figures(result: RunResult, contour: np.ndarray | None = None) -> dict[st
     else:
         t, d = rec["t"], rec["screw_deflection"]
     periods = mode_periods(cfg)
+    f_hz, density = amplitude_density(rec["t"], rec["following_error"])
+    # the loop's and the mode's band, not the moves' own slow content
+    out["following_error_peak_hz"] = peak(f_hz, density, above=0.5 / max(periods))[0]
     out["elastic_oscillation_um"] = elastic_oscillation(t, d, periods) * 1e6
     out["residual_vibration_um"] = residual_vibration(rec["t"], rec["ref_acceleration"], t, d,
                                                       periods) * 1e6
@@ -306,7 +327,7 @@ class _LawSink:
     def __init__(self, shared: Sink, law: str):
         self.shared, self.law = shared, law
         self.prefix = f"laws/{law}/"
-        self.colour = LAW_COLOURS.get(law, (90, 90, 90))
+        self.colour = law_colour(law)
 
     def static_path(self, entity: str, points: np.ndarray, *,
                     color: tuple[int, int, int] = (160, 160, 160)) -> None:
@@ -351,7 +372,7 @@ def _shared_sink(path: Path, laws: Sequence[str], run_id: str) -> Sink:
     from twin.telemetry.blueprint import overlay_blueprint
     from twin.telemetry.rerun_sink import RerunSink
 
-    names = {law: LAW_COLOUR_NAMES.get(law, "grey") for law in laws}
+    names = {law: law_colour_name(law) for law in laws}
     sink = RerunSink(path, recording_id=run_id, recording_name=run_id,
                      blueprint=lambda extents: overlay_blueprint(names, extents))
     sink.machine_frame("laws")          # the paths in mm, Y up, as in a run's layout
