@@ -74,7 +74,7 @@ def test_the_override_file_loads_into_the_machine(tmp_path):
 def test_one_closed_loop_evaluation():
     spec = RunSpec(machine="laser_belt")
     modes = model_modes(spec.machine_config())
-    none, zvd = evaluate(spec, modes, ("zvd",), steps=0, side=0.015, radius=0.01)
+    none, zvd = evaluate(spec, modes, ("zvd",), steps=0, side=0.01, radius=0.004)
     assert none.vibration["worst"] == 1.0 and zvd.vibration["at_mode"] < 1e-12
     assert zvd.duration == pytest.approx(design("zvd", modes[0].frequency,
                                                 modes[0].damping).duration)
