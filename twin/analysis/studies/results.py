@@ -574,9 +574,11 @@ def _shaping(r: Mapping[str, Any]) -> str:
                    f"({'met' if c['contour_within_tolerance'] else 'NOT met'}).")
     trap = r["runs"]["trapezoid"]["max_contour_error_um"]
     out += ["", f"Plain trapezoid itself leaves {trap:.1f} µm on this nest "
-            f"({'within' if trap <= tol else 'above'} the {tol:g} µm tolerance): the P-only "
-            "loop's lag on curves and the belt's friction stretch, which no shaper removes. "
-            "A shaper cuts a corner it passes while decelerating (the acceleration part, "
+            f"({'within' if trap <= tol else 'above'} the {tol:g} µm tolerance), which no "
+            "shaper removes (on the test path, unshaped at low acceleration, the largest "
+            "error is the belt's friction stretch at a stop, which the motor encoder does "
+            "not see; the nest's largest errors were not located). A shaper cuts a corner "
+            "it passes while decelerating (the acceleration part, "
             "which `twin shaper`'s highest acceleration bounds) and shrinks a curve by "
             "a·σ²/2: kept within its share by the curve cap, at the cycle time the table "
             "shows."]
