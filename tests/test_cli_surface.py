@@ -27,6 +27,8 @@ BAD = [
     (("run", "--profile", "sinus"), "--profile: unknown law 'sinus'"),
     (("run", "--profile", "trapezoid+foo"), "--profile: unknown shaper 'foo'"),
     (("compare", "--profiles", "trapezoid,parabolic+foo"), "--profiles: unknown shaper 'foo'"),
+    (("compare", "--profiles", "trapezoid,trapezoid+mzv"),          # tomsk_xy's y: 161 Hz
+     "--profiles: trapezoid+mzv: controller.shaper.y.frequency: unset, and the model's mode"),
     (("shaper", "--shapers", "zv,foo"), "--shapers: unknown shaper 'foo'"),
     (("shaper", "--driver", "sim"), "--driver: twin measure is not in this build"),
     (("shaper", "--frequency-spread", "1.5"), "--frequency-spread: must lie in [0, 1)"),

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import dataclasses
 import shutil
 import sys
 from pathlib import Path
@@ -57,6 +58,18 @@ def _wins(verdicts: list[dict[str, Any]]) -> str:
     if "tie" in by_law:
         parts.append(f"tied: {', '.join(by_law['tie'])}")
     return "; ".join(parts)
+
+
+def _check_shapers(spec: Any, law: str) -> None:
+    """The shapers ``law`` puts on the machine can be built (a mode above the Nyquist rate
+    of the controller period cannot be shaped), or a ``ConfigError`` naming ``--profiles``."""
+    from twin.controller.shaping import axis_shapers
+
+    cfg = spec.machine_config()
+    try:
+        axis_shapers(cfg.controller.shaper, spec.belief(cfg).axes, cfg.controller.period)
+    except ConfigError as exc:
+        raise ConfigError("--profiles", f"{law}: {exc.field}: {exc.message}") from None
 
 
 def _call_folder(out: Path) -> Path:
@@ -136,6 +149,8 @@ def compare_cmd(
                        else planner.value, dcu_order=dcu_order,
                        overrides=parse_sets(sets))
         base.belief(base.machine_config())
+        for law in laws:                  # a shaper the period cannot act on: before any run
+            _check_shapers(dataclasses.replace(base, profile=law), law)
         swept = _parse_sweep(sweep) if sweep is not None else None    # before any file
         folder = _call_folder(out)
         say = _Say(len(laws))
