@@ -96,10 +96,11 @@ class Tuning:
         self.scales = metric_scales(self.baseline)
         self.max_time = max_time_factor * self.baseline.sim_time + 5.0
 
-    def run(self, settings: TuningSettings) -> RunOutcome:
-        """One run with ``settings``."""
+    def run(self, settings: TuningSettings, *, trace: bool = False) -> RunOutcome:
+        """One run with ``settings`` (``trace``: keep its errors against time,
+        ``RunOutcome.trace``)."""
         return tuning_run(self.cfg, settings, models=self.models, program=self.program,
-                          max_time=self.max_time, model_axes=self.belief.axes)
+                          max_time=self.max_time, model_axes=self.belief.axes, trace=trace)
 
     def terms(self, outcome: RunOutcome) -> dict[str, float]:
         """Weighted cost terms (``cost_terms``) of an outcome on this machine, and the

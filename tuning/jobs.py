@@ -8,6 +8,8 @@ same files there:
 
 * ``best.toml`` — the best settings as a machine-override file (``tuning.report``);
 * ``convergence.png`` — cost and max coordinate error per run against the analytic design;
+* ``runs.png`` — the analytic run and the best run over each other: path speed and each
+  axis' coordinate error against time;
 * ``report.md`` — the table best vs analytic;
 * ``result.json`` — the summary (also what ``twin tune --json`` prints) with every trial
   and the cost weights the job used.
@@ -31,6 +33,7 @@ from tuning.report import (
     comparison,
     notes,
     plot_convergence,
+    plot_runs,
     rounded_settings,
     settings_changes,
     settings_markdown,
@@ -355,6 +358,8 @@ def _tune_in(spec: TuneSpec, cfg: MachineConfig, out: Path, start: float,
         if found is not baseline and not improved:
             # rounding lost the little it had won: the analytic design stands, as written
             best = ev.settings_trial(rounded_settings(baseline.settings), baseline.x)
+        traces = (ev.trace(baseline.settings),
+                  ev.trace(best.settings) if improved else None)
     said = notes(baseline, best, runs=len(trials), improved=improved)
     header = (f"twin tune --method {spec.method}: best settings for {cfg.name}, program "
               f"{spec.program}", f"cost {best.cost:.4g} (analytic {baseline.cost:.4g}); "
@@ -371,6 +376,8 @@ def _tune_in(spec: TuneSpec, cfg: MachineConfig, out: Path, start: float,
     files["result"] = out / "result.json"
     files["report"] = out / "report.md"
     files["plot"] = out / "convergence.png"
+    if traces[0] is not None:             # the analytic run finished (it always does)
+        files["runs"] = out / "runs.png"
     weights = dataclasses.asdict(ev.tuning.weights)     # the weights the runs were costed with
     result = TuneResult(spec, baseline, best, list(trials), files,
                         time.perf_counter() - start, weights, improved)
@@ -387,8 +394,12 @@ def _tune_in(spec: TuneSpec, cfg: MachineConfig, out: Path, start: float,
                       + "".join(f"**{n[0].upper()}{n[1:]}.**\n\n" for n in said)
                       + table_markdown(rows) + "\n"
                       + settings_markdown(settings_changes(baseline.settings, best.settings))
-                      + "\n" + weights_markdown(weights) + "\n" + limit)
-    plot_convergence(files["plot"], trials, baseline,
-                     title=f"{spec.method} on {cfg.name} ({spec.program})",
-                     training=training)
+                      + "\n" + weights_markdown(weights) + "\n" + limit
+                      + "Figures: `convergence.png` (every tuning run against the analytic "
+                      "design), `runs.png` (the analytic run and the best run over each "
+                      "other: path speed and coordinate errors against time).\n")
+    title = f"{spec.method} on {cfg.name} ({spec.program})"
+    plot_convergence(files["plot"], trials, baseline, title=title, training=training)
+    if "runs" in files and traces[0] is not None:
+        plot_runs(files["runs"], traces[0], traces[1], title=title)
     return result

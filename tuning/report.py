@@ -327,3 +327,43 @@ def plot_convergence(path: Path, trials: Sequence[Trial], baseline: Trial, *,
     fig.savefig(path, dpi=100)
     plt.close(fig)
     return path
+
+
+def plot_runs(path: Path, analytic: dict[str, np.ndarray],
+              best: dict[str, np.ndarray] | None, *, title: str) -> Path:
+    """The analytic design's run and the best run drawn over each other against time:
+    the reference's path speed (mm/min) and each axis' coordinate error (µm), the analytic
+    run dashed, the best solid (``RunOutcome.trace`` of each). ``best`` None: the analytic
+    run alone (nothing beat it). Writes a PNG."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    runs = [("analytic design", analytic, "--", "C3")]
+    if best is not None:
+        runs.append(("best run", best, "-", "C0"))
+    fig, axes = plt.subplots(3, 1, figsize=(8, 7.5), sharex=True)
+    for label, tr, style, colour in runs:
+        t = tr["t"]
+        axes[0].plot(t, tr["speed"] * 6e4, style, color=colour, lw=1.0, label=label)
+        for k, ax in enumerate(axes[1:]):
+            ax.plot(t, tr["error"][:, k] * 1e6, style, color=colour, lw=0.8, label=label)
+    axes[0].set_ylabel("path speed (mm/min)")
+    axes[1].set_ylabel("X coordinate error (µm)")
+    axes[2].set_ylabel("Y coordinate error (µm)")
+    axes[2].set_xlabel("time (s)")
+    fig.suptitle(title + ("" if best is not None else ": nothing beat the analytic design"))
+    # one legend above the panels, where it hides no trace
+    fig.legend(*axes[0].get_legend_handles_labels(), loc="upper center", ncol=2,
+               fontsize=8, frameon=False, bbox_to_anchor=(0.5, 0.955))
+    end = max(float(tr["t"][-1]) for _, tr, _, _ in runs if len(tr["t"]))
+    for ax in axes:
+        ax.grid(True, alpha=0.3)
+        ax.set_xlim(0.0, end)
+    fig.tight_layout(rect=(0.0, 0.0, 1.0, 0.93))
+    path = Path(path)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    fig.savefig(path, dpi=100)
+    plt.close(fig)
+    return path

@@ -40,7 +40,7 @@ from twin.cli.common import (  # noqa: E402
 from twin.config import available_machines, diff_machines, field_unit, load_machine  # noqa: E402
 from twin.config.overrides import SET_HELP  # noqa: E402
 from twin.errors import ConfigError, TwinError  # noqa: E402
-from twin.system.jsonio import json_text  # noqa: E402
+from twin.system.jsonio import forget_outputs, json_text  # noqa: E402
 
 __all__ = ["app"]
 
@@ -70,6 +70,7 @@ def main(show_version: bool = typer.Option(False, "--version", callback=_version
                                            is_eager=True, help="Print the version and exit.")
          ) -> None:
     """xy-twin: a digital twin of a two-axis CNC cross table."""
+    forget_outputs()        # a command answers only for the folders it makes itself
 
 
 def _emit(obj: dict[str, Any], as_json: bool) -> None:
