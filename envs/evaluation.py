@@ -145,7 +145,8 @@ def tuning_run(cfg: MachineConfig, settings: TuningSettings, *,
     Parameters
     ----------
     cfg : MachineConfig
-        The machine (its jerk limit is replaced by ``settings.max_jerk``).
+        The machine (its jerk limit, and its shapers' frequency and damping when tuned,
+        replaced by ``settings``: ``TuningSettings.overrides``).
     settings : TuningSettings
         Gains and jerk limit.
     models : sequence of 2 LinearAxisModel
@@ -166,7 +167,7 @@ def tuning_run(cfg: MachineConfig, settings: TuningSettings, *,
     RunOutcome
     """
     wall = time.perf_counter()
-    cfg = cfg.with_overrides({"controller.limits.max_jerk": float(settings.max_jerk)})
+    cfg = cfg.with_overrides(settings.overrides())
     p = wire(cfg, lambda start: tuning_program(program, cfg, start), gains=settings.gains,
              axis_models=list(models), model_axes=model_axes)
     ctrl = p.controller

@@ -42,6 +42,7 @@ from tuning.report import (
     write_overrides,
 )
 from twin.config import MachineConfig, load_machine
+from twin.config.shaper_settings import shaper_overrides
 from twin.errors import ConfigError
 from twin.system.jsonio import folder_lock, output_dir, write_json_atomic, write_text_atomic
 
@@ -106,6 +107,10 @@ class TuneSpec:
     heartbeat_s, grace_s : int
         Optuna: heartbeat interval of a running trial, and the age of the last heartbeat
         after which its worker is taken for dead (s).
+    shaper : str or None
+        An input shaper on both axes (``twin.config.shaper_settings.SHAPER_TYPES``): its
+        frequency and damping are tuned with the gains (``envs.space``); None: the
+        machine's shapers (tuned when it shapes both axes).
     """
 
     method: str
@@ -128,8 +133,11 @@ class TuneSpec:
     worker: bool = False
     heartbeat_s: int = 5
     grace_s: int = 20
+    shaper: str | None = None
 
     def __post_init__(self) -> None:
+        if self.shaper is not None:
+            shaper_overrides(self.shaper, "shaper")
         if self.method not in METHODS:
             raise ConfigError("method", f"must be one of {', '.join(METHODS)}, got "
                               f"{self.method!r}")
@@ -313,6 +321,8 @@ def tune(spec: TuneSpec, *, on_trial: Callable[[Trial], None] | None = None,
     if spec.out_dir is None:
         spec = dataclasses.replace(spec, out_dir=job_folder(spec))
     cfg: MachineConfig = load_machine(spec.machine)
+    if spec.shaper is not None:
+        cfg = cfg.with_overrides(shaper_overrides(spec.shaper, "shaper"))
     if spec.method == "optuna" and spec.storage:   # a shared study: checked before writing
         from tuning.study_storage import check_study, study_identity
 
@@ -361,7 +371,8 @@ def _tune_in(spec: TuneSpec, cfg: MachineConfig, out: Path, start: float,
     # what the job is for comes first: the settings and the result; the figure and the
     # report after them, so that a failing plot (a full disk, a broken backend) loses
     # neither
-    files["overrides"] = write_overrides(out / "best.toml", best.settings, header=header)
+    files["overrides"] = write_overrides(out / "best.toml", best.settings, header=header,
+                                         shaper_type=cfg.controller.shaper.x.type)
     files["result"] = out / "result.json"
     files["report"] = out / "report.md"
     files["plot"] = out / "convergence.png"

@@ -175,3 +175,26 @@ def test_black_box_tuning_beats_the_analytic_dcu(tmp_path):
     assert best["overshoot"] <= base["overshoot"]
     assert math.isfinite(result.best.cost) and result.best.cost < result.baseline.cost
     assert result.wall_time < 600.0
+
+
+def test_tuned_shapers_round_trip_through_best_toml(tmp_path):
+    """Random shaper settings written as best.toml read back bit for bit, and the file
+    turns the machine's shapers on with them (type, frequency, damping)."""
+    from envs.space import TuningSpace
+    from tuning.report import rounded_settings
+
+    cfg = load_machine("laser_belt").with_overrides(
+        {f"controller.shaper.{a}.type": "mzv" for a in ("x", "y")})
+    space = TuningSpace.from_machine(cfg, axis_models(cfg))
+    rng = np.random.default_rng(7)
+    for k in range(4):
+        s = space.decode(rng.uniform(-1, 1, space.dim)).to_dict()
+        path = write_overrides(tmp_path / f"b{k}.toml", s, shaper_type="mzv")
+        back = read_overrides(path, space.analytic).to_dict()
+        assert back == s
+        loaded = cfg.with_overrides(set_file_overrides(path))
+        for i, axis in enumerate(("x", "y")):
+            got = getattr(loaded.controller.shaper, axis)
+            assert (got.type, got.frequency, got.damping) == (
+                "mzv", s["shaper_frequency"][i], s["shaper_damping"][i])
+        assert set(rounded_settings(s)) == set(s)

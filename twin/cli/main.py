@@ -29,7 +29,6 @@ from twin.cli.common import (  # noqa: E402
     RERUN_HELP,
     RUN_ROWS,
     Builtin,
-    Law,
     PlannerMode,
     err,
     fail,
@@ -98,10 +97,13 @@ def _run(program: Path | None, machine: str, profile: str | None, planner: str |
          driver: str = "sim", rt_priority: int = 0, set_file: Path | None = None,
          controller_model: str | None = None, rerun_port: int = 9876) -> None:
     from twin.config.overrides import parse_sets, set_file_overrides
+    from twin.config.shaper_settings import split_profile
     from twin.session.run import RunSpec, run
     from twin.session.run_end import RunInterrupted
 
     try:
+        if profile is not None:
+            split_profile(profile, "--profile")
         spec = RunSpec(machine=machine, controller_model=controller_model,
                        program=str(program) if program else None,
                        builtin=builtin, profile=profile, planner=planner,
@@ -211,8 +213,11 @@ def run_cmd(
                                            "default program."),
     machine: str = MachineOpt,
     controller_model: str | None = ModelOpt,
-    profile: Law | None = typer.Option(None, help="Acceleration law (default: the "
-                                       "machine's)."),
+    profile: str | None = typer.Option(None, help="Acceleration law (trapezoid, parabolic, "
+                                       "cosine, cubic, jerk-limited; default: the "
+                                       "machine's), or LAW+SHAPER with an input shaper on "
+                                       "both axes (zv, mzv, zvd, ei, 2hump-ei, 3hump-ei, "
+                                       "none), e.g. trapezoid+ei."),
     planner: PlannerMode | None = typer.Option(None, help="Look ahead over the blocks, or "
                                                "stop at every node (default: the "
                                                "machine's)."),
@@ -249,7 +254,7 @@ def run_cmd(
         rerun = rerun_target(rerun, live=True)
     except TwinError as exc:
         fail(exc, as_json)
-    _run(program, machine, None if profile is None else profile.value,
+    _run(program, machine, profile,
          None if planner is None else planner.value, dcu_order, period, sets, rerun, out,
          as_json, dry_run, builtin.value, driver, rt_priority, set_file, controller_model,
          rerun_port)
@@ -422,7 +427,7 @@ def _cell(value: Any) -> str:
 
 def _register_more() -> None:
     """Commands that live in their own modules (imported lazily by their functions)."""
-    from twin.cli import compare, hil, identify, manual, measure, runs, tune
+    from twin.cli import compare, hil, identify, manual, measure, runs, shaper, tune
 
     manual.register(app)
     hil.register(app)
@@ -431,6 +436,7 @@ def _register_more() -> None:
     identify.register(app)
     measure.register(app)
     runs.register(app)
+    shaper.register(app)
 
 
 _register_more()

@@ -32,6 +32,7 @@ from twin.config.axis import (
 )
 from twin.config.build import from_dict, set_path, to_raw
 from twin.config.fields import Validated, choice, flag, num, range_text, spec
+from twin.config.shaper_settings import ShaperAxes
 from twin.errors import ConfigError
 
 __all__ = [
@@ -255,6 +256,10 @@ class ControllerSettings(Validated):
     gcode: GcodeSettings = field(default_factory=GcodeSettings)
     timing: TimingConfig = field(default_factory=TimingConfig)
     deadlines: DeadlineConfig = field(default_factory=DeadlineConfig)
+    shaper: ShaperAxes = field(default_factory=ShaperAxes)
+
+    def _check(self) -> None:
+        self.shaper.check_nyquist(self.period)
 
 
 @dataclass(frozen=True, kw_only=True)
