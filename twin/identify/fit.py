@@ -237,6 +237,8 @@ def fit(base: MachineConfig, log: IdentLog, *,
     # 5. everything the replay carries, together
     fit_mask = log.experiment_mask(FIT_EXPERIMENTS)
     names = ["inertia", "coulomb", "viscous", "breakaway", "resistance", "inductance"]
+    say("joint fit: " + ", ".join(names) + " (three iterations, each replaying the "
+        "experiments) …")
     params, jac, res = levenberg_marquardt(problem, params, names, fit_mask, start,
                                            iterations=3)
     coords = [c for c in COORDS if c[0] in names]
@@ -252,6 +254,9 @@ def fit(base: MachineConfig, log: IdentLog, *,
                  <= h} for a in axes}
     fitted = dict(params)
     if any(wide.values()):   # fitted again: around BASE's values, or on from the first fit
+        say("not pinned down by these experiments: " + "; ".join(
+            f"{a} {', '.join(sorted(wide[a]))}" for a in axes if wide[a])
+            + "; fitted again with the others …")
         params = {**params, **{a: params[a].with_(**{n: getattr(start[a], n)
                                                      for n in loose[a]}) for a in axes}}
         params, jac, res = levenberg_marquardt(problem, params, names, fit_mask, start,
