@@ -89,10 +89,12 @@ LONG_FIRST = ("tests/identify/", "tests/tuning/", "tests/hardware/", "tests/freq
               "tests/test_cli_surface.py", "tests/test_shutdown.py",
               "tests/test_config_fuzz.py", "tests/test_output_paths.py")
 """Where the suite's longest fixtures and runs are (identification over Modbus, tuning
-jobs, servers): their files are collected first. ``--dist loadfile`` hands files to the
-two CI workers in collection order, so the long ones start early and the many short ones
-fill in behind them; in alphabetical order a worker ran identification alone for the last
-two and a half minutes of an 11-minute run. Only the order changes, never what runs."""
+jobs, servers): their files are collected first. With ``--dist loadfile
+--no-loadscope-reorder`` (the Makefile's) xdist hands files to the two CI workers in
+collection order, so the long ones start early and the many short ones fill in behind
+them. xdist's own order, most tests first, put identification (few tests, minutes each)
+last: a worker ran it alone for about two minutes of an 11-minute run. Only the order
+changes, never what runs."""
 
 
 def pytest_collection_modifyitems(config, items):
