@@ -24,7 +24,7 @@ lint: $(STAMP)
 	$(BIN)/lint-imports
 
 test: lint
-	$(BIN)/python -m pytest -n 2 --dist loadfile --no-loadscope-reorder --durations=15
+	$(BIN)/python -m pytest -n 2 --dist loadfile --durations=15
 
 # LinuxCNC's own interpreter (rs274, Debian's linuxcnc-uspace) as the reference reader.
 test-linuxcnc: $(STAMP)

@@ -84,22 +84,3 @@ def pytest_sessionfinish(session, exitstatus):
             pass
     session.exitstatus = 1
 
-
-LONG_FIRST = ("tests/identify/", "tests/tuning/", "tests/hardware/", "tests/frequency/",
-              "tests/test_cli_surface.py", "tests/test_shutdown.py",
-              "tests/test_config_fuzz.py", "tests/test_output_paths.py")
-"""Where the suite's longest fixtures and runs are (identification over Modbus, tuning
-jobs, servers): their files are collected first. With ``--dist loadfile
---no-loadscope-reorder`` (the Makefile's) xdist hands files to the two CI workers in
-collection order, so the long ones start early and the many short ones fill in behind
-them. xdist's own order, most tests first, put identification (few tests, minutes each)
-last: a worker ran it alone for about two minutes of an 11-minute run. Only the order
-changes, never what runs."""
-
-
-def pytest_collection_modifyitems(config, items):
-    def rank(item) -> int:
-        return next((k for k, prefix in enumerate(LONG_FIRST)
-                     if item.nodeid.startswith(prefix)), len(LONG_FIRST))
-
-    items.sort(key=rank)        # stable: within a rank, the files keep their order
