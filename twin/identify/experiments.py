@@ -32,7 +32,7 @@ from twin.errors import ConfigError, ExperimentAborted
 from twin.hardware.realtime import RealTimeLoop, TickStats
 from twin.identify.log import COLUMNS, IdentLog, io_signature
 from twin.identify.plan import Piece, excursion, phases
-from twin.session.machine_io import move_to
+from twin.session.machine_io import check_safe, move_to, safe_stop
 from twin.session.run import axis_models, measured_position
 
 __all__ = ["HOLD", "MARGIN", "REPEATS", "disturbed", "run_plan", "timing"]
@@ -158,25 +158,14 @@ class _Runner:
         return True
 
     def _check(self, inputs, pos, piece: Piece) -> None:
-        where = f"{piece.experiment} at x {1e3 * pos[0]:.3f} mm, y {1e3 * pos[1]:.3f} mm"
-        if np.any(inputs.limit_min) or np.any(inputs.limit_max):
-            raise ExperimentAborted(f"an end limit switch closed during {where}")
-        if not inputs.drive_ready and piece.kind != "coast":
-            raise ExperimentAborted(f"the drives reported not ready during {where}")
-        for k, (lo, hi) in enumerate(self.window):
-            if not lo <= pos[k] <= hi:
-                raise ExperimentAborted(
-                    f"axis {AXES[k]} left the room given to the experiments "
-                    f"({1e3 * lo:.3f} … {1e3 * hi:.3f} mm) during {where}")
+        check_safe(inputs, pos, self.window,
+                   f"during {piece.experiment} at x {1e3 * pos[0]:.3f} mm, "
+                   f"y {1e3 * pos[1]:.3f} mm", room="the experiments",
+                   drives=piece.kind != "coast")
 
     def stop(self) -> None:
         """Safe stop: outputs zero, drives disabled."""
-        self.out.dac_volts[:] = 0.0
-        self.out.enable = False
-        try:
-            self.driver.write(self.out)
-        except Exception:  # the stop is best effort; the caller reports what failed
-            pass
+        safe_stop(self.driver, self.out)
 
 
 def _position(driver: MachineIO, base: MachineConfig) -> np.ndarray:

@@ -11,12 +11,12 @@ import numpy as np
 
 from twin.config import AXES, MachineConfig, load_machine
 from twin.controller.controller import Controller, ControllerStatus
-from twin.controller.io import MachineIO
+from twin.controller.io import Inputs, MachineIO, Outputs
 from twin.errors import ConfigError, ExperimentAborted
 from twin.session.loop import TickLoop
 from twin.session.setup import measured_position, model_options
 
-__all__ = ["io_signature", "move_to", "open_experiment_driver"]
+__all__ = ["check_safe", "io_signature", "move_to", "open_experiment_driver", "safe_stop"]
 
 
 def io_signature(cfg: MachineConfig) -> dict:
@@ -79,3 +79,35 @@ def move_to(driver: MachineIO, base: MachineConfig, belief: MachineConfig,
     if ctrl.status != ControllerStatus.FINISHED:
         raise ExperimentAborted(f"the move to the experiments' start point ended "
                                 f"{ctrl.status.name}: {ctrl.error or ''}".rstrip(": "))
+
+
+def check_safe(inputs: Inputs, pos: np.ndarray, window: np.ndarray, where: str, *,
+               room: str, drives: bool = True) -> None:
+    """The guard of an open-loop experiment (identification, measurement) each tick: an end
+    limit switch, drives not ready (unless ``drives`` is False, as on a coast-down), or an
+    axis outside ``window`` ((2, 2) low/high, m) aborts it, naming ``where``.
+
+    Raises
+    ------
+    ExperimentAborted
+    """
+    if np.any(inputs.limit_min) or np.any(inputs.limit_max):
+        raise ExperimentAborted(f"an end limit switch closed {where}")
+    if drives and not inputs.drive_ready:
+        raise ExperimentAborted(f"the drives reported not ready {where}")
+    for k, (lo, hi) in enumerate(window):
+        if not lo <= pos[k] <= hi:
+            raise ExperimentAborted(
+                f"axis {AXES[k]} left the room given to {room} "
+                f"({1e3 * lo:.3f} … {1e3 * hi:.3f} mm) {where}")
+
+
+def safe_stop(driver: MachineIO, out: Outputs) -> None:
+    """Safe stop: outputs zero, drives disabled (best effort: the caller reports what
+    failed)."""
+    out.dac_volts[:] = 0.0
+    out.enable = False
+    try:
+        driver.write(out)
+    except Exception:  # the stop is best effort; the caller reports what failed
+        pass

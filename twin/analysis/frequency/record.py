@@ -29,6 +29,7 @@ from twin.controller.loop_defaults import loop_gains
 from twin.controller.regulator import PositionRegulator, RegulatorStatus
 from twin.errors import ExperimentAborted
 from twin.hardware.realtime import RealTimeLoop, TickStats
+from twin.session.machine_io import check_safe, safe_stop
 from twin.session.setup import axis_models, measured_position
 
 __all__ = ["Recording", "run_excitation"]
@@ -155,25 +156,13 @@ class _Runner:
         return True
 
     def _check(self, inputs, pos, slot: int) -> None:
-        where = f"at x {1e3 * pos[0]:.3f} mm, y {1e3 * pos[1]:.3f} mm (tick {slot})"
-        if np.any(inputs.limit_min) or np.any(inputs.limit_max):
-            raise ExperimentAborted(f"an end limit switch closed {where}")
-        if not inputs.drive_ready:
-            raise ExperimentAborted(f"the drives reported not ready {where}")
-        for k, (lo, hi) in enumerate(self.window):
-            if not lo <= pos[k] <= hi:
-                raise ExperimentAborted(
-                    f"axis {AXES[k]} left the room given to the measurement "
-                    f"({1e3 * lo:.3f} … {1e3 * hi:.3f} mm) {where}")
+        check_safe(inputs, pos, self.window,
+                   f"at x {1e3 * pos[0]:.3f} mm, y {1e3 * pos[1]:.3f} mm (tick {slot})",
+                   room="the measurement")
 
     def stop(self) -> None:
         """Safe stop: outputs zero, drives disabled."""
-        self.out.dac_volts[:] = 0.0
-        self.out.enable = False
-        try:
-            self.driver.write(self.out)
-        except Exception:  # the stop is best effort; the caller reports what failed
-            pass
+        safe_stop(self.driver, self.out)
 
     def recording(self, stats: TickStats | None) -> Recording:
         table = np.array(self.rows, dtype=float).reshape(-1, 7)
