@@ -4,6 +4,7 @@ intervals, lengths (shorter and longer than a window), widths and ways of cuttin
 
 from __future__ import annotations
 
+import itertools
 import os
 
 import numpy as np
@@ -19,7 +20,7 @@ def _pieces(rng: np.random.Generator, n: int) -> list[slice]:
     """``range(n)`` cut at random places (empty pieces and single samples included)."""
     cuts = np.sort(rng.integers(0, n + 1, int(rng.integers(0, 12))))
     edges = [0, *cuts.tolist(), n]
-    return [slice(a, b) for a, b in zip(edges[:-1], edges[1:], strict=True)]
+    return [slice(a, b) for a, b in itertools.pairwise(edges)]
 
 
 @pytest.mark.parametrize("seed", range(40 if CI else 300))

@@ -357,7 +357,8 @@ class TelemetryWriter:
         t0 = time.perf_counter()
         for quantity, what in QUANTITIES.items():
             hz, curves, marks = self.spectra.columns(quantity)
-            for (entity, level), ax in zip(curves.items(), AXES, strict=True):
+            for entity, level in curves.items():
+                ax = entity.rsplit("/", 1)[1]
                 if style is not None:
                     style(entity, name=f"{ax} {what}", color=COLOURS[AXIS_COLOURS[ax]])
                 send(hz, {entity: level})
