@@ -136,14 +136,14 @@ def _spectrum(title: str, entities: Sequence[str], extents: Extents | None, *,
               names: Mapping[str, str]) -> rrb.TimeSeriesView:
     """A plot of the spectra ``entities`` and their elastic-mode markers (``<entity>_mode``)
     against frequency: ``title``, its unit, the series' colours (``names``: entity → "name
-    colour") and the modes marked; framed on the band and on whole 10 dB steps from the
-    highest level down ``DB_SPAN``."""
+    colour") and the modes marked; framed on the band (from 0 Hz) and on whole 10 dB
+    steps from the highest level down ``DB_SPAN``."""
     marks = [f"{e}_mode" for e in entities]
     axis_x = axis_y = None
     band = extents.band_range(*entities) if extents is not None else None
     if band is not None:
         axis_x = rrb.TimeAxis(view_range=rrd.TimeRange(
-            start=rrb.TimeRangeBoundary.absolute(seq=math.floor(band[0])),
+            start=rrb.TimeRangeBoundary.absolute(seq=0),      # labels at 0, 10, 20 …
             end=rrb.TimeRangeBoundary.absolute(seq=math.ceil(band[1]))))
     y = extents.value_range(*entities, *marks) if extents is not None else None
     if y is not None:

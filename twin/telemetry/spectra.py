@@ -13,7 +13,8 @@ records none.
 The recording shows each density as a level in dB re 1 µm/√Hz (0 dB = 1 µm/√Hz, −20 dB =
 0.1 µm/√Hz, −60 dB = 1 nm/√Hz): rerun's plots have no logarithmic axis, and a density
 spans many decades (a move's own following error near 1 Hz, a resonance three decades
-below it). The DC bin is left out (each window's mean is removed). Beside each axis's curve
+below it). The DC bin holds no level (NaN: each window's mean is removed). Beside each
+axis's curve
 a single point marks the model's first elastic mode (``RunSpectra.modes``) where it lies in
 the band.
 """
@@ -178,9 +179,11 @@ class RunSpectra:
         found = estimate.density() if estimate is not None else None
         if found is None:
             return np.zeros(0, dtype=np.int64), {}, {}
-        f, power = found[0][1:], found[1][1:]                   # no DC: means removed
+        f, power = found
         hz = np.rint(f).astype(np.int64)
         levels = level_db(power)
+        levels[0] = np.nan            # DC: each window's mean is removed (kept as a gap so
+        #                               that the frequency axis starts, and is labelled, at 0)
         curves = {spectrum_entity(quantity, a): levels[:, k] for k, a in enumerate(AXES)}
         marks = {}
         for k, a in enumerate(AXES):
