@@ -24,7 +24,6 @@ from __future__ import annotations
 from collections.abc import Sequence
 
 import numpy as np
-from scipy.signal import get_window
 
 from twin.config import AXES
 
@@ -93,7 +92,7 @@ class WelchDensity:
         """int: samples per window (and the transform's length)."""
         self.step = self.length - self.length // 2
         self.width = int(width)
-        self.window = get_window("hann", self.length)
+        self.window = _hann(self.length)
         self.segments = 0
         """int: full windows averaged so far."""
         self.samples = 0
@@ -124,13 +123,18 @@ class WelchDensity:
         if self.segments:
             power, window = self._sum / self.segments, self.window
         elif self.samples >= MIN_SAMPLES:
-            window = get_window("hann", len(self._held))
+            window = _hann(len(self._held))
             power = _periodograms(self._held.T[None], window, self.length)[0]
         else:
             return None
         power = power / (np.sum(window**2) / self.dt)           # scipy's "density"
         power[1:-1 if self.length % 2 == 0 else None] *= 2.0     # one-sided
         return np.fft.rfftfreq(self.length, self.dt), power
+
+
+def _hann(n: int) -> np.ndarray:
+    """The periodic Hann window of ``n`` samples (scipy's ``get_window("hann", n)``)."""
+    return 0.5 - 0.5 * np.cos(2.0 * np.pi * np.arange(n) / n)
 
 
 def _periodograms(windows: np.ndarray, window: np.ndarray, n: int) -> np.ndarray:
