@@ -235,7 +235,8 @@ class _Loop:
             motor_ratio=[p.cfg.axes[ax].transmission.ratio for ax in AXES],
             contour_tolerance=p.cfg.controller.contour_tolerance,
             spectra=RunSpectra(self.period, p.plant.drive_dt if p.plant is not None else None,
-                               modes=[1.0 / period for period in periods]))
+                               modes=[1.0 / period for period in periods])
+            if hasattr(sink, "spectrum") else None)       # a sink that records them
         self.names = {int(s): s.name for s in ControllerStatus}
         self.tick_loop: TickLoop | None = None
         # the twin's drive-rate samples: to the telemetry, into the elastic oscillation

@@ -28,7 +28,7 @@ import numpy as np
 from twin.config import AXES
 from twin.controller.record import Record
 from twin.telemetry.sink import PROGRAMMED, Sink
-from twin.telemetry.spectra import QUANTITIES, RunSpectra
+from twin.telemetry.spectra import RunSpectra
 from twin.units import MM, MM_PER_MIN, RPM, UM
 
 __all__ = ["COLOURS", "SERIES", "PathDistance", "TelemetryWriter", "error_colors",
@@ -348,28 +348,12 @@ class TelemetryWriter:
         return c, (tr or None)
 
     def finish(self) -> None:
-        """Send the run's spectra (after the last :meth:`flush`), to a sink that records
-        spectra (``spectrum``): per quantity, x and y in their colours and a marker at the
-        model's first elastic mode of each axis within the band."""
-        send, style = (getattr(self.sink, name, None) for name in ("spectrum", "style"))
-        if self.spectra is None or send is None:
-            return
-        t0 = time.perf_counter()
-        for quantity, what in QUANTITIES.items():
-            hz, curves, marks = self.spectra.columns(quantity)
-            for entity, level in curves.items():
-                ax = entity.rsplit("/", 1)[1]
-                if style is not None:
-                    style(entity, name=f"{ax} {what}", color=COLOURS[AXIS_COLOURS[ax]])
-                send(hz, {entity: level})
-            for entity, (f, level) in marks.items():
-                ax = entity.rsplit("/", 1)[1].removesuffix("_mode")
-                mode = self.spectra.modes[AXES.index(ax)]
-                if style is not None:
-                    style(entity, name=f"{ax} first elastic mode of the model, {mode:.1f} Hz",
-                          color=COLOURS[AXIS_COLOURS[ax]], marker="diamond")
-                send(np.array([f]), {entity: np.array([level])})
-        self.wall += time.perf_counter() - t0
+        """Send the run's spectra (after the last :meth:`flush`; ``RunSpectra.send``), x
+        and y in their colours."""
+        if self.spectra is not None:
+            t0 = time.perf_counter()
+            self.spectra.send(self.sink, colours={a: COLOURS[AXIS_COLOURS[a]] for a in AXES})
+            self.wall += time.perf_counter() - t0
 
     def _feed_columns(self, c: Mapping[str, np.ndarray], tr: Mapping[str, np.ndarray]
                       ) -> dict[str, np.ndarray]:

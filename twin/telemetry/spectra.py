@@ -21,11 +21,12 @@ the band.
 
 from __future__ import annotations
 
-from collections.abc import Sequence
+from collections.abc import Mapping, Sequence
 
 import numpy as np
 
 from twin.config import AXES
+from twin.telemetry.sink import Sink
 
 __all__ = ["DB_SPAN", "FREQUENCY", "MIN_SAMPLES", "QUANTITIES", "SEGMENT", "RunSpectra",
            "WelchDensity", "level_db", "spectrum_entity"]
@@ -197,3 +198,25 @@ class RunSpectra:
                 marks[spectrum_entity(quantity, a, mode=True)] = (int(hz[i]),
                                                                   float(levels[i, k]))
         return hz, curves, marks
+
+    def send(self, sink: Sink, *, colours: Mapping[str, tuple[int, int, int]]) -> None:
+        """Send the spectra to a sink that records them (``spectrum``; styled where it has
+        ``style``): per quantity each axis's curve in ``colours[axis]``, and a diamond at
+        the model's first elastic mode of each axis within the band."""
+        send, style = (getattr(sink, name, None) for name in ("spectrum", "style"))
+        if send is None:
+            return
+        for quantity, what in QUANTITIES.items():
+            hz, curves, marks = self.columns(quantity)
+            for entity, level in curves.items():
+                axis = entity.rsplit("/", 1)[1]
+                if style is not None:
+                    style(entity, name=f"{axis} {what}", color=colours[axis])
+                send(hz, {entity: level})
+            for entity, (f, level) in marks.items():
+                axis = entity.rsplit("/", 1)[1].removesuffix("_mode")
+                mode = self.modes[AXES.index(axis)]
+                if style is not None:
+                    style(entity, name=f"{axis} first elastic mode of the model, "
+                          f"{mode:.1f} Hz", color=colours[axis], marker="diamond")
+                send(np.array([f]), {entity: np.array([level])})
