@@ -246,7 +246,7 @@ def test_overlay_has_each_laws_spectra_per_quantity_and_axis(compared):
     assert [v["contents"][:len(laws)] for v in plots] == expected
     for view in plots:
         assert "trapezoid red, parabolic blue" in view["name"], view["name"]
-        assert "(dB re 1 µm/√Hz" in view["name"]
+        assert "(dB re 1 µm/√Hz vs Hz)" in view["name"]
         for entity in view["contents"][:len(laws)]:
             hz, level = got[entity.lstrip("/")]
             assert hz[0] == 0 and np.isnan(level[0]) and np.isfinite(level[1:]).all()

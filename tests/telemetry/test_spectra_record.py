@@ -121,7 +121,7 @@ def test_the_spectra_tab_is_framed_on_the_spectra_and_names_the_modes(ringing):
         lo, hi = view["y_range"]
         assert hi - 12.0 < top < hi                       # whole 10 dB steps, a margin
         assert top - DB_SPAN - 12.0 < lo < max(bottom, top - DB_SPAN)   # 120 dB at most
-        assert "(dB re 1 µm/√Hz" in view["name"] and "frequency (Hz)" in view["name"]
+        assert "(dB re 1 µm/√Hz vs Hz)" in view["name"]
         assert "x orange, y blue" in view["name"]
         band = view["contents"][0].rsplit("/", 2)[1]
         hz = got[f"spectra/{band}/x"][0]

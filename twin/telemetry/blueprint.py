@@ -155,11 +155,11 @@ def _spectrum(title: str, entities: Sequence[str], extents: Extents | None, *,
         found = extents.band.get(m.lstrip("/")) if extents is not None else None
         if found is not None:
             modes.setdefault(m.rsplit("/", 1)[1].removesuffix("_mode"), found[0])
-    marked = ("; ◆ the model's first elastic mode: "
+    marked = ("; ◆ first elastic mode (model) "
               + ", ".join(f"{a} {f:.0f} Hz" for a, f in modes.items())) if modes else ""
-    return rrb.TimeSeriesView(
-        name=f"{title} (dB re 1 µm/√Hz: 0 dB = 1 µm/√Hz, −20 dB = 0.1 µm/√Hz) against "
-             f"frequency (Hz): {', '.join(names[e] for e in entities)}{marked}",
+    return rrb.TimeSeriesView(       # the essentials first: a narrow panel cuts the end
+        name=f"{title} (dB re 1 µm/√Hz vs Hz): {', '.join(names[e] for e in entities)}"
+             f"{marked}",
         origin="/", contents=[*entities, *marks], axis_x=axis_x, axis_y=axis_y,
         plot_legend=_NO_LEGEND)
 
