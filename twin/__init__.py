@@ -50,8 +50,7 @@ def _source_stamp() -> str:
     return digest.hexdigest()[:16]
 
 
-def _keyed_numba_cache()
-os.environ.setdefault("OPENBLAS_NUM_THREADS", "1") -> None:
+def _keyed_numba_cache() -> None:
     base = os.environ.get("NUMBA_CACHE_DIR") or os.path.join(
         os.environ.get("XDG_CACHE_HOME") or os.path.join(os.path.expanduser("~"), ".cache"),
         "xy-twin", "numba")
