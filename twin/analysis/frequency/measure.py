@@ -12,7 +12,7 @@ from typing import Any
 
 import numpy as np
 
-from twin.analysis.frequency import estimate
+from twin.analysis.frequency import estimate, hammer
 from twin.analysis.frequency.excitation import (
     Excitation,
     multisine,
@@ -20,6 +20,7 @@ from twin.analysis.frequency.excitation import (
     prbs,
 )
 from twin.analysis.frequency.prediction import (
+    accelerance,
     closed_loop_modes,
     design_loop,
     predict,
@@ -31,12 +32,13 @@ from twin.controller.loop_defaults import loop_gains
 from twin.errors import ConfigError
 from twin.hardware.register_map import MAPS
 from twin.plant.model import axis_mechanics
+from twin.session.hammer import HammerSimDriver
 from twin.session.machine_io import move_to, open_experiment_driver
 from twin.session.setup import axis_models, measured_position
 
 __all__ = ["EXCITATIONS", "MARGIN", "measure", "plan_room"]
 
-EXCITATIONS = ("multisine", "prbs")
+EXCITATIONS = ("multisine", "prbs", "hammer")
 MARGIN = 1e-3
 """Room kept between the measurement and the end switches (m)."""
 HOLD = 0.2e-3
@@ -46,6 +48,8 @@ MAX_PERIOD = 2**16
 USABLE = 0.5
 """Coherence from which a line enters the resonance fit (weighted by its γ²/(1 − γ²))."""
 UNITS = {"mechanics": "m/(s²·V)", "speed": "m/(s·V)", "position": "1"}
+ACCELERANCE = "m/(s²·N)"
+"""Unit of a tap test's response (the hammer's accelerance A/F)."""
 
 
 def _machine(machine) -> MachineConfig:
@@ -220,7 +224,6 @@ def _options(base: MachineConfig, belief: MachineConfig, axis: str, loop: str,
     _choice("axis", axis, AXES)
     _choice("loop", loop, LOOPS)
     _choice("sensor", sensor, SENSORS)
-    _choice("excitation", excitation, EXCITATIONS)
     if not (isinstance(averages, int) and 1 <= averages <= 1000):
         raise ConfigError("averages", f"must be a whole number 1 … 1000, got {averages!r}")
     period = base.controller.period
@@ -258,11 +261,21 @@ def measure(machine, *, driver: str = "sim", axis: str = "x", loop: str = "mecha
             offset: float | None = None, averages: int = 8, f_min: float | None = None,
             f_max: float | None = None, excitation: str = "multisine",
             out_dir=None, controller_model=None, noise: bool = True,
+            hammer_force: float | None = None, hammer_duration: float | None = None,
             progress: Callable[[str], None] | None = None) -> FrequencyResponse:
     """See ``twin.analysis.frequency.measure``."""
     say = progress or (lambda _m: None)
     base = _machine(machine)
     belief = _machine(controller_model) if controller_model is not None else base
+    _choice("excitation", excitation, EXCITATIONS)
+    if excitation == "hammer":
+        _choice("axis", axis, AXES)
+        if not (isinstance(averages, int) and 1 <= averages <= 1000):
+            raise ConfigError("averages", f"must be a whole number 1 … 1000, got "
+                              f"{averages!r}")
+        opts = hammer.check(driver, loop, sensor, hammer_force, hammer_duration, f_min,
+                            f_max, averages, base.accelerometer.sample_rate)
+        return _tap_test(base, belief, driver, axis, opts, out_dir, noise, say)
     amplitude, offset, f_min, f_max = _options(base, belief, axis, loop, sensor,
                                                excitation, averages, amplitude, offset,
                                                f_min, f_max)
@@ -343,6 +356,74 @@ def measure(machine, *, driver: str = "sim", axis: str = "x", loop: str = "mecha
                       response, prediction, good, axis, position))
     result = FrequencyResponse(f, response, coherence, prediction, resonances, margins,
                                unseen, loop, seen_by, axis, UNITS[loop], position, info)
+    if out_dir is not None:
+        from twin.analysis.frequency.report import write_record
+        result = write_record(result, rec, Path(out_dir))
+    return result
+
+
+def _tap_test(base: MachineConfig, belief: MachineConfig, driver: str, axis: str,
+              opts: hammer.HammerOptions, out_dir, noise: bool,
+              say: Callable[[str], None]) -> FrequencyResponse:
+    """The impact test (``twin.analysis.frequency.hammer``): the twin's table set in the
+    middle of its travel (where the screw's stiffness is its mean; the jog there is of no
+    interest to the test), held, struck; the accelerance, its resonances and the analytic modes."""
+    if out_dir is not None:
+        from twin.system.jsonio import output_dir
+        output_dir(out_dir)
+    middle = np.array([0.5 * sum(base.axes[a].mechanics.travel) for a in AXES])
+    reach = (-2e-3, 2e-3)      # a blow moves a held table by micrometres
+    io, _ = open_experiment_driver(driver, base, noise=noise, accelerometer=True)
+    k = AXES.index(axis)
+    striker = HammerSimDriver(io.plant, io.period, axis=k,  # type: ignore[attr-defined]
+                              duration=opts.duration)
+    try:
+        target, window = plan_room(base, axis, reach, middle)
+        say(f"{driver}: the table at x {1e3 * target[0]:.2f} mm, y {1e3 * target[1]:.2f} mm")
+        io.plant.reset(positions=target)   # type: ignore[attr-defined]
+        say(f"hammer: {opts.taps} blows of {opts.force:g} N, {1e3 * opts.duration:g} ms, "
+            f"along {axis}; windows of {1.0 / opts.f_min:.2f} s")
+        spec, rec = hammer.strike(striker, base, belief, axis, opts, window, noise=noise)
+    except ValueError as exc_:
+        from twin.errors import ExperimentAborted
+        raise ExperimentAborted(f"the measurement is incomplete: {exc_}") from None
+    finally:
+        striker.close()
+    position = min(max(float(np.mean(rec.position)), belief.axes[axis].mechanics.travel[0]),
+                   belief.axes[axis].mechanics.travel[1])
+    response, coherence = spec.response()
+    f = spec.frequency
+    prediction = accelerance(belief, axis, position, f)
+    rigid = accelerance(belief, axis, position, f, rigid=True)
+    good = coherence >= estimate.COHERENT
+    resonances = _resonances(f, response, coherence, rigid, axis, "accelerometer")
+    ratio = response[good] / prediction[good]
+    modes = closed_loop_modes(belief, axis, position)
+    info: dict[str, Any] = {
+        "machine": base.name, "controller_model": belief.name, "driver": driver,
+        "excitation": {"kind": "hammer", "peak_force_n": opts.force,
+                       "duration_ms": 1e3 * opts.duration, "taps": len(spec.dac),
+                       "resolution_hz": opts.f_min, "f_max_hz": opts.f_max},
+        "controller_period_s": base.controller.period,
+        "machine_time_s": len(rec.slot) * base.controller.period,
+        "accelerometer_rate_hz": base.accelerometer.sample_rate,
+        "accelerometer_samples_lost": int(rec.lost),
+        "resonance_sd_hz": _jackknife(spec, resonances, rigid, axis, "accelerometer"),
+        "agreement": {
+            "lines_coherent": int(good.sum()),
+            "max_gain_error_db": float(np.max(np.abs(20 * np.log10(np.abs(ratio)))))
+            if len(ratio) else None,
+            "max_phase_error_deg": float(np.max(np.abs(np.degrees(np.angle(ratio)))))
+            if len(ratio) else None},
+        "analytic_modes": [{"frequency_hz": abs(s) / (2 * math.pi),
+                            "damping": -s.real / abs(s)} for s in modes],
+        "deadlines": None,
+    }
+    top = float(f[good].max()) if good.any() else 0.0
+    unseen = _unseen(belief, axis, position, "accelerometer", "mechanics", top)
+    result = FrequencyResponse(f, response, coherence, prediction, resonances, None,
+                               unseen, "mechanics", "accelerometer", axis, ACCELERANCE,
+                               position, info)
     if out_dir is not None:
         from twin.analysis.frequency.report import write_record
         result = write_record(result, rec, Path(out_dir))
