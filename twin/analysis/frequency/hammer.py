@@ -31,7 +31,7 @@ from twin.config import MachineConfig
 from twin.errors import ConfigError
 from twin.session.hammer import HammerSimDriver, force_samples
 
-__all__ = ["DURATION", "FORCE", "HammerOptions", "band", "check", "strike"]
+__all__ = ["DURATION", "FORCE", "HammerOptions", "band", "check", "strike", "tap_spectra"]
 
 FORCE = 2000.0
 """Default peak force of a blow (N): a one-kilogram modal hammer on a machine table (lighter
@@ -148,25 +148,42 @@ def strike(io: HammerSimDriver, base: MachineConfig, belief: MachineConfig, axis
                          offset=0.0, window=window, accelerometer=True, paced=False)
     force = force_samples(io.segments, rec.accel_sequence, rate,
                           FORCE_NOISE if noise else 0.0, rng)
-    by_seq = {int(s): j for j, s in enumerate(rec.accel_sequence)}
+    starts = [math.floor(s * rate) + 1 for s, _ in blows]
+    spec = tap_spectra(force, rec.accel, rec.accel_sequence, starts, n, rate, opts)
+    rec.excitation = force
+    return spec, rec
+
+
+def tap_spectra(force: np.ndarray, accel: np.ndarray, sequence: np.ndarray,
+                starts: list[int], n: int, rate: float, opts: HammerOptions) -> Spectra:
+    """The H1 spectra of the blows: for each blow (``starts``: the sample number in which
+    it begins) a window of ``n`` samples from ``PRE`` before it of the force (N; windowed to
+    the blow) and the acceleration (m/s²), both numbered ``sequence`` at ``rate`` (Hz); the
+    lines from ``opts.f_min`` to ``opts.f_max``. A blow whose window lost samples is left
+    out.
+
+    Raises
+    ------
+    ValueError
+        Every blow's window lost samples.
+    """
+    by_seq = {int(s): j for j, s in enumerate(sequence)}
     bins = np.arange(1, n // 2 + 1)
     f = bins * rate / n
     keep = (f >= opts.f_min - 1e-9) & (f <= opts.f_max + 1e-9)
     bins, f = bins[keep], f[keep]
     forces, outputs = [], []
-    for s, _ in blows:
-        i0 = math.floor(s * rate) + 1 - PRE
-        idx = [by_seq.get(i) for i in range(i0, i0 + n)]
+    for start in starts:
+        idx = [by_seq.get(i) for i in range(start - PRE, start - PRE + n)]
         if any(j is None for j in idx):
             continue
-        idx_a = np.array(idx)
-        fw = force[idx_a].copy()
+        rows = np.array(idx)
+        fw = force[rows].copy()
         fw[PRE + math.ceil(opts.duration * rate) + 2:] = 0.0   # the force window
         fw[:max(PRE - 2, 0)] = 0.0
         forces.append(np.fft.fft(fw)[bins] / n)
-        outputs.append(np.fft.fft(rec.accel[idx_a])[bins] / n)
+        outputs.append(np.fft.fft(accel[rows])[bins] / n)
     if not forces:
         raise ValueError("the accelerometer lost samples in every blow's window")
     spec_f = np.array(forces)
-    rec.excitation = force
-    return Spectra(f, spec_f, spec_f, np.array(outputs)), rec
+    return Spectra(f, spec_f, spec_f, np.array(outputs))
