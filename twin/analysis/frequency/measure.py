@@ -156,12 +156,14 @@ def _unseen(belief: MachineConfig, axis: str, position: float, sensor: str, loop
 
 
 def _resonances(f: np.ndarray, h: np.ndarray, coherence: np.ndarray, rigid: np.ndarray,
-                axis: str, seen_by: str) -> list[Resonance]:
+                axis: str, seen_by: str, averages: int | None = None) -> list[Resonance]:
     """The resonances: peaks of |H/H_rigid| (dB) on the lines with γ² ≥ ``USABLE``, each
     the pole of a second-order model fitted to H/H_rigid (the measurement over the rigid
     twin's prediction: what the speed loop does to both divides out) over half to twice
     its frequency (at least its eight nearest lines), each line weighted by its
-    signal-to-noise ratio γ²/(1 − γ²)."""
+    signal-to-noise ratio γ²/(1 − γ²). With ``averages`` (P, the blows of a tap test) a
+    peak must stand out by three of its line's random errors besides
+    (20·log10(e)·√((1 − γ²)/(2·P·γ²)) dB): a noise bump is not a mode."""
     usable = coherence >= USABLE
     if usable.sum() < 8:
         return []
@@ -169,7 +171,9 @@ def _resonances(f: np.ndarray, h: np.ndarray, coherence: np.ndarray, rigid: np.n
     trust = np.sqrt(coherence[usable] / np.maximum(1.0 - coherence[usable], 1e-4))
     level = 20.0 * np.log10(np.abs(ratio))
     found = []
-    for i in estimate.peaks(fg, level):
+    noise = (None if averages is None else 20.0 * math.log10(math.e) * np.sqrt(
+        (1.0 - coherence[usable]) / (2.0 * averages * coherence[usable])))
+    for i in estimate.peaks(fg, level, noise=noise):
         near = (fg >= fg[i] / 2.0) & (fg <= fg[i] * 2.0)
         if near.sum() < 8:                # too coarse a grid: the eight nearest lines
             near = np.zeros(len(fg), dtype=bool)
@@ -185,7 +189,7 @@ def _resonances(f: np.ndarray, h: np.ndarray, coherence: np.ndarray, rigid: np.n
 
 
 def _jackknife(spec: estimate.Spectra, resonances: list[Resonance], rigid: np.ndarray,
-               axis: str, seen_by: str) -> list[float | None]:
+               axis: str, seen_by: str, averaged: bool = False) -> list[float | None]:
     """The standard deviation of each resonance's frequency (Hz) by the jackknife over the
     averaged periods: the fit repeated with each left out, √((P − 1)/P·Σ(f_i − f̄)²); None
     where a leave-one-out fit lost it or fewer than three periods were averaged."""
@@ -195,8 +199,9 @@ def _jackknife(spec: estimate.Spectra, resonances: list[Resonance], rigid: np.nd
     runs = []
     for p in range(periods):
         h, g = spec.without(p).response()
-        runs.append([r.frequency for r in _resonances(spec.frequency, h, g, rigid, axis,
-                                                      seen_by)])
+        runs.append([r.frequency for r in _resonances(
+            spec.frequency, h, g, rigid, axis, seen_by,
+            periods - 1 if averaged else None)])
     out: list[float | None] = []
     for r in resonances:
         near = [min(run, key=lambda f: abs(f - r.frequency)) for run in runs if run]
@@ -396,7 +401,13 @@ def _tap_test(base: MachineConfig, belief: MachineConfig, driver: str, axis: str
     prediction = accelerance(belief, axis, position, f)
     rigid = accelerance(belief, axis, position, f, rigid=True)
     good = coherence >= estimate.COHERENT
-    resonances = _resonances(f, response, coherence, rigid, axis, "accelerometer")
+    found = _resonances(f, response, coherence, rigid, axis, "accelerometer", len(spec.dac))
+    # a pole whose half-power width 2ζf is narrower than the lines is not resolved by them:
+    # on the twin a friction nonlinearity's or the drive's ripple, never the structure's
+    resonances = [r for r in found if 2.0 * r.damping * r.frequency >= opts.f_min]
+    narrow = [f"a peak at {r.frequency:.1f} Hz, {2.0 * r.damping * r.frequency:.2f} Hz "
+              f"wide, narrower than the {opts.f_min:g} Hz lines: not resolved (lower "
+              "--f-min to resolve it)" for r in found if r not in resonances]
     ratio = response[good] / prediction[good]
     modes = closed_loop_modes(belief, axis, position)
     info: dict[str, Any] = {
@@ -408,7 +419,8 @@ def _tap_test(base: MachineConfig, belief: MachineConfig, driver: str, axis: str
         "machine_time_s": len(rec.slot) * base.controller.period,
         "accelerometer_rate_hz": base.accelerometer.sample_rate,
         "accelerometer_samples_lost": int(rec.lost),
-        "resonance_sd_hz": _jackknife(spec, resonances, rigid, axis, "accelerometer"),
+        "resonance_sd_hz": _jackknife(spec, resonances, rigid, axis, "accelerometer",
+                                      averaged=True),
         "agreement": {
             "lines_coherent": int(good.sum()),
             "max_gain_error_db": float(np.max(np.abs(20 * np.log10(np.abs(ratio)))))
@@ -420,7 +432,7 @@ def _tap_test(base: MachineConfig, belief: MachineConfig, driver: str, axis: str
         "deadlines": None,
     }
     top = float(f[good].max()) if good.any() else 0.0
-    unseen = _unseen(belief, axis, position, "accelerometer", "mechanics", top)
+    unseen = _unseen(belief, axis, position, "accelerometer", "mechanics", top) + narrow
     result = FrequencyResponse(f, response, coherence, prediction, resonances, None,
                                unseen, "mechanics", "accelerometer", axis, ACCELERANCE,
                                position, info)
