@@ -8,7 +8,7 @@ option.
 Damping: the linearised twin has no Coulomb friction, the twin's guideways have (20 N on
 tomsk_xy); a held table vibrating about rest reverses it every cycle, which adds damping
 (≈ 4F_c/(πωX) of viscous equivalent: ζ 0.07 … 0.09 measured against 0.055 at 2 kN blows).
-So the damping is checked within 10 % of the analytic one on machines without Coulomb
+So the damping is checked within 5 % of the analytic one on machines without Coulomb
 friction, and between 1 and 2 times it with friction. The perturbed machines run at a
 quarter of tomsk's physics step: MuJoCo's implicit damping lowers a mode by about ζ·ω·Δt
 (1.5 % at 200 Hz and 0.2 ms), which is the integrator's, not the measurement's.
@@ -78,7 +78,7 @@ def test_tomsk_xy_screw_mode_by_the_hammer(axis):
 @pytest.mark.parametrize("seed", [31] if CI else [31, 32, 33, 34, 35])
 def test_perturbed_tomsk_machines(seed):
     for axis in "xy":
-        check(perturbed(seed, friction=False), axis, damping=(0.9, 1.1))
+        check(perturbed(seed, friction=False), axis, damping=(0.95, 1.05))
         if not CI:
             check(perturbed(seed, friction=True), axis, damping=(1.0, 2.0))
 
