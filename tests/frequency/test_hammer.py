@@ -156,8 +156,9 @@ def test_h1_against_scipys_frequency_response(seed):
     ({"loop": "position"}, "loop"),
     ({"sensor": "motor"}, "sensor"),
     ({"f_max": 2000.0}, "f_max"),
+    ({"excitation": "multisine", "hammer_force": 100.0}, "hammer_force"),
 ])
 def test_bad_hammer_input_names_the_option(options, field):
     with pytest.raises(ConfigError) as err:
-        measure("tomsk_xy", excitation="hammer", **options)
+        measure("tomsk_xy", **{"excitation": "hammer", **options})
     assert err.value.field == field

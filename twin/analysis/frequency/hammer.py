@@ -21,17 +21,25 @@ A hammer is a physical instrument: the twin strikes only its own table (``sim``,
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
 from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
 
 import numpy as np
 
+from twin.analysis.frequency import estimate, modes
 from twin.analysis.frequency.estimate import Spectra
+from twin.analysis.frequency.prediction import accelerance
 from twin.analysis.frequency.record import Recording, run_excitation
-from twin.config import MachineConfig
-from twin.errors import ConfigError
+from twin.analysis.frequency.result import FrequencyResponse
+from twin.config import AXES, MachineConfig
+from twin.errors import ConfigError, ExperimentAborted
 from twin.session.hammer import HammerSimDriver, force_samples
+from twin.session.machine_io import open_experiment_driver
 
-__all__ = ["DURATION", "FORCE", "HammerOptions", "band", "check", "strike", "tap_spectra"]
+__all__ = ["ACCELERANCE", "DURATION", "FORCE", "REACH", "HammerOptions", "band", "check", "strike",
+           "tap_spectra", "tap_test"]
 
 FORCE = 2000.0
 """Default peak force of a blow (N): a one-kilogram modal hammer on a machine table (lighter
@@ -44,6 +52,10 @@ PRE = 4
 """Samples of each window before its blow."""
 SETTLE = 0.3
 """Time before the first blow (s): the hold settles after the enable edge."""
+REACH = (-2e-3, 2e-3)
+"""How far the held axis may move (m): a blow moves a held table by micrometres."""
+ACCELERANCE = "m/(s²·N)"
+"""Unit of a tap test's response (the accelerance A/F)."""
 
 
 @dataclass(frozen=True)
@@ -187,3 +199,72 @@ def tap_spectra(force: np.ndarray, accel: np.ndarray, sequence: np.ndarray,
         raise ValueError("the accelerometer lost samples in every blow's window")
     spec_f = np.array(forces)
     return Spectra(f, spec_f, spec_f, np.array(outputs))
+
+
+def tap_test(base: MachineConfig, belief: MachineConfig, driver: str, axis: str,
+             opts: HammerOptions, target: np.ndarray, window: list[tuple[float, float]],
+             *, out_dir, noise: bool, say: Callable[[str], None]) -> FrequencyResponse:
+    """The impact test (the module docstring) on the twin ``driver`` names: its table set
+    at ``target`` (m; the middle of the travel: the jog there is of no interest to the
+    test), held within ``window``, struck; the accelerance, its resonances and the analytic
+    modes; ``measure-<id>/`` written under ``out_dir`` (None: nothing).
+
+    Raises
+    ------
+    ExperimentAborted
+        A safety stop, or every blow's window lost samples.
+    """
+    if out_dir is not None:
+        from twin.system.jsonio import output_dir
+        output_dir(out_dir)
+    io, _ = open_experiment_driver(driver, base, noise=noise, accelerometer=True)
+    k = AXES.index(axis)
+    striker = HammerSimDriver(io.plant, io.period, axis=k,  # type: ignore[attr-defined]
+                              duration=opts.duration)
+    try:
+        say(f"{driver}: the table at x {1e3 * target[0]:.2f} mm, y {1e3 * target[1]:.2f} mm")
+        io.plant.reset(positions=target)   # type: ignore[attr-defined]
+        say(f"hammer: {opts.taps} blows of {opts.force:g} N, {1e3 * opts.duration:g} ms, "
+            f"along {axis}; windows of {1.0 / opts.f_min:.2f} s")
+        spec, rec = strike(striker, base, belief, axis, opts, window, noise=noise)
+    except ValueError as exc_:
+        raise ExperimentAborted(f"the measurement is incomplete: {exc_}") from None
+    finally:
+        striker.close()
+    position = min(max(float(np.mean(rec.position)), belief.axes[axis].mechanics.travel[0]),
+                   belief.axes[axis].mechanics.travel[1])
+    response, coherence = spec.response()
+    f = spec.frequency
+    prediction = accelerance(belief, axis, position, f)
+    rigid = accelerance(belief, axis, position, f, rigid=True)
+    good = coherence >= estimate.COHERENT
+    found = modes.resonances(f, response, coherence, rigid, axis, "accelerometer", len(spec.dac))
+    # a pole whose half-power width 2ζf is narrower than the lines is not resolved by them:
+    # on the twin a friction nonlinearity's or the drive's ripple, never the structure's
+    resonances = [r for r in found if 2.0 * r.damping * r.frequency >= opts.f_min]
+    narrow = [f"a peak at {r.frequency:.1f} Hz, {2.0 * r.damping * r.frequency:.2f} Hz "
+              f"wide, narrower than the {opts.f_min:g} Hz lines: not resolved (lower "
+              "--f-min to resolve it)" for r in found if r not in resonances]
+    info: dict[str, Any] = {
+        "machine": base.name, "controller_model": belief.name, "driver": driver,
+        "excitation": {"kind": "hammer", "peak_force_n": opts.force,
+                       "duration_ms": 1e3 * opts.duration, "taps": len(spec.dac),
+                       "resolution_hz": opts.f_min, "f_max_hz": opts.f_max},
+        "controller_period_s": base.controller.period,
+        "machine_time_s": len(rec.slot) * base.controller.period,
+        "accelerometer_rate_hz": base.accelerometer.sample_rate,
+        "accelerometer_samples_lost": int(rec.lost),
+        "resonance_sd_hz": modes.jackknife(spec, resonances, rigid, axis, "accelerometer",
+                                      averaged=True),
+        **modes.compared(response, prediction, good, belief, axis, position),
+        "deadlines": None,
+    }
+    top = float(f[good].max()) if good.any() else 0.0
+    unseen = modes.unseen(belief, axis, position, "accelerometer", "mechanics", top) + narrow
+    result = FrequencyResponse(f, response, coherence, prediction, resonances, None,
+                               unseen, "mechanics", "accelerometer", axis, ACCELERANCE,
+                               position, info)
+    if out_dir is not None:
+        from twin.analysis.frequency.report import write_record
+        result = write_record(result, rec, Path(out_dir))
+    return result

@@ -12,7 +12,7 @@ from typing import Any
 
 import numpy as np
 
-from twin.analysis.frequency import estimate, hammer
+from twin.analysis.frequency import estimate, hammer, modes
 from twin.analysis.frequency.excitation import (
     Excitation,
     multisine,
@@ -20,19 +20,15 @@ from twin.analysis.frequency.excitation import (
     prbs,
 )
 from twin.analysis.frequency.prediction import (
-    accelerance,
-    closed_loop_modes,
     design_loop,
     predict,
 )
 from twin.analysis.frequency.record import run_excitation
-from twin.analysis.frequency.result import LOOPS, SENSORS, FrequencyResponse, Resonance
+from twin.analysis.frequency.result import LOOPS, SENSORS, FrequencyResponse
 from twin.config import AXES, MachineConfig, load_machine
 from twin.controller.loop_defaults import loop_gains
 from twin.errors import ConfigError
 from twin.hardware.register_map import MAPS
-from twin.plant.model import axis_mechanics
-from twin.session.hammer import HammerSimDriver
 from twin.session.machine_io import move_to, open_experiment_driver
 from twin.session.setup import axis_models, measured_position
 
@@ -45,11 +41,7 @@ HOLD = 0.2e-3
 """How far the axis that is not measured may move from where it is held (m)."""
 MAX_PERIOD = 2**16
 """Most controller periods in one period of the excitation (the lowest f_min)."""
-USABLE = 0.5
-"""Coherence from which a line enters the resonance fit (weighted by its γ²/(1 − γ²))."""
 UNITS = {"mechanics": "m/(s²·V)", "speed": "m/(s·V)", "position": "1"}
-ACCELERANCE = "m/(s²·N)"
-"""Unit of a tap test's response (the hammer's accelerance A/F)."""
 
 
 def _machine(machine) -> MachineConfig:
@@ -130,90 +122,6 @@ def _excursion(values: np.ndarray, period: float, amplitude: float, offset: floa
     return lo - pad, hi + pad
 
 
-def _unseen(belief: MachineConfig, axis: str, position: float, sensor: str, loop: str,
-            top: float) -> list[str]:
-    """The belief's elastic modes this measurement cannot see, each with the reason."""
-    chain = axis_mechanics(belief, axis, position)
-    free = chain.frequencies("free") / (2.0 * math.pi)
-    locked = chain.frequencies("locked") / (2.0 * math.pi)
-    motor = sensor == "motor" or loop == "position"
-    out = []
-    for i, f in enumerate(free):
-        if motor and i < len(locked) and 40.0 * math.log10(f / locked[i]) < 1.0:
-            out.append(f"mode {i + 1} at {f:.1f} Hz: the motor barely moves in it (its "
-                       f"anti-resonance at {locked[i]:.2f} Hz, "
-                       f"{40.0 * math.log10(f / locked[i]):.3f} dB deep: the rotor's "
-                       f"reflected mass {chain.reflected_mass:.3g} kg against "
-                       f"{chain.moving_mass:.3g} kg); mount an accelerometer")
-        elif top <= 0.0:
-            out.append(f"mode {i + 1} at {f:.1f} Hz: no line of the measurement reached "
-                       f"a coherence of {estimate.COHERENT:g} (noise or distortion)")
-        elif f > top:
-            out.append(f"mode {i + 1} at {f:.1f} Hz: above the measured band "
-                       f"({top:.1f} Hz, the highest line with a coherence of "
-                       f"{estimate.COHERENT:g})")
-    return out
-
-
-def _resonances(f: np.ndarray, h: np.ndarray, coherence: np.ndarray, rigid: np.ndarray,
-                axis: str, seen_by: str, averages: int | None = None) -> list[Resonance]:
-    """The resonances: peaks of |H/H_rigid| (dB) on the lines with γ² ≥ ``USABLE``, each
-    the pole of a second-order model fitted to H/H_rigid (the measurement over the rigid
-    twin's prediction: what the speed loop does to both divides out) over half to twice
-    its frequency (at least its eight nearest lines), each line weighted by its
-    signal-to-noise ratio γ²/(1 − γ²). With ``averages`` (P, the blows of a tap test) a
-    peak must stand out by three of its line's random errors besides
-    (20·log10(e)·√((1 − γ²)/(2·P·γ²)) dB): a noise bump is not a mode."""
-    usable = coherence >= USABLE
-    if usable.sum() < 8:
-        return []
-    fg, ratio = f[usable], h[usable] / rigid[usable]
-    trust = np.sqrt(coherence[usable] / np.maximum(1.0 - coherence[usable], 1e-4))
-    level = 20.0 * np.log10(np.abs(ratio))
-    found = []
-    noise = (None if averages is None else 20.0 * math.log10(math.e) * np.sqrt(
-        (1.0 - coherence[usable]) / (2.0 * averages * coherence[usable])))
-    for i in estimate.peaks(fg, level, noise=noise):
-        near = (fg >= fg[i] / 2.0) & (fg <= fg[i] * 2.0)
-        if near.sum() < 8:                # too coarse a grid: the eight nearest lines
-            near = np.zeros(len(fg), dtype=bool)
-            near[np.argsort(np.abs(fg - fg[i]))[:8]] = True
-        pole = estimate.fit_mode(fg[near], ratio[near], weight=trust[near])
-        if pole is None:
-            continue
-        freq, zeta = abs(pole) / (2.0 * math.pi), -pole.real / abs(pole)
-        if not (fg[near].min() <= freq <= fg[near].max() and 0.0 < zeta < 1.0):
-            continue
-        found.append(Resonance(freq, zeta, float(level[i]), axis, seen_by))
-    return sorted(found, key=lambda r: r.frequency)
-
-
-def _jackknife(spec: estimate.Spectra, resonances: list[Resonance], rigid: np.ndarray,
-               axis: str, seen_by: str, averaged: bool = False) -> list[float | None]:
-    """The standard deviation of each resonance's frequency (Hz) by the jackknife over the
-    averaged periods: the fit repeated with each left out, √((P − 1)/P·Σ(f_i − f̄)²); None
-    where a leave-one-out fit lost it or fewer than three periods were averaged."""
-    periods = len(spec.dac)
-    if periods < 3 or not resonances:
-        return [None] * len(resonances)
-    runs = []
-    for p in range(periods):
-        h, g = spec.without(p).response()
-        runs.append([r.frequency for r in _resonances(
-            spec.frequency, h, g, rigid, axis, seen_by,
-            periods - 1 if averaged else None)])
-    out: list[float | None] = []
-    for r in resonances:
-        near = [min(run, key=lambda f: abs(f - r.frequency)) for run in runs if run]
-        near = [f for f in near if abs(f - r.frequency) < 0.25 * r.frequency]
-        if len(near) < periods:
-            out.append(None)
-            continue
-        f = np.array(near)
-        out.append(float(math.sqrt((periods - 1) / periods * np.sum((f - f.mean()) ** 2))))
-    return out
-
-
 def _options(base: MachineConfig, belief: MachineConfig, axis: str, loop: str,
              sensor: str, excitation: str, averages: int, amplitude: float | None,
              offset: float | None, f_min: float | None, f_max: float | None
@@ -273,6 +181,10 @@ def measure(machine, *, driver: str = "sim", axis: str = "x", loop: str = "mecha
     base = _machine(machine)
     belief = _machine(controller_model) if controller_model is not None else base
     _choice("excitation", excitation, EXCITATIONS)
+    for name, value in (("hammer_force", hammer_force), ("hammer_duration", hammer_duration)):
+        if value is not None and excitation != "hammer":
+            raise ConfigError(name, f"is a setting of the hammer: only with --excitation "
+                              f"hammer, not {excitation}")
     if excitation == "hammer":
         _choice("axis", axis, AXES)
         if not (isinstance(averages, int) and 1 <= averages <= 1000):
@@ -280,7 +192,10 @@ def measure(machine, *, driver: str = "sim", axis: str = "x", loop: str = "mecha
                               f"{averages!r}")
         opts = hammer.check(driver, loop, sensor, hammer_force, hammer_duration, f_min,
                             f_max, averages, base.accelerometer.sample_rate)
-        return _tap_test(base, belief, driver, axis, opts, out_dir, noise, say)
+        middle = np.array([0.5 * sum(base.axes[a].mechanics.travel) for a in AXES])
+        target, window = plan_room(base, axis, hammer.REACH, middle)
+        return hammer.tap_test(base, belief, driver, axis, opts, target, window,
+                               out_dir=out_dir, noise=noise, say=say)
     amplitude, offset, f_min, f_max = _options(base, belief, axis, loop, sensor,
                                                excitation, averages, amplitude, offset,
                                                f_min, f_max)
@@ -343,7 +258,7 @@ def measure(machine, *, driver: str = "sim", axis: str = "x", loop: str = "mecha
     prediction = predict(belief, axis, position, loop, seen_by, f, gains)
     rigid = predict(belief, axis, position, loop, seen_by, f, gains, rigid=True)
     good = coherence >= estimate.COHERENT
-    resonances = _resonances(f, response, coherence, rigid, axis, seen_by)
+    resonances = modes.resonances(f, response, coherence, rigid, axis, seen_by)
     margins = None
     info: dict[str, Any] = {}
     if loop == "position":
@@ -352,11 +267,11 @@ def measure(machine, *, driver: str = "sim", axis: str = "x", loop: str = "mecha
         design = estimate.margins(dense, design_loop(axis_models(belief)[k], gains, axis,
                                                      period, dense))
         info["design_margins"] = design.to_dict()
-    info["resonance_sd_hz"] = _jackknife(spec, resonances, rigid, axis, seen_by)
+    info["resonance_sd_hz"] = modes.jackknife(spec, resonances, rigid, axis, seen_by)
     info["accelerometer_rate_hz"] = (base.accelerometer.sample_rate
                                      if seen_by == "accelerometer" else None)
     top = float(f[good].max()) if good.any() else 0.0
-    unseen = _unseen(belief, axis, position, seen_by, loop, top)
+    unseen = modes.unseen(belief, axis, position, seen_by, loop, top)
     info.update(_info(base, belief, driver, exc, amplitude, offset, averages, rec, f,
                       response, prediction, good, axis, position))
     result = FrequencyResponse(f, response, coherence, prediction, resonances, margins,
@@ -367,87 +282,10 @@ def measure(machine, *, driver: str = "sim", axis: str = "x", loop: str = "mecha
     return result
 
 
-def _tap_test(base: MachineConfig, belief: MachineConfig, driver: str, axis: str,
-              opts: hammer.HammerOptions, out_dir, noise: bool,
-              say: Callable[[str], None]) -> FrequencyResponse:
-    """The impact test (``twin.analysis.frequency.hammer``): the twin's table set in the
-    middle of its travel (where the screw's stiffness is its mean; the jog there is of no
-    interest to the test), held, struck; the accelerance, its resonances and the analytic modes."""
-    if out_dir is not None:
-        from twin.system.jsonio import output_dir
-        output_dir(out_dir)
-    middle = np.array([0.5 * sum(base.axes[a].mechanics.travel) for a in AXES])
-    reach = (-2e-3, 2e-3)      # a blow moves a held table by micrometres
-    io, _ = open_experiment_driver(driver, base, noise=noise, accelerometer=True)
-    k = AXES.index(axis)
-    striker = HammerSimDriver(io.plant, io.period, axis=k,  # type: ignore[attr-defined]
-                              duration=opts.duration)
-    try:
-        target, window = plan_room(base, axis, reach, middle)
-        say(f"{driver}: the table at x {1e3 * target[0]:.2f} mm, y {1e3 * target[1]:.2f} mm")
-        io.plant.reset(positions=target)   # type: ignore[attr-defined]
-        say(f"hammer: {opts.taps} blows of {opts.force:g} N, {1e3 * opts.duration:g} ms, "
-            f"along {axis}; windows of {1.0 / opts.f_min:.2f} s")
-        spec, rec = hammer.strike(striker, base, belief, axis, opts, window, noise=noise)
-    except ValueError as exc_:
-        from twin.errors import ExperimentAborted
-        raise ExperimentAborted(f"the measurement is incomplete: {exc_}") from None
-    finally:
-        striker.close()
-    position = min(max(float(np.mean(rec.position)), belief.axes[axis].mechanics.travel[0]),
-                   belief.axes[axis].mechanics.travel[1])
-    response, coherence = spec.response()
-    f = spec.frequency
-    prediction = accelerance(belief, axis, position, f)
-    rigid = accelerance(belief, axis, position, f, rigid=True)
-    good = coherence >= estimate.COHERENT
-    found = _resonances(f, response, coherence, rigid, axis, "accelerometer", len(spec.dac))
-    # a pole whose half-power width 2ζf is narrower than the lines is not resolved by them:
-    # on the twin a friction nonlinearity's or the drive's ripple, never the structure's
-    resonances = [r for r in found if 2.0 * r.damping * r.frequency >= opts.f_min]
-    narrow = [f"a peak at {r.frequency:.1f} Hz, {2.0 * r.damping * r.frequency:.2f} Hz "
-              f"wide, narrower than the {opts.f_min:g} Hz lines: not resolved (lower "
-              "--f-min to resolve it)" for r in found if r not in resonances]
-    ratio = response[good] / prediction[good]
-    modes = closed_loop_modes(belief, axis, position)
-    info: dict[str, Any] = {
-        "machine": base.name, "controller_model": belief.name, "driver": driver,
-        "excitation": {"kind": "hammer", "peak_force_n": opts.force,
-                       "duration_ms": 1e3 * opts.duration, "taps": len(spec.dac),
-                       "resolution_hz": opts.f_min, "f_max_hz": opts.f_max},
-        "controller_period_s": base.controller.period,
-        "machine_time_s": len(rec.slot) * base.controller.period,
-        "accelerometer_rate_hz": base.accelerometer.sample_rate,
-        "accelerometer_samples_lost": int(rec.lost),
-        "resonance_sd_hz": _jackknife(spec, resonances, rigid, axis, "accelerometer",
-                                      averaged=True),
-        "agreement": {
-            "lines_coherent": int(good.sum()),
-            "max_gain_error_db": float(np.max(np.abs(20 * np.log10(np.abs(ratio)))))
-            if len(ratio) else None,
-            "max_phase_error_deg": float(np.max(np.abs(np.degrees(np.angle(ratio)))))
-            if len(ratio) else None},
-        "analytic_modes": [{"frequency_hz": abs(s) / (2 * math.pi),
-                            "damping": -s.real / abs(s)} for s in modes],
-        "deadlines": None,
-    }
-    top = float(f[good].max()) if good.any() else 0.0
-    unseen = _unseen(belief, axis, position, "accelerometer", "mechanics", top) + narrow
-    result = FrequencyResponse(f, response, coherence, prediction, resonances, None,
-                               unseen, "mechanics", "accelerometer", axis, ACCELERANCE,
-                               position, info)
-    if out_dir is not None:
-        from twin.analysis.frequency.report import write_record
-        result = write_record(result, rec, Path(out_dir))
-    return result
-
-
 def _info(base: MachineConfig, belief: MachineConfig, driver: str, exc: Excitation,
           amplitude: float, offset: float, averages: int, rec, f: np.ndarray,
           response: np.ndarray, prediction: np.ndarray, good: np.ndarray, axis: str,
           position: float) -> dict[str, Any]:
-    ratio = response[good] / prediction[good]
-    modes = closed_loop_modes(belief, axis, position)
     return {
         "machine": base.name, "controller_model": belief.name, "driver": driver,
         "excitation": {"kind": exc.kind, "ticks_per_period": exc.length,
@@ -456,14 +294,7 @@ def _info(base: MachineConfig, belief: MachineConfig, driver: str, exc: Excitati
                        "averages": averages},
         "machine_time_s": len(rec.slot) * exc.period,
         "accelerometer_samples_lost": int(rec.lost),
-        "agreement": {
-            "lines_coherent": int(good.sum()),
-            "max_gain_error_db": float(np.max(np.abs(20 * np.log10(np.abs(ratio)))))
-            if len(ratio) else None,
-            "max_phase_error_deg": float(np.max(np.abs(np.degrees(np.angle(ratio)))))
-            if len(ratio) else None},
-        "analytic_modes": [{"frequency_hz": abs(s) / (2 * math.pi),
-                            "damping": -s.real / abs(s)} for s in modes],
+        **modes.compared(response, prediction, good, belief, axis, position),
         "deadlines": None if rec.stats is None else rec.stats.to_dict(),
     }
 
