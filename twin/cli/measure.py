@@ -118,7 +118,7 @@ def _summary(doc: dict) -> dict:
 def _print(doc: dict) -> None:
     table = Table(title=f"axis {doc['axis']}: resonances ({doc['sensor']}, at "
                         f"{doc['position_mm']:.1f} mm)")
-    for col in ("frequency (Hz)", "damping ζ", "peak (dB)"):
+    for col in ("frequency (Hz)", "damping ζ", "peak over rigid (dB)"):
         table.add_column(col, justify="right")
     for r in doc["resonances"]:
         table.add_row(f"{r['frequency_hz']:.2f}", f"{r['damping']:.3f}",
