@@ -186,16 +186,8 @@ def measure(machine, *, driver: str = "sim", axis: str = "x", loop: str = "mecha
             raise ConfigError(name, f"is a setting of the hammer: only with --excitation "
                               f"hammer, not {excitation}")
     if excitation == "hammer":
-        _choice("axis", axis, AXES)
-        if not (isinstance(averages, int) and 1 <= averages <= 1000):
-            raise ConfigError("averages", f"must be a whole number 1 … 1000, got "
-                              f"{averages!r}")
-        opts = hammer.check(driver, loop, sensor, hammer_force, hammer_duration, f_min,
-                            f_max, averages, base.accelerometer.sample_rate)
-        middle = np.array([0.5 * sum(base.axes[a].mechanics.travel) for a in AXES])
-        target, window = plan_room(base, axis, hammer.REACH, middle)
-        return hammer.tap_test(base, belief, driver, axis, opts, target, window,
-                               out_dir=out_dir, noise=noise, say=say)
+        return _tap_test(base, belief, driver, axis, loop, sensor, averages, hammer_force,
+                         hammer_duration, f_min, f_max, out_dir, noise, say)
     amplitude, offset, f_min, f_max = _options(base, belief, axis, loop, sensor,
                                                excitation, averages, amplitude, offset,
                                                f_min, f_max)
@@ -210,8 +202,7 @@ def measure(machine, *, driver: str = "sim", axis: str = "x", loop: str = "mecha
         values = np.tile(exc.values, 1 + averages)
         measured = list(range(1, 1 + averages))
     lo, hi = _excursion(values, period, amplitude, offset, loop)
-    middle = np.array([0.5 * sum(base.axes[a].mechanics.travel) for a in AXES])
-    plan_room(base, axis, (lo, hi), middle)   # room anywhere at all: before the machine
+    plan_room(base, axis, (lo, hi), _middle(base))   # room anywhere at all: before the machine
     if out_dir is not None:
         from twin.system.jsonio import output_dir
         output_dir(out_dir)
@@ -280,6 +271,27 @@ def measure(machine, *, driver: str = "sim", axis: str = "x", loop: str = "mecha
         from twin.analysis.frequency.report import write_record
         result = write_record(result, rec, Path(out_dir))
     return result
+
+
+def _middle(base: MachineConfig) -> np.ndarray:
+    """The middle of each axis' travel (m)."""
+    return np.array([0.5 * sum(base.axes[a].mechanics.travel) for a in AXES])
+
+
+def _tap_test(base: MachineConfig, belief: MachineConfig, driver: str, axis: str, loop: str,
+              sensor: str, averages: int, force: float | None, duration: float | None,
+              f_min: float | None, f_max: float | None, out_dir, noise: bool,
+              say: Callable[[str], None]) -> FrequencyResponse:
+    """``--excitation hammer``: its settings checked, then the tap test at mid-travel
+    (``twin.session.hammer``)."""
+    _choice("axis", axis, AXES)
+    if not (isinstance(averages, int) and 1 <= averages <= 1000):
+        raise ConfigError("averages", f"must be a whole number 1 … 1000, got {averages!r}")
+    opts = hammer.check(driver, loop, sensor, force, duration, f_min, f_max, averages,
+                        base.accelerometer.sample_rate)
+    target, window = plan_room(base, axis, hammer.REACH, _middle(base))
+    return hammer.tap_test(base, belief, driver, axis, opts, target, window,
+                           out_dir=out_dir, noise=noise, say=say)
 
 
 def _info(base: MachineConfig, belief: MachineConfig, driver: str, exc: Excitation,
