@@ -64,7 +64,7 @@ def measure(
                                  "periods (PRBS) or blows (hammer) averaged."),
     periods: int | None = typer.Option(None, "--periods", help="multisine: periods "
                                        "measured per realisation (each realisation runs "
-                                       "the other way). Default 4 with the accelerometer, "
+                                       "the other way). Default 8 with the accelerometer, "
                                        "else 1."),
     f_min: float | None = typer.Option(None, "--f-min", help="Lowest line (Hz); sets the "
                                        "resolution. Default 1 Hz."),

@@ -58,7 +58,7 @@ def measure(machine, *, driver: str = "sim", axis: str = "x", loop: str = "mecha
         measured, each running the other way from the one before (the travel does not grow
         with the averaging); PRBS: periods averaged after one that settles.
     periods : int, optional
-        Multisine: periods measured per realisation; default 4 where the accelerometer
+        Multisine: periods measured per realisation; default 8 where the accelerometer
         measures (its noise: at 1 the first mode of laser_belt came out 1–5 % off), else 1.
     f_min, f_max : float, optional
         The band (Hz): ``f_min`` sets the resolution (default 1 Hz); ``f_max`` at most the
