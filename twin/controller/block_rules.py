@@ -93,6 +93,8 @@ class BlockRules:
         Whether the law limits jerk (curve caps and the curvature-step rule).
     view : float
         Twice the braking distance from the top feed (m): a run is not grown beyond it.
+    curve_acceleration, curve_quartic : float
+        The caps on curves of input shapers (``SegmentLimits``).
 
     Attributes
     ----------
@@ -103,11 +105,12 @@ class BlockRules:
     def __init__(self, limits: Limits, axis_limits: tuple[Limits, Limits], *,
                  rapid_velocity: float, tolerance: float, corner_model: CornerModel,
                  period: float | None, jerk: bool, view: float,
-                 curve_acceleration: float = math.inf):
+                 curve_acceleration: float = math.inf, curve_quartic: float = 0.0):
         self.limits, self.rapid_velocity, self.tolerance = limits, rapid_velocity, tolerance
         self.corner_model = corner_model
         self._caps = SegmentLimits(limits, axis_limits, jerk=jerk,
-                                   curve_acceleration=curve_acceleration)
+                                   curve_acceleration=curve_acceleration,
+                                   curve_quartic=curve_quartic)
         # a kink's velocity step per axis and on the contour: v·|Δt̂_k| ≤ A_k·T
         self._step = None if period is None else (
             axis_limits[0].max_acceleration * period, axis_limits[1].max_acceleration * period,

@@ -188,6 +188,9 @@ class Planner:
     curve_acceleration : float
         A further cap of the centripetal acceleration on curves (m/s²): what input shapers
         allow (``twin.controller.shaped_corner.curve_acceleration``); default none.
+    curve_quartic : float
+        The cap on curves that the shapers' fourth-order error sets once the smoothing
+        compensation removes the second-order one (``SegmentLimits``); 0: none.
     work_zone : WorkZone, optional
         Soft limits; None: unchecked.
     min_feed : float
@@ -206,7 +209,7 @@ class Planner:
                  corner_model: CornerModel | None = None, work_zone: WorkZone | None = None,
                  min_feed: float = 1e-6, max_program_time: float = 86400.0,
                  period: float | None = None, blend: float = 0.5,
-                 curve_acceleration: float = math.inf):
+                 curve_acceleration: float = math.inf, curve_quartic: float = 0.0):
         check_law(law)
         if mode not in MODES:
             raise ConfigError("mode", f"must be one of {MODES}, got {mode!r}")
@@ -238,7 +241,8 @@ class Planner:
         self._rules = BlockRules(limits, self.axis_limits, rapid_velocity=self.rapid_velocity,
                                  tolerance=self.tolerance, corner_model=self.corner_model,
                                  period=self.period, jerk=law != "trapezoid", view=self._view,
-                                 curve_acceleration=curve_acceleration)
+                                 curve_acceleration=curve_acceleration,
+                                 curve_quartic=curve_quartic)
         self.min_feed = float(min_feed)
         self.max_program_time = float(max_program_time)
         self._time_bound = 0.0
