@@ -82,8 +82,8 @@ def loop_variance(model: LinearAxisModel, gains: RegulatorGains, period: float,
 
 
 def compensation_table(settings, axes: Mapping[str, AxisConfig],
-                       shapers: Sequence[InputShaper | None],
-                       loop: Sequence[float]) -> np.ndarray:
+                       shapers: Sequence[InputShaper | None], loop: Sequence[float],
+                       period: float) -> np.ndarray:
     """``compensate_reference``'s parameters, (2, 4) per axis: c (s²), D (m), β (s), v_0
     (m/s); shape (0, 4) when both compensations are off.
 
@@ -97,6 +97,9 @@ def compensation_table(settings, axes: Mapping[str, AxisConfig],
         The input shapers of x and y.
     loop : sequence of 2 float
         Each axis' closed-loop variance σ_L² (s², ``loop_variance``).
+    period : float
+        Controller period (s): the shapers' σ² is that of their taps
+        (``InputShaper.discrete``), the filter the reference really goes through.
     """
     if not (settings.smoothing or settings.stretch):
         return np.zeros((0, 4))
@@ -105,8 +108,8 @@ def compensation_table(settings, axes: Mapping[str, AxisConfig],
     for k, name in enumerate(AXES):
         if settings.smoothing:
             shaper = shapers[k]
-            out[k, C_CURVE] += 0.5 * ((shaper.spread ** 2 if shaper is not None else 0.0)
-                                      + loop[k])
+            spread = shaper.discrete(period).spread if shaper is not None else 0.0
+            out[k, C_CURVE] += 0.5 * (spread * spread + loop[k])
         if settings.stretch:
             stiffness = axes[name].transmission.axial_stiffness
             mech = axes[name].mechanics
@@ -137,32 +140,43 @@ def compensated_circle_error(shaper: InputShaper, radius: float, speed: float) -
 
 # --------------------------------------------------------------------------- the offset
 @numba.njit(cache=True)
-def compensate_reference(par, state, period, ref_p, ref_v, ref_a, ref_j):
-    """One tick's offsets (module docstring), added in place to the raw reference of both
-    axes: position, and velocity by the offset's backward difference (``state`` (2, 2): the
-    last offset and whether there is one). ``par`` (2, 4) from ``compensation_table``;
-    shape (0, 4): nothing."""
+def compensate_reference(par, state, period, stage, ref_p, ref_v, ref_a, ref_j):
+    """One tick's offsets (module docstring), added in place to the reference of both axes:
+    position, and velocity by the offset's backward difference.
+
+    ``stage`` 0, on the raw reference before the shapers: the curve term −c·a_n (the
+    shapers must see it to undo their own shrink). ``stage`` 1, on the shaped reference:
+    the friction terms D·clip(v/v_0) + β·v of the shaped velocity, so that the offset flips
+    where the shaped reference, which the table follows, reverses (a friction force that
+    flips with the motion is met by the offset's step, not by a shaped staircase; the
+    step excites no mode since it only balances the friction's own). ``par`` (2, 4) from
+    ``compensation_table``, shape (0, 4): nothing; ``state`` (2, 4): per stage the last
+    offset and whether there is one.
+    """
     if par.shape[0] == 0:
         return
-    vx, vy = ref_v[0], ref_v[1]
-    speed2 = vx * vx + vy * vy
     anx = any_ = 0.0
-    if speed2 > 0.0:
-        along = (ref_a[0] * vx + ref_a[1] * vy) / speed2
-        anx, any_ = ref_a[0] - along * vx, ref_a[1] - along * vy
+    if stage == 0:
+        vx, vy = ref_v[0], ref_v[1]
+        speed2 = vx * vx + vy * vy
+        if speed2 > 0.0:
+            along = (ref_a[0] * vx + ref_a[1] * vy) / speed2
+            anx, any_ = ref_a[0] - along * vx, ref_a[1] - along * vy
+    col = 2 * stage
     for k in range(2):
-        v = ref_v[k]
-        band = par[k, C_BAND]
-        r = v / band
-        if r > 1.0:
-            r = 1.0
-        elif r < -1.0:
-            r = -1.0
-        an = anx if k == 0 else any_
-        off = -par[k, C_CURVE] * an + par[k, C_COULOMB] * r + par[k, C_VISCOUS] * v
-        dv = (off - state[k, 0]) / period if state[k, 1] > 0.0 else 0.0
-        state[k, 0] = off
-        state[k, 1] = 1.0
+        if stage == 0:
+            off = -par[k, C_CURVE] * (anx if k == 0 else any_)
+        else:
+            v = ref_v[k]
+            r = v / par[k, C_BAND]
+            if r > 1.0:
+                r = 1.0
+            elif r < -1.0:
+                r = -1.0
+            off = par[k, C_COULOMB] * r + par[k, C_VISCOUS] * v
+        dv = (off - state[k, col]) / period if state[k, col + 1] > 0.0 else 0.0
+        state[k, col] = off
+        state[k, col + 1] = 1.0
         ref_p[k] += off
         ref_v[k] += dv
 
@@ -181,7 +195,7 @@ class ReferenceCompensation:
     def __init__(self, par: np.ndarray, period: float):
         self.par = np.ascontiguousarray(par, dtype=np.float64)
         self.period = float(period)
-        self.state = np.zeros((2, 2))
+        self.state = np.zeros((2, 4))
 
     @property
     def active(self) -> bool:
@@ -192,13 +206,15 @@ class ReferenceCompensation:
         """At rest: no offset yet."""
         self.state[:] = 0.0
 
-    def apply(self, ref_p: np.ndarray, ref_v: np.ndarray, ref_a: np.ndarray,
+    def apply(self, stage: int, ref_p: np.ndarray, ref_v: np.ndarray, ref_a: np.ndarray,
               ref_j: np.ndarray) -> None:
-        """Add this tick's offsets to the raw reference (arrays of shape (2,)) in place."""
-        compensate_reference(self.par, self.state, self.period, ref_p, ref_v, ref_a, ref_j)
+        """Add this tick's offsets of ``stage`` (0: before the shapers, 1: after them) to
+        the reference (arrays of shape (2,)) in place."""
+        compensate_reference(self.par, self.state, self.period, stage, ref_p, ref_v, ref_a,
+                             ref_j)
 
 
-NO_COMPENSATION = (np.zeros((0, 4)), np.zeros((2, 2)))
+NO_COMPENSATION = (np.zeros((0, 4)), np.zeros((2, 4)))
 """``compensate_reference``'s ``par`` and ``state`` that add nothing."""
 
 

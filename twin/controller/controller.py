@@ -194,11 +194,13 @@ class Controller(ManualCommands):
         loop = ([loop_variance(models[k], gains, self.period, k) for k in range(2)]
                 if comp.smoothing else [0.0, 0.0])
         self.compensation = ReferenceCompensation(
-            compensation_table(comp, believed, shaper.shapers, loop), self.period)
+            compensation_table(comp, believed, shaper.shapers, loop, self.period),
+            self.period)
         """ReferenceCompensation: the reference's offsets (``settings.compensation``)."""
         if shaper.active and not isinstance(corner_model, NoCornerLimit):
             corner_model = ShapedCornerModel(corner_model, shaper.shapers)
             share = settings.shaper.curve_share
+            shaped["stop_dwell"] = shaper.duration
             if comp.smoothing:   # the compensation leaves the fourth-order error only
                 shaped["curve_quartic"] = curve_quartic(
                     shaper.shapers, settings.contour_tolerance, share)
@@ -398,12 +400,14 @@ class Controller(ManualCommands):
         if status < ControllerStatus.FINISHED and status != ControllerStatus.IDLE:
             istatus = interp.update()
             if type(interp) is Interpolator:
-                if self.compensation.active:
-                    self.compensation.apply(ref.position, ref.velocity, ref.acceleration,
-                                            ref.jerk)
+                comp = self.compensation if self.compensation.active else None
+                if comp is not None:
+                    comp.apply(0, ref.position, ref.velocity, ref.acceleration, ref.jerk)
                 if self.shaper is not None:
                     self.shaper.apply(ref.position, ref.velocity, ref.acceleration,
                                       ref.jerk)
+                if comp is not None:
+                    comp.apply(1, ref.position, ref.velocity, ref.acceleration, ref.jerk)
             rstatus = reg.update(ref.position, ref.velocity, ref.acceleration, ref.jerk, pos)
             if rstatus >= RegulatorStatus.FOLLOWING_ERROR:
                 status = _FAULTS[RegulatorStatus(rstatus)]

@@ -327,8 +327,9 @@ def steady_tick(counts, tacho, limit_min, limit_max, drive_ready, limits_prev, e
         pos[k] = enc_float[0, k] + enc_int[1, k] / enc_float[1, k]
     # 2. safety passed (checked above); 3. interpolation
     reference_at(geo, pieces, starts, table, coef, tau, ref_p, ref_v, ref_a, ref_j)
-    compensate_reference(cp_par, cp_state, period, ref_p, ref_v, ref_a, ref_j)
+    compensate_reference(cp_par, cp_state, period, 0, ref_p, ref_v, ref_a, ref_j)
     shape_reference(sh_index, sh_weight, sh_history, sh_state, ref_p, ref_v, ref_a, ref_j)
+    compensate_reference(cp_par, cp_state, period, 1, ref_p, ref_v, ref_a, ref_j)
     # 4. regulation
     rc = _regulate(par, st, ref_p, ref_v, ref_a, ref_j, pos, reg_out, reg_err, terms,
                    code_min, code_max)
