@@ -147,15 +147,30 @@ def _belt_run(scale_k, scale_f, compensate, seed):
     return float(err[int(0.4 / PERIOD):].max())
 
 
-@pytest.mark.parametrize(("scale_k", "scale_f"), [(1.0, 1.0), (0.7, 1.3), (1.3, 0.7)]
-                         if CI else [(s, f) for s in (0.7, 1.0, 1.3) for f in (0.7, 1.0, 1.3)])
+@pytest.mark.parametrize(("scale_k", "scale_f"), [(0.7, 1.3), (1.3, 0.7)]
+                         if CI else [(s, f) for s in (0.7, 1.0, 1.3) for f in (0.7, 1.0, 1.3)
+                                     if (s, f) != (1.0, 1.0)])
 def test_the_stretch_compensation_helps_on_a_perturbed_belt(scale_k, scale_f):
-    """From the belief's nominal m, k, b, F_c only: on the nominal machine the reversal
-    error nearly vanishes; with the truth off by ±30 % it still helps, and what is left is
-    no more than the mismatch's share of the uncompensated error (plus the dynamics'
-    margin)."""
+    """From the belief's nominal m, k, b, F_c only. On the nominal machine the reversal
+    error drops to what the compensation leaves by design (the stretch m·a/k along the
+    motion, and the band over which the offset flips); with the truth off by ±30 % it still
+    helps, and it never hurts beyond that residual (scaled with the true stretch) plus what
+    the mismatch itself predicts: 2·|ΔD| across a reversal, |Δβ|·v and m·a·|Δ(1/k)|."""
+    nominal_plain = _belt_run(1.0, 1.0, False, 0)
+    nominal = _belt_run(1.0, 1.0, True, 0)
+    axes = load_machine("laser_belt").axes
+    mech, tr = axes["y"].mechanics, axes["y"].transmission
+    k = tr.axial_stiffness
+    m = mech.carriage_mass
+    amp, w = 2e-3, 2.0 * math.pi * 1.5
+    stretch = m * amp * w * w / k
+    assert nominal < 0.4 * nominal_plain
+    assert nominal <= stretch + mech.slide_coulomb / k        # the stretch and the band
     plain = _belt_run(scale_k, scale_f, False, 0)
     comp = _belt_run(scale_k, scale_f, True, 0)
     assert comp < plain
-    mismatch = max(abs(1.0 - scale_f / scale_k), abs(1.0 - 1.0 / scale_k))
-    assert comp <= (mismatch + 0.3) * plain
+    mismatch = (2.0 * mech.slide_coulomb / k * abs(scale_f / scale_k - 1.0)
+                + mech.slide_viscous / k * abs(scale_f / scale_k - 1.0) * amp * w
+                + stretch * abs(1.0 / scale_k - 1.0))
+    # the residual scales with the true machine's stretch (1/k, F_c/k)
+    assert comp <= nominal * max(1.0, 1.0 / scale_k, scale_f / scale_k) + mismatch

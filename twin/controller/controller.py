@@ -51,6 +51,7 @@ from twin.controller.compensation import (
     ReferenceCompensation,
     compensation_table,
     curve_quartic,
+    curve_step_acceleration,
     loop_variance,
 )
 from twin.controller.corner import CornerModel, NoCornerLimit
@@ -201,11 +202,12 @@ class Controller(ManualCommands):
             corner_model = ShapedCornerModel(corner_model, shaper.shapers)
             share = settings.shaper.curve_share
             shaped["stop_dwell"] = shaper.duration
-            if comp.smoothing:   # the compensation leaves the fourth-order error only
+            shaped["curve_acceleration"] = curve_acceleration(
+                shaper.shapers, settings.contour_tolerance, share)
+            if comp.smoothing:   # left: the fourth-order error, the transients at steps
                 shaped["curve_quartic"] = curve_quartic(
                     shaper.shapers, settings.contour_tolerance, share)
-            else:
-                shaped["curve_acceleration"] = curve_acceleration(
+                shaped["curve_step"] = curve_step_acceleration(
                     shaper.shapers, settings.contour_tolerance, share)
         options: dict[str, Any] = {"law": profile or settings.profile,
                                    "mode": planner or settings.planner,

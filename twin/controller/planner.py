@@ -191,6 +191,11 @@ class Planner:
     curve_quartic : float
         The cap on curves that the shapers' fourth-order error sets once the smoothing
         compensation removes the second-order one (``SegmentLimits``); 0: none.
+    curve_step : float
+        The largest step of the normal acceleration v²·|Δκ| a node between feed moves may
+        have (m/s²): with the smoothing compensation the shapers' transient where the
+        curvature jumps (``twin.controller.compensation.curve_step_acceleration``); default
+        none.
     stop_dwell : float
         Time the reference stands still at an exact stop of the look-ahead mode before the
         next move (s): before a machine function (an ``Event``: M3/M5, tool on/off) and
@@ -217,7 +222,7 @@ class Planner:
                  min_feed: float = 1e-6, max_program_time: float = 86400.0,
                  period: float | None = None, blend: float = 0.5,
                  curve_acceleration: float = math.inf, curve_quartic: float = 0.0,
-                 stop_dwell: float = 0.0):
+                 curve_step: float = math.inf, stop_dwell: float = 0.0):
         check_law(law)
         if not (math.isfinite(stop_dwell) and stop_dwell >= 0.0):
             raise ConfigError("stop_dwell", f"must be finite and >= 0 (s), got {stop_dwell!r}")
@@ -253,7 +258,7 @@ class Planner:
                                  tolerance=self.tolerance, corner_model=self.corner_model,
                                  period=self.period, jerk=law != "trapezoid", view=self._view,
                                  curve_acceleration=curve_acceleration,
-                                 curve_quartic=curve_quartic)
+                                 curve_quartic=curve_quartic, curve_step=curve_step)
         self.min_feed = float(min_feed)
         self.max_program_time = float(max_program_time)
         self._time_bound = 0.0
