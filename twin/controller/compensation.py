@@ -1,34 +1,35 @@
 """Reference compensations: the offsets a CNC adds to the interpolated reference so that the
 table, not the motor, follows the path (``[controller.compensation]``, issue 31).
 
-Both act on each tick's reference before the input shapers (``twin.controller.shaping``) and
-come from the controller's belief only (its axes, its loop model, its shapers), never from
-the plant. The offset of axis k is::
+They come from the controller's belief only (its axes, its loop model, its shapers), never
+from the plant. The offset of axis k is::
 
-    Δ_k = −c_k·a_n,k + D_k·clip(v_k / v_0, −1, 1) + β_k·v_k
+    Δ_k = (m_k/k_k − c_k)·a_n,k          on the raw reference, before the input shapers
+        + D_k·r_k + β_k·v_k              on the shaped reference, after them
 
 * ``a_n`` is the reference's normal acceleration, the part of a perpendicular to v
   (v²κ on a curve; 0 on a straight line, so corners and the moves along a line keep their
-  points: every term below only moves a point along a line).
+  points).
 * **Smoothing** (``smoothing``): a filter of unit DC gain with impulse response of variance
   σ² turns x(t) into x(t − τ) + (σ²/2)·x''(t − τ) + …, so a curve run at centripetal
-  acceleration a_n shrinks by a_n·σ²/2. The shapers (σ_s², ``InputShaper.spread``) and the
-  closed position loop on the controller's linear model (σ_L², ``loop_variance``) both do
-  this; ``c`` gets (σ_s² + σ_L²)/2 and the shaped, followed curve keeps its radius to
-  O(Ω⁴σ⁴) (``compensated_circle_error``). The shaper still cancels the mode: it acts on
-  any input.
+  acceleration a_n shrinks by a_n·σ²/2. The shapers (σ_s² of their taps) and the closed
+  position loop on the controller's linear model (σ_L², ``loop_variance``) both do this;
+  ``c`` = (σ_s² + σ_L²)/2 and the shaped, followed curve keeps its radius to O(Ω⁴σ⁴)
+  (``compensated_circle_error``, ``smoothing_quartic``). The shaper still cancels the
+  mode: it acts on any input. Where the curvature steps at speed the first impulse meets
+  the offset before the others (``curvature_step_error``): the planner bounds that step.
 * **Stretch** (``stretch``): a transmission of stiffness k pulling the moving mass m against
   viscous friction b and Coulomb friction F_c stretches by (m·a + b·v + F_c·sign v)/k,
-  which a motor-side encoder does not see. ``c`` gets −m/k (the curve's quasi-static
+  which a motor-side encoder does not see. m/k acts on a_n (the curve's quasi-static
   stretch, outward), β = b/k, and D = F_c/k: where an axis reverses, the friction's stretch
-  flips by 2D (the quadrant glitch); the offset flips with it, ramped over
-  ``|v| < v_0 = reversal_band`` and smoothed by the shapers as any reference is (the
-  reversal compensation of Siemens' and Heidenhain's controls).
+  flips by 2D (the quadrant glitch). The friction's side r (``compensate_reference``)
+  flips with the shaped velocity across ``|v| < v_0 = reversal_band`` and holds while the
+  axis stops: the reversal compensation of Siemens' and Heidenhain's controls.
 
-The velocity channel gets the offset's backward difference over the period (the
-acceleration and jerk channels are left: a reference's step of the offset has no finite
-derivative), so a velocity feed-forward follows the offset too. ``compensate_reference``
-is the one implementation: the Python tick and the compiled tick both call it.
+The velocity channel gets the offsets' backward difference over the period (the
+acceleration and jerk channels are left: a step of the offset has no finite derivative),
+so a velocity feed-forward follows the offset too. ``compensate_reference`` is the one
+implementation: the Python tick and the compiled tick both call it.
 """
 
 from __future__ import annotations
