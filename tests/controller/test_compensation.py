@@ -5,6 +5,7 @@ friction integrated by scipy, on machines whose truth differs from the belief by
 
 from __future__ import annotations
 
+import functools
 import math
 import os
 
@@ -102,6 +103,7 @@ def test_the_loop_variance_of_a_fast_sampled_servo(seed):
     assert got == pytest.approx(1.0 / kv**2 - 2.0 * t / kv, rel=2e-3)
 
 
+@functools.cache
 def _belt_run(scale_k, scale_f, compensate, seed):
     """An axis of laser_belt (y): the motor follows the reference exactly, the belt (k, c)
     pulls the table against viscous and Coulomb friction (smoothed over 0.2 mm/s), on a
