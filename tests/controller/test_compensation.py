@@ -18,6 +18,7 @@ from twin.controller.compensation import (
     ReferenceCompensation,
     compensated_circle_error,
     compensation_table,
+    curvature_step_error,
     loop_variance,
     smoothing_quartic,
 )
@@ -176,3 +177,43 @@ def test_the_stretch_compensation_helps_on_a_perturbed_belt(scale_k, scale_f):
                 + stretch * abs(1.0 / scale_k - 1.0))
     # the residual scales with the true machine's stretch (1/k, F_c/k)
     assert comp <= nominal * max(1.0, 1.0 / scale_k, scale_f / scale_k) + mismatch
+
+
+@pytest.mark.parametrize(("name", "f", "z", "radius", "speed"), _cases(3 if CI else 10, 37))
+def test_the_transient_where_a_line_meets_an_arc(name, f, z, radius, speed):
+    """A line run into a tangent arc at constant speed, sampled, through the compensation
+    and the shaper: the largest distance of the output from the path (brute force over the
+    path's geometry) is ``curvature_step_error``·a_n of the taps, to first order in the
+    small angle the shaper's window sweeps (radius ≥ 50× the window's length)."""
+    shaper = design(name, f, z)
+    taps = shaper.discrete(PERIOD)
+    radius = max(radius * 20.0, 60.0 * speed * taps.duration)
+    axes = load_machine("laser_belt").axes
+    par = compensation_table(_Settings(smoothing=True), axes, (shaper, shaper), (0.0, 0.0),
+                             PERIOD)
+    comp = ReferenceCompensation(par, PERIOD)
+    sh = ReferenceShaper((shaper, shaper), PERIOD)
+    lead = int(sh.index.max()) + 5
+    sh.reset((-lead * PERIOD * speed, 0.0))
+    a_n = speed * speed / radius
+    worst = 0.0
+    for k in range(-lead, 3 * lead):
+        t = k * PERIOD
+        if t < 0.0:
+            p, v = np.array([speed * t, 0.0]), np.array([speed, 0.0])
+            a = np.zeros(2)
+        else:
+            th = speed * t / radius
+            p = np.array([radius * math.sin(th), radius * (1.0 - math.cos(th))])
+            v = speed * np.array([math.cos(th), math.sin(th)])
+            a = a_n * np.array([-math.sin(th), math.cos(th)])
+        comp.apply(0, p, v, a, np.zeros(2))
+        sh.apply(p, v, a, np.zeros(2))
+        if k >= 0:
+            x, y = p
+            on_line = abs(y) if x <= 0.0 else math.hypot(x, y)
+            on_arc = abs(math.hypot(x, y - radius) - radius) if x >= 0.0 else math.inf
+            worst = max(worst, min(on_line, on_arc))
+    expect = curvature_step_error(taps) * a_n
+    assert worst == pytest.approx(expect, rel=0.01)
+    assert curvature_step_error(taps) < curvature_step_error(taps, compensated=False)
