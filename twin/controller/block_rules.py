@@ -93,6 +93,11 @@ class BlockRules:
         Whether the law limits jerk (curve caps and the curvature-step rule).
     view : float
         Twice the braking distance from the top feed (m): a run is not grown beyond it.
+    curve_acceleration, curve_quartic : float
+        The caps on curves of input shapers (``SegmentLimits``).
+    curve_step : float
+        The largest step v²·|Δκ| of the normal acceleration at a node (m/s²): the input
+        shapers' transient under the smoothing compensation; default none.
 
     Attributes
     ----------
@@ -103,11 +108,13 @@ class BlockRules:
     def __init__(self, limits: Limits, axis_limits: tuple[Limits, Limits], *,
                  rapid_velocity: float, tolerance: float, corner_model: CornerModel,
                  period: float | None, jerk: bool, view: float,
-                 curve_acceleration: float = math.inf):
+                 curve_acceleration: float = math.inf, curve_quartic: float = 0.0,
+                 curve_step: float = math.inf):
         self.limits, self.rapid_velocity, self.tolerance = limits, rapid_velocity, tolerance
         self.corner_model = corner_model
         self._caps = SegmentLimits(limits, axis_limits, jerk=jerk,
-                                   curve_acceleration=curve_acceleration)
+                                   curve_acceleration=curve_acceleration,
+                                   curve_quartic=curve_quartic)
         # a kink's velocity step per axis and on the contour: v·|Δt̂_k| ≤ A_k·T
         self._step = None if period is None else (
             axis_limits[0].max_acceleration * period, axis_limits[1].max_acceleration * period,
@@ -127,6 +134,7 @@ class BlockRules:
         # a sliver: ℓ·√(A·|κ|) ≤ SLIVER_JERK·J·T², written ℓ·√|κ| ≤ SLIVER_JERK·J·T²/√A
         self._sliver = None if self._jerk_step is None else (
             SLIVER_JERK * j_total * period * period / math.sqrt(limits.max_acceleration))
+        self._curve_step = float(curve_step)
         self._view = view
         self._limits_cache: dict[tuple[float, float, float], Limits] = {}
         self.count = 0
@@ -158,7 +166,7 @@ class BlockRules:
             else:
                 _, _, b.t0x, b.t0y, b.k0, _ = seg.frame(0.0)
                 _, _, b.t1x, b.t1y, b.k1, _ = seg.frame(seg.length)
-            v_nom, acc, jerk = self._caps.curve_caps(seg, v_cap)
+            v_nom, acc, jerk = self._caps.curve_caps(seg, v_cap, blend)
         b.v_nom = v_nom
         if b.k0 != 0.0:                     # a curve's caps are its own: no reuse
             lim = tangential_limits(v_nom, acc, jerk)
@@ -211,6 +219,10 @@ class BlockRules:
         dk = abs(b.k0 - prev.k1)
         if dk > 0.0 and self._jerk_step is not None:    # v²·|Δκ|·STEP_SEEN ≤ J·T
             jump = math.sqrt(self._jerk_step / dk)
+            if jump < emax:
+                emax = jump
+        if dk > 0.0 and self._curve_step < math.inf:      # v²·|Δκ| ≤ the shapers' step
+            jump = math.sqrt(self._curve_step / dk)
             if jump < emax:
                 emax = jump
         return emax

@@ -188,6 +188,21 @@ class Planner:
     curve_acceleration : float
         A further cap of the centripetal acceleration on curves (m/s²): what input shapers
         allow (``twin.controller.shaped_corner.curve_acceleration``); default none.
+    curve_quartic : float
+        The cap on curves that the shapers' fourth-order error sets once the smoothing
+        compensation removes the second-order one (``SegmentLimits``); 0: none.
+    curve_step : float
+        The largest step of the normal acceleration v²·|Δκ| a node between feed moves may
+        have (m/s²): with the smoothing compensation the shapers' transient where the
+        curvature jumps (``twin.controller.compensation.curve_step_acceleration``); default
+        none.
+    stop_dwell : float
+        Time the reference stands still at an exact stop of the look-ahead mode before the
+        next move (s): before a machine function (an ``Event``: M3/M5, tool on/off) and
+        where a rapid meets another move. With input shapers the controller sets their
+        duration: the shaped reference then arrives at the stop before the next move
+        leaves it, instead of mixing the two directions (a cut corner at the pierce point).
+        Default 0: none.
     work_zone : WorkZone, optional
         Soft limits; None: unchecked.
     min_feed : float
@@ -206,8 +221,12 @@ class Planner:
                  corner_model: CornerModel | None = None, work_zone: WorkZone | None = None,
                  min_feed: float = 1e-6, max_program_time: float = 86400.0,
                  period: float | None = None, blend: float = 0.5,
-                 curve_acceleration: float = math.inf):
+                 curve_acceleration: float = math.inf, curve_quartic: float = 0.0,
+                 curve_step: float = math.inf, stop_dwell: float = 0.0):
         check_law(law)
+        if not (math.isfinite(stop_dwell) and stop_dwell >= 0.0):
+            raise ConfigError("stop_dwell", f"must be finite and >= 0 (s), got {stop_dwell!r}")
+        self.stop_dwell = float(stop_dwell)
         if mode not in MODES:
             raise ConfigError("mode", f"must be one of {MODES}, got {mode!r}")
         if isinstance(lookahead, bool) or not isinstance(lookahead, int) or lookahead < 1:
@@ -238,7 +257,8 @@ class Planner:
         self._rules = BlockRules(limits, self.axis_limits, rapid_velocity=self.rapid_velocity,
                                  tolerance=self.tolerance, corner_model=self.corner_model,
                                  period=self.period, jerk=law != "trapezoid", view=self._view,
-                                 curve_acceleration=curve_acceleration)
+                                 curve_acceleration=curve_acceleration,
+                                 curve_quartic=curve_quartic, curve_step=curve_step)
         self.min_feed = float(min_feed)
         self.max_program_time = float(max_program_time)
         self._time_bound = 0.0
@@ -396,6 +416,8 @@ class Planner:
         all on the programmed segment); dwells, events and the program end pass through;
         nothing after the program end is read."""
         zone = self.work_zone
+        settle = self.stop_dwell if self.mode == "lookahead" else 0.0
+        last: bool | None = None         # the last motion's rapid flag; None: at rest
         for item in _read_ahead(items):
             kind = type(item)
             if kind is Move:                 # segments_from_program, inlined
@@ -408,6 +430,9 @@ class Planner:
             else:
                 if kind is Dwell:
                     self._spend(item.duration, item.line, "its dwell")
+                elif settle > 0.0 and last is not None and not isinstance(item, ProgramEnd):
+                    yield Dwell(settle, item.line)
+                last = None
                 yield item
                 if isinstance(item, ProgramEnd):
                     return
@@ -415,6 +440,9 @@ class Planner:
             if zone is not None:
                 zone.check(seg, line)
             self._account(seg.length, feed, line)
+            if settle > 0.0 and last is not None and (last or feed is None):
+                yield Dwell(settle, line)
+            last = feed is None
             yield BlendedBlock(seg, feed, line)
 
     def _account(self, length: float, feed: float | None, line: int) -> None:
