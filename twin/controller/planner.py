@@ -311,6 +311,8 @@ class Planner:
         exact_stop = False
         run: WindowBlock | None = None       # the run being grown
         held: WindowBlock | None = None      # a run closed for its length, its successor to come
+        rest = False                         # the run starts at a stop
+        tail: WindowBlock | None = None      # a short block after the run: a stop next?
         while True:
             if out:
                 yield from out
@@ -324,6 +326,14 @@ class Planner:
                 break
             if type(item) is BlendedBlock:
                 block = block_of(*item)
+                after_stop = last is None
+                if tail is not None:            # the run ends at a rapid, or goes on
+                    if block.rapid:
+                        absorb(run, tail)
+                    else:
+                        end_run(window, held, run)
+                        run, held, rest = open_run(tail), None, False
+                    tail = None
                 if block.rapid:
                     last = None
                 else:
@@ -343,6 +353,9 @@ class Planner:
                 continue
             else:
                 last = None
+                if tail is not None:            # a stop: the short block ends the run
+                    absorb(run, tail)
+                    tail = None
                 if run is not None:
                     end_run(window, held, run)
                     run = held = None
@@ -357,9 +370,12 @@ class Planner:
             if not runs:
                 append(window, block)
                 continue
-            joins = joins_of(run, block) if run is not None else APART
+            joins = joins_of(run, block, rest) if run is not None else APART
             if joins == JOINS:
                 absorb(run, block)
+                continue
+            if joins == APART and run is not None and self._tail(run, block):
+                tail = block                    # joins if a stop follows (`_tail`)
                 continue
             if joins == TOO_LONG:              # the same curve goes on: hold this part
                 if held is not None:
@@ -368,7 +384,9 @@ class Planner:
             elif run is not None:
                 end_run(window, held, run)
                 held = None
-            run = open_run(block)
+            run, rest = open_run(block), after_stop
+        if tail is not None:
+            absorb(run, tail)
         if run is not None:
             end_run(window, held, run)
         while window:
@@ -433,6 +451,14 @@ class Planner:
                                 f"{self._time_bound:.6g} s with {what} so far, beyond the "
                                 f"machine's {self.max_program_time:g} s "
                                 "(controller.max_program_time)")
+
+    def _tail(self, run: WindowBlock, b: WindowBlock) -> bool:
+        """Whether ``b``, kept apart from ``run``, would join it if a stop followed: so
+        short that its node cannot bind at a stop's end (`BlockRules.slow_node`: a
+        contour's last chord after its curve), and no lower in its caps than the run
+        (joining lowers nothing of the run's)."""
+        return (b.v_nom >= run.v_nom and b.acc >= run.acc and b.jerk >= run.jerk
+                and self._rules.slow_node(run, b, b.length))
 
     def _end_run(self, window: deque[WindowBlock], held: WindowBlock | None,
                  run: WindowBlock) -> None:
