@@ -73,7 +73,12 @@ def test_the_faired_and_rounded_path_stays_within_the_blend_tolerance(seed):
     segs = [o.segment for o in out]
     for first, second in itertools.pairwise(segs):          # continuous, tangent
         assert np.array_equal(first.end, second.start)
-        np.testing.assert_allclose(first.end_tangent, second.start_tangent, atol=1e-7)
+        # blends that meet within 1 nm start where the one before ends (blend._SNAP): a
+        # turn of at most 1 nm over the radius
+        radii = [s.radius for s in (first, second) if isinstance(s, Arc)]
+        kink = 2e-9 / min(radii) if radii else 0.0
+        np.testing.assert_allclose(first.end_tangent, second.start_tangent,
+                                   atol=kink + 1e-9)
     assert np.array_equal(segs[0].start, pts[0]) and np.array_equal(segs[-1].end, pts[-1])
     assert polygon_distance(samples(segs), pts).max() <= tol * (1 + 1e-9) + 1e-15
 
@@ -99,18 +104,30 @@ def test_fairing_puts_the_blends_back_on_the_circle(seed):
 
 
 @pytest.mark.parametrize("seed", range(10 if FULL else 3))
-def test_exactly_chorded_curves_are_not_moved(seed):
+def test_exactly_chorded_circles_are_not_moved_and_lines_stay_lines(seed):
+    """Vertices evenly on a circle are on their own fit: the blends come out bit for bit as
+    without fairing. Collinear chords of random lengths may slide along their line (the
+    spacing is fitted too), but stay on it, unblended."""
     rng = np.random.default_rng(3200 + seed)
-    pts = chorded_curve(rng, decimals=None)
     r = 10 ** rng.uniform(-3.3, -1.7)
     n = int(rng.integers(8, 400))
-    phi = 2 * math.pi * np.arange(n + 1) / n
+    phi = 2 * math.pi * np.arange(n + 1) / n * rng.uniform(0.2, 1.0)
     circle = np.column_stack((0.2 + r * np.cos(phi), 0.2 + r * np.sin(phi)))
-    for poly in (pts, circle):
-        a, b = blended(poly, 25e-6, True), blended(poly, 25e-6, False)
-        assert [o.segment for o in a] == [o.segment for o in b] or all(
-            np.array_equal(x.segment.start, y.segment.start)
-            and np.array_equal(x.segment.end, y.segment.end) for x, y in zip(a, b, strict=True))
+    a, b = blended(circle, 25e-6, True), blended(circle, 25e-6, False)
+    assert len(a) == len(b)
+    for x, y in zip(a, b, strict=True):
+        assert np.array_equal(x.segment.start, y.segment.start)
+        assert np.array_equal(x.segment.end, y.segment.end)
+    heading = rng.uniform(0, 2 * math.pi)
+    u = np.array([math.cos(heading), math.sin(heading)])
+    steps = np.concatenate([[0.0], np.cumsum(rng.uniform(1e-5, 1e-3, n))])
+    line = 0.1 + steps[:, None] * u[None, :]
+    out = blended(line, 25e-6)
+    assert len(out) == n and not any(o.blend for o in out)
+    ends = np.array([o.segment.end for o in out])
+    across = (ends - 0.1) @ np.array([-u[1], u[0]])
+    assert np.abs(across).max() <= 1e-15
+    assert np.array_equal(out[-1].segment.end, line[-1])
 
 
 @pytest.mark.parametrize("seed", range(6 if FULL else 2))
@@ -129,7 +146,10 @@ def test_the_streams_chunks_do_not_change_the_fairing(seed, monkeypatch):
 
 
 def test_arcs_rapids_and_g61_end_or_stop_the_fairing():
-    pts = chorded_curve(np.random.default_rng(3400))
+    rng = np.random.default_rng(3400)
+    phi = np.linspace(0.0, 3.0, 30)
+    pts = np.round(np.column_stack((0.1 + 2e-3 * np.cos(phi), 0.1 + 2e-3 * np.sin(phi)))
+                   + rng.uniform(-1e-6, 1e-6, (30, 2)), 6)
     lines = [(Line(tuple(a), tuple(b)), 0.05, k) for k, (a, b) in
              enumerate(itertools.pairwise(pts.tolist())) if a != b]
     arc = Arc(tuple(pts[-1]), (pts[-1][0] + 2e-3, pts[-1][1]), (pts[-1][0] + 1e-3,

@@ -27,6 +27,13 @@ or spline meets anything (CAM arcs meet their lines tangentially; a kink there i
 at the node limit); a deflection below ``MIN_ANGLE`` (straight on: nothing to round) or a
 blend whose radius would fall below ``MIN_RADIUS`` (a reversal).
 
+Chorded curves are faired first (`twin.controller.fair`, ``fairing``): CAM's rounding of
+the vertices to the post's digits tilts short chords, and the deflections and the blends'
+radii would scatter with it (a curvature step at every chord). Each vertex of a chorded
+curve moves onto the circle fitted through its neighbours, by at most a tenth of the
+tolerance, and the blend at a moved vertex takes the moves of it and its neighbours off its
+tolerance: the rounded path stays within the tolerance of the programmed polygon.
+
 The contour tolerance is shared: the geometric rounding takes ``share`` of it (default one
 half) and the rest is left to the servo, whose dynamic error on the rounded path the
 acceleration limits bound (issue 12).

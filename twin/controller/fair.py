@@ -10,7 +10,8 @@ few chords (issue 30: such a circle took 25 % longer than the same circle as a G
 
 Fairing moves each vertex of a chorded curve onto the circle (or line) fitted by least
 squares through it and its ``REACH`` neighbours on each side — the curve the chords came
-from, as far as they tell it —, before the kinks are blended:
+from, as far as they tell it —, and along it to smooth the chords' lengths, before the
+kinks are blended:
 
 * only vertices of a chorded curve are moved: a deflection of at most ``MAX_TURN`` whose
   blend would reach the middle of a chord (the chords are short for the tolerance:
@@ -29,7 +30,11 @@ from, as far as they tell it —, before the kinks are blended:
 The fit is algebraic, ``A·|p|² + D·x + E·y + F = 0`` with ``|(A, D, E, F)| = 1`` (the
 smallest singular vector, in coordinates local to the vertex and scaled by its chords), so
 a straight run (A = 0) is a line like any other; the vertex moves along the circle's
-radius, ``A·t² + g·t + F = 0`` with ``g = |(D, E)|`` solved for its root nearer zero.
+radius, ``A·t² + g·t + F = 0`` with ``g = |(D, E)|`` solved for its root nearer zero, and
+then along the circle to where a quadratic in the vertex number, fitted by least squares
+to the window's places along the circle, puts it: the chords' lengths may vary smoothly
+along the curve (CAM's chords follow the curvature), but not from chord to chord, where
+they would leave a piece of line with a full curvature step between two blends.
 The fits of many vertices are made at once (numpy), ``CHUNK`` at a time, on the programmed
 points (not on points already moved), so the stream is faired in constant memory.
 """
@@ -146,24 +151,60 @@ def fair_points(pts: np.ndarray, tolerance: float, first: int = 1,
     length = np.hypot(d[:, 0], d[:, 1])
     scale = 0.5 * (length[which - 1] + length[which])
     local = (pts[cols] - pts[which][:, None, :]) / scale[:, None, None]
-    x, y = local[..., 0], local[..., 1]
-    rows = np.stack([x * x + y * y, x, y, np.ones_like(x)], axis=-1) * use[..., None]
-    vt = np.linalg.svd(rows)[2]
-    a, dd, e, f = (vt[:, -1, k] for k in range(4))
-    g = np.hypot(dd, e)
-    disc = g * g - 4.0 * a * f
-    ok = (g > 0.0) & (disc >= 0.0) & (left + right >= 3)
-    t = np.where(ok, -2.0 * f / np.where(ok, g + np.sqrt(np.maximum(disc, 0.0)), 1.0), 0.0)
-    step = np.where(ok, t / np.where(ok, g, 1.0), 0.0)[:, None] * np.stack([dd, e], axis=1)
+    step = _fit(local, use, offsets)
     step *= scale[:, None]
     dist = np.hypot(step[:, 0], step[:, 1])
     limit = np.minimum(SHARE * tolerance,
                        _ROOM_SHARE * np.minimum(length[which - 1], length[which]))
-    move = ok & (dist <= limit) & (dist >= MIN_MOVE)
+    move = (dist <= limit) & (dist >= MIN_MOVE)
     k = which - first
     out[k[move]] += step[move]
     moved[k[move]] = dist[move]
     return out, moved
+
+
+def _fit(local: np.ndarray, use: np.ndarray, offsets: np.ndarray) -> np.ndarray:
+    """Where each vertex goes (local, scaled coordinates: the vertex at the origin): onto
+    its fitted circle along the radius, and along the circle to where a quadratic in the
+    vertex number puts it through its neighbours' places (the chords' lengths vary
+    smoothly along the curve). NaN where no fit is made."""
+    x, y = local[..., 0], local[..., 1]
+    rows = np.stack([x * x + y * y, x, y, np.ones_like(x)], axis=-1) * use[..., None]
+    vt = np.linalg.svd(rows)[2]
+    a, d, e, f = (vt[:, -1, k] for k in range(4))
+    g = np.hypot(d, e)
+    disc = g * g - 4.0 * a * f
+    ok = (g > 0.0) & (disc >= 0.0) & (use.sum(axis=1) >= 4)
+    g = np.where(ok, g, 1.0)
+    t = np.where(ok, -2.0 * f / (g + np.sqrt(np.maximum(disc, 0.0))), 0.0)
+    ux, uy = d / g, e / g                      # the radial direction (either sense)
+    fx, fy = t * ux, t * uy                    # the foot on the circle
+    with np.errstate(divide="ignore", invalid="ignore"):
+        radius = np.where(np.abs(a) > 1e-12 * g, np.hypot(fx + 0.5 * d / a,
+                                                          fy + 0.5 * e / a), np.inf)
+    wide = radius > 1e6                        # straight, in the chords' scale
+    rx, ry = x - fx[:, None], y - fy[:, None]
+    cross = ux[:, None] * ry - uy[:, None] * rx
+    dot = ux[:, None] * rx + uy[:, None] * ry
+    sign = np.where(a >= 0.0, 1.0, -1.0)[:, None]     # the centre lies at −sign·u
+    radius = np.where(wide, 1.0, radius)          # unused where wide
+    rr = radius[:, None]
+    # arc length along the circle from the foot (centre on the −sign·u side)
+    arc = np.where(wide[:, None], cross, rr * np.arctan2(sign * cross, rr + sign * dot) * sign)
+    j = np.broadcast_to(offsets.astype(float), arc.shape)
+    basis = np.stack([np.ones_like(arc), j, j * j], axis=-1) * use[..., None]
+    normal = np.einsum("nki,nkj->nij", basis, basis)
+    rhs = np.einsum("nki,nk->ni", basis, arc)
+    solvable = ok & (np.abs(np.linalg.det(normal)) > 1e-12)
+    normal[~solvable] = np.eye(3)
+    s = np.where(solvable, np.linalg.solve(normal, rhs[..., None])[..., 0, 0], 0.0)
+    phi = s / radius
+    along = np.where(wide, s, radius * np.sin(phi))
+    across = np.where(wide, 0.0, -2.0 * radius * np.sin(0.5 * phi) ** 2) * sign[:, 0]
+    # the tangent w = (−u_y, u_x) is the direction in which `cross` counts
+    sx = fx + across * ux - along * uy
+    sy = fy + across * uy + along * ux
+    return np.where(ok[:, None], np.stack([sx, sy], axis=1), np.nan)
 
 
 def fair(items: Iterable[Any], tolerance: float,
@@ -171,12 +212,22 @@ def fair(items: Iterable[Any], tolerance: float,
     """The stream with the vertices of its chorded curves faired (module doc).
 
     Feed lines come out as ``FairedLine``s; everything else passes through in order, and
-    anything that is not a contiguous feed line ends a chain. ``path_tolerance`` maps a
+    anything that is not a contiguous feed line ends a chain, and so does an exception of
+    the source (after the lines read before it). ``path_tolerance`` maps a
     ``PathControl`` to the blend tolerance it sets (`Blender._path_tolerance`);
     ``tolerance`` is the one in force at the start. A tolerance of 0 (G61) fairs nothing.
     """
     chain = _Chain()
-    for item in items:
+    source = iter(items)
+    while True:
+        try:
+            item = next(source)
+        except StopIteration:
+            break
+        except Exception:               # what was read before the fault still runs
+            if chain.lines:
+                yield from chain.flush(tolerance, True)
+            raise
         if isinstance(item, tuple):
             seg, feed = item[0], item[1]
             if type(seg) is Line and feed is not None and tolerance > 0.0:

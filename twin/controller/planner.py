@@ -64,7 +64,11 @@ block with its lowest cap and its lowest tangential acceleration and jerk, one
 ``plan_move`` covers it, and each block gets its part of that move (``PlannedBlock.piece``;
 the acceleration runs on across the nodes and the limits hold across them, being the
 run's). A run is cut once it is as long as the view (twice the braking distance), and a
-short last part of a curve is merged back into the part before it.
+short last part of a curve is merged back into the part before it. A contour's first
+chord joins its curve's run, and its last chord does when a stop follows it, where the
+stop keeps the node between them too slow to bind (`BlockRules.slow_node`: a profile
+from or to rest passes a node d from the stop at most at √(2·A·d)): a circle sent as
+chords then runs one speed change from rest to rest, as the G3 arc does.
 
 Streaming and incremental
 -------------------------
