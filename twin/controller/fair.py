@@ -28,8 +28,8 @@ kinks are blended:
   not changed (moves below ``MIN_MOVE`` are not made).
 
 The fit is algebraic, ``A·|p|² + D·x + E·y + F = 0`` with ``|(A, D, E, F)| = 1`` (the
-smallest singular vector, in coordinates local to the vertex and scaled by its chords), so
-a straight run (A = 0) is a line like any other; the vertex moves along the circle's
+smallest singular vector of the rows, in coordinates local to the vertex and scaled by its
+chords), so a straight run (A = 0) is a line like any other; the vertex moves along the circle's
 radius, ``A·t² + g·t + F = 0`` with ``g = |(D, E)|`` solved for its root nearer zero, and
 then along the circle to where a quadratic in the vertex number, fitted by least squares
 to the window's places along the circle, puts it: the chords' lengths may vary smoothly
@@ -170,8 +170,11 @@ def _fit(local: np.ndarray, use: np.ndarray, offsets: np.ndarray) -> np.ndarray:
     smoothly along the curve). NaN where no fit is made."""
     x, y = local[..., 0], local[..., 1]
     rows = np.stack([x * x + y * y, x, y, np.ones_like(x)], axis=-1) * use[..., None]
-    vt = np.linalg.svd(rows)[2]
-    a, d, e, f = (vt[:, -1, k] for k in range(4))
+    # the smallest singular vector: the normal matrix's eigenvector of the least eigenvalue
+    # (eigh of 4 × 4 is 3x faster than an SVD of the rows; in the chords' scale its
+    # accuracy is far below MIN_MOVE)
+    vec = np.linalg.eigh(np.einsum("nki,nkj->nij", rows, rows))[1]
+    a, d, e, f = (vec[:, k, 0] for k in range(4))
     g = np.hypot(d, e)
     disc = g * g - 4.0 * a * f
     ok = (g > 0.0) & (disc >= 0.0) & (use.sum(axis=1) >= 4)
