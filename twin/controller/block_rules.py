@@ -227,10 +227,12 @@ class BlockRules:
                 emax = jump
         return emax
 
-    def joins(self, run: WindowBlock, b: WindowBlock) -> int:
+    def joins(self, run: WindowBlock, b: WindowBlock, rest: bool = False) -> int:
         """Whether ``b`` may join ``run`` (one speed change across them): both feed moves,
         a node that limits nothing, caps within ``RUN_CAP_SHARE`` (``JOINS``); but not
-        once the run is as long as the view (``TOO_LONG``); else ``APART``."""
+        once the run is as long as the view (``TOO_LONG``); else ``APART``. ``rest``: the
+        run starts at a stop; while it is so short that the node cannot bind
+        (`slow_node`), neither the node nor the run's higher limits keep ``b`` apart."""
         if b.rapid or run.rapid:
             return APART
         cap = run.v_nom
@@ -239,15 +241,30 @@ class BlockRules:
         if slowed * (1.0 / lo - 1.0 / hi) > (1.0 - RUN_CAP_SHARE) * max(
                 (run.length + b.length) / lo, self._view / hi):
             return APART
+        start = rest and self.slow_node(run, b, run.length)
         share, short = RUN_LIMIT_SHARE, (1.0 - RUN_CAP_SHARE) * (run.length + b.length)
-        if (b.acc < share * run.acc or b.jerk < share * run.jerk) and run.length > short:
+        if ((b.acc < share * run.acc or b.jerk < share * run.jerk) and run.length > short
+                and not start):
             return APART                # the run's changes would be slowed
         if (b.acc * share > run.acc or b.jerk * share > run.jerk) and b.length > short:
             return APART                # the block's would
         last = run.members[-1] if run.members else run
-        if self.node_cap(last, b) < (cap if cap < b.v_nom else b.v_nom):
+        if not start and self.node_cap(last, b) < (cap if cap < b.v_nom else b.v_nom):
             return APART
         return TOO_LONG if run.length >= self._view else JOINS
+
+    def slow_node(self, run: WindowBlock, b: WindowBlock, length: float) -> bool:
+        """Whether the node from ``run`` to ``b`` cannot bind because it lies ``length``
+        (m) from a stop: a profile that starts or ends at rest passes it at most at
+        √(2·A·length) (A the contour acceleration, above every block's tangential limit),
+        and the node's cap is no lower (a curvature step where a contour's first or last
+        chord meets its curve: a separate run there would end its speed change at the
+        node, as a G2/G3 contour's does not)."""
+        if b.rapid or run.rapid:
+            return False
+        last = run.members[-1] if run.members else run
+        cap = self.node_cap(last, b)
+        return 2.0 * self.limits.max_acceleration * length <= cap * cap
 
 
 def step_speed(step: tuple[float, float, float], dx: float, dy: float) -> float:

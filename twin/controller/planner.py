@@ -64,7 +64,11 @@ block with its lowest cap and its lowest tangential acceleration and jerk, one
 ``plan_move`` covers it, and each block gets its part of that move (``PlannedBlock.piece``;
 the acceleration runs on across the nodes and the limits hold across them, being the
 run's). A run is cut once it is as long as the view (twice the braking distance), and a
-short last part of a curve is merged back into the part before it.
+short last part of a curve is merged back into the part before it. A contour's first
+chord joins its curve's run, and its last chord does when a stop follows it, where the
+stop keeps the node between them too slow to bind (`BlockRules.slow_node`: a profile
+from or to rest passes a node d from the stop at most at √(2·A·d)): a circle sent as
+chords then runs one speed change from rest to rest, as the G3 arc does.
 
 Streaming and incremental
 -------------------------
@@ -331,6 +335,8 @@ class Planner:
         exact_stop = False
         run: WindowBlock | None = None       # the run being grown
         held: WindowBlock | None = None      # a run closed for its length, its successor to come
+        rest = False                         # the run starts at a stop
+        tail: WindowBlock | None = None      # a short block after the run: a stop next?
         while True:
             if out:
                 yield from out
@@ -344,6 +350,14 @@ class Planner:
                 break
             if type(item) is BlendedBlock:
                 block = block_of(*item)
+                after_stop = last is None
+                if tail is not None:            # the run ends at a rapid, or goes on
+                    if block.rapid:
+                        absorb(run, tail)
+                    else:
+                        end_run(window, held, run)
+                        run, held, rest = open_run(tail), None, False
+                    tail = None
                 if block.rapid:
                     last = None
                 else:
@@ -363,6 +377,9 @@ class Planner:
                 continue
             else:
                 last = None
+                if tail is not None:            # a stop: the short block ends the run
+                    absorb(run, tail)
+                    tail = None
                 if run is not None:
                     end_run(window, held, run)
                     run = held = None
@@ -377,9 +394,12 @@ class Planner:
             if not runs:
                 append(window, block)
                 continue
-            joins = joins_of(run, block) if run is not None else APART
+            joins = joins_of(run, block, rest) if run is not None else APART
             if joins == JOINS:
                 absorb(run, block)
+                continue
+            if joins == APART and run is not None and self._tail(run, block):
+                tail = block                    # joins if a stop follows (`_tail`)
                 continue
             if joins == TOO_LONG:              # the same curve goes on: hold this part
                 if held is not None:
@@ -388,7 +408,9 @@ class Planner:
             elif run is not None:
                 end_run(window, held, run)
                 held = None
-            run = open_run(block)
+            run, rest = open_run(block), after_stop
+        if tail is not None:
+            absorb(run, tail)
         if run is not None:
             end_run(window, held, run)
         while window:
@@ -461,6 +483,14 @@ class Planner:
                                 f"{self._time_bound:.6g} s with {what} so far, beyond the "
                                 f"machine's {self.max_program_time:g} s "
                                 "(controller.max_program_time)")
+
+    def _tail(self, run: WindowBlock, b: WindowBlock) -> bool:
+        """Whether ``b``, kept apart from ``run``, would join it if a stop followed: so
+        short that its node cannot bind at a stop's end (`BlockRules.slow_node`: a
+        contour's last chord after its curve), and no lower in its caps than the run
+        (joining lowers nothing of the run's)."""
+        return (b.v_nom >= run.v_nom and b.acc >= run.acc and b.jerk >= run.jerk
+                and self._rules.slow_node(run, b, b.length))
 
     def _end_run(self, window: deque[WindowBlock], held: WindowBlock | None,
                  run: WindowBlock) -> None:
