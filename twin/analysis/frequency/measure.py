@@ -176,6 +176,29 @@ def _options(base: MachineConfig, belief: MachineConfig, axis: str, loop: str,
     return amplitude, offset, f_min, f_max
 
 
+def _settings_of(excitation: str, hammer_force: float | None, hammer_duration: float | None,
+                 periods: int | None) -> None:
+    """Refuse an unknown excitation, and a setting given to an excitation it is not of."""
+    _choice("excitation", excitation, EXCITATIONS)
+    for name, value in (("hammer_force", hammer_force), ("hammer_duration", hammer_duration)):
+        if value is not None and excitation != "hammer":
+            raise ConfigError(name, f"is a setting of the hammer: only with --excitation "
+                              f"hammer, not {excitation}")
+    if periods is not None and excitation != "multisine":
+        raise ConfigError("periods", f"is a setting of the multisine (periods measured per "
+                          f"realisation): only with --excitation multisine, not {excitation}")
+
+
+def _periods(periods: int | None, sensor: str, loop: str) -> int:
+    """Periods measured per multisine realisation: ``periods`` checked, or the default
+    (``PERIODS`` where the accelerometer measures, else 1)."""
+    if periods is None:
+        return PERIODS if sensor == "accelerometer" and loop != "position" else 1
+    if not (isinstance(periods, int) and 1 <= periods <= 100):
+        raise ConfigError("periods", f"must be a whole number 1 … 100, got {periods!r}")
+    return periods
+
+
 def measure(machine, *, driver: str = "sim", axis: str = "x", loop: str = "mechanics",
             sensor: str = "accelerometer", amplitude: float | None = None,
             offset: float | None = None, averages: int = 8, periods: int | None = None,
@@ -188,24 +211,14 @@ def measure(machine, *, driver: str = "sim", axis: str = "x", loop: str = "mecha
     say = progress or (lambda _m: None)
     base = _machine(machine)
     belief = _machine(controller_model) if controller_model is not None else base
-    _choice("excitation", excitation, EXCITATIONS)
-    for name, value in (("hammer_force", hammer_force), ("hammer_duration", hammer_duration)):
-        if value is not None and excitation != "hammer":
-            raise ConfigError(name, f"is a setting of the hammer: only with --excitation "
-                              f"hammer, not {excitation}")
-    if periods is not None and excitation != "multisine":
-        raise ConfigError("periods", f"is a setting of the multisine (periods measured per "
-                          f"realisation): only with --excitation multisine, not {excitation}")
+    _settings_of(excitation, hammer_force, hammer_duration, periods)
     if excitation == "hammer":
         return _tap_test(base, belief, driver, axis, loop, sensor, averages, hammer_force,
                          hammer_duration, f_min, f_max, out_dir, noise, say)
     amplitude, offset, f_min, f_max = _options(base, belief, axis, loop, sensor,
                                                excitation, averages, amplitude, offset,
                                                f_min, f_max)
-    if periods is None:
-        periods = PERIODS if sensor == "accelerometer" and loop != "position" else 1
-    if not (isinstance(periods, int) and 1 <= periods <= 100):
-        raise ConfigError("periods", f"must be a whole number 1 … 100, got {periods!r}")
+    periods = _periods(periods, sensor, loop)
     period = base.controller.period
     excs = _excitations(excitation, base, sensor, loop, f_min, f_max, averages)
     exc = excs[0]
