@@ -25,7 +25,7 @@ import numpy as np
 
 from twin.analysis.compare import law_figures, true_contour_error
 from twin.analysis.studies.common import run_items
-from twin.analysis.studies.nest import _FEED, _KINDS, Nest
+from twin.analysis.studies.nest import _FEED, _KINDS, Nest, nest
 from twin.analysis.studies.shaping_laser import COMPENSATED, COMPENSATED_SHARE, MACHINE
 from twin.controller.gcode import parse
 from twin.controller.gcode.items import Move
@@ -54,8 +54,9 @@ def random_nest(seed: int) -> tuple[Nest, dict[str, Any]]:
         for col in order:
             kind = str(rng.choice(_KINDS))
             s = float(rng.uniform(0.0, 1.0))
+            first = len(job._lines) + 1
             getattr(job, kind)(origin[0] + col * w, origin[1] + row * h, w, h, s)
-            parts.append({"kind": kind, "s": round(s, 3)})
+            parts.append({"kind": kind, "s": round(s, 3), "lines": [first, len(job._lines)]})
     job._rapid(10.0, 10.0)
     job._lines += ["M30", "%"]
     job.gcode = "\n".join(job._lines) + "\n"
@@ -76,13 +77,30 @@ def _where(result, contour: np.ndarray, moves: list, gcode_lines: list[str]
     seg = result.path[int(np.argmin(dist))]
     a, b = np.asarray(seg.start), np.asarray(seg.end)
     move = min(moves, key=lambda m: math.dist(m.start, a) + math.dist(m.end, b))
+    s_near = float(seg.closest(p)[0])
     out = {"t_s": round(float(result.record["t"][i]), 3),
            "x_mm": round(float(p[0]) * 1e3, 3), "y_mm": round(float(p[1]) * 1e3, 3),
            "segment": type(seg).__name__, "segment_length_mm": round(seg.length * 1e3, 3),
+           "to_segment_end_mm": round(min(s_near, seg.length - s_near) * 1e3, 3),
            "move": move.kind, "line": move.line, "gcode": gcode_lines[move.line - 1]}
     if move.center is not None:
         out["radius_mm"] = round(math.dist(move.center, move.start) * 1e3, 3)
     return out
+
+
+def single_part(kind: str, size: float, s: float) -> tuple[Nest, dict[str, Any]]:
+    """One part of ``kind`` in a ``size`` × ``size`` mm cell at (20, 20) mm."""
+    job = Nest()
+    job._lines = ["%", f"(single {kind})", "G21 G90 G17 G94", f"F{_FEED:g}"]
+    getattr(job, kind)(20.0, 20.0, size, size, s)
+    job._rapid(10.0, 10.0)
+    job._lines += ["M30", "%"]
+    job.gcode = "\n".join(job._lines) + "\n"
+    return job, {"seed": f"{kind} {size:g} mm s={s:g}", "cols": 1, "rows": 1,
+                 "cell_mm": [size, size], "parts": [{"kind": kind, "s": s}],
+                 "contours": job.contours, "blocks": job.blocks,
+                 "cut_length_mm": round(job.cut_length, 1),
+                 "idle_length_mm": round(job.idle_length, 1)}
 
 
 def nest_run(gcode: str, profile: str, overrides: dict[str, Any]) -> dict[str, Any]:
@@ -112,10 +130,24 @@ def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--seeds", type=int, nargs="+", default=[1, 2, 3])
     ap.add_argument("--runs", nargs="+", choices=list(RUNS), default=["trapezoid", "zvd"])
+    ap.add_argument("--single", nargs="*", choices=_KINDS, default=None,
+                    help="one part of each kind (180 mm cell, s=0.5) instead of seeds")
+    ap.add_argument("--seed001", action="store_true",
+                    help="seed 001's nest itself (the study's), to check this bench against it")
     ap.add_argument("--describe", action="store_true", help="only the nests, no runs")
     args = ap.parse_args(argv)
-    for seed in args.seeds:
-        job, info = random_nest(seed)
+    jobs = ([lambda k=k: single_part(k, 180.0, 0.5) for k in args.single]
+            if args.single is not None else
+            [lambda seed=seed: random_nest(seed) for seed in args.seeds])
+    if args.seed001:
+        def study() -> tuple[Nest, dict[str, Any]]:
+            job = nest()
+            return job, {"seed": "seed 001 (study)", "contours": job.contours,
+                         "parts": job.parts, "cut_length_mm": round(job.cut_length, 1),
+                         "idle_length_mm": round(job.idle_length, 1)}
+        jobs = [study]
+    for make in jobs:
+        job, info = make()
         out: dict[str, Any] = {"nest": info, "runs": {}}
         if not args.describe:
             for name in args.runs:
