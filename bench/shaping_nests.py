@@ -25,7 +25,7 @@ import numpy as np
 
 from twin.analysis.compare import law_figures, true_contour_error
 from twin.analysis.studies.common import run_items
-from twin.analysis.studies.nest import _FEED, _KINDS, Nest, nest
+from twin.analysis.studies.nest import KINDS, Nest, Part, layout, nest, random_nest
 from twin.analysis.studies.shaping_laser import COMPENSATED, COMPENSATED_SHARE, MACHINE
 from twin.controller.gcode import parse
 from twin.controller.gcode.items import Move
@@ -39,32 +39,21 @@ RUNS = {"trapezoid": ("trapezoid", {}),
 """Short name: (profile, overrides) exactly as the study sets them."""
 
 
-def random_nest(seed: int) -> tuple[Nest, dict[str, Any]]:
-    """A grid of 2–4 × 1–3 random parts in cells of 80–220 mm (random kinds and sizes),
-    starting near the home position as `nest` does."""
-    rng = np.random.default_rng(seed)
-    cols, rows = int(rng.integers(2, 5)), int(rng.integers(1, 4))
-    w, h = float(rng.uniform(80.0, 220.0)), float(rng.uniform(80.0, 220.0))
-    origin = (float(rng.uniform(12.0, 100.0)), float(rng.uniform(12.0, 100.0)))
-    job = Nest()
-    job._lines = ["%", f"(random nest seed {seed})", "G21 G90 G17 G94", f"F{_FEED:g}"]
-    parts = []
-    for row in range(rows):
-        order = range(cols) if row % 2 == 0 else range(cols - 1, -1, -1)
-        for col in order:
-            kind = str(rng.choice(_KINDS))
-            s = float(rng.uniform(0.0, 1.0))
-            first = len(job._lines) + 1
-            getattr(job, kind)(origin[0] + col * w, origin[1] + row * h, w, h, s)
-            parts.append({"kind": kind, "s": round(s, 3), "lines": [first, len(job._lines)]})
-    job._rapid(10.0, 10.0)
-    job._lines += ["M30", "%"]
-    job.gcode = "\n".join(job._lines) + "\n"
-    return job, {"seed": seed, "cols": cols, "rows": rows, "cell_mm": [round(w, 1), round(h, 1)],
-                 "origin_mm": [round(origin[0], 1), round(origin[1], 1)], "parts": parts,
-                 "contours": job.contours, "blocks": job.blocks,
-                 "cut_length_mm": round(job.cut_length, 1),
-                 "idle_length_mm": round(job.idle_length, 1)}
+def _random(seed: int) -> tuple[Nest, dict[str, Any]]:
+    """`nest.random_nest` and what it holds."""
+    job, parts = random_nest(seed)
+    return job, _facts(job, parts, seed)
+
+
+def _facts(job: Nest, parts: list[Part], label: Any) -> dict[str, Any]:
+    p0 = parts[0]
+    return {"seed": label, "cells": len(parts),
+            "cell_mm": [round(p0.width, 1), round(p0.height, 1)],
+            "parts": [{"kind": p.kind, "s": round(p.size, 3), "lines": list(lines)}
+                      for p, lines in zip(parts, job.part_lines, strict=True)],
+            "contours": job.contours, "blocks": job.blocks,
+            "cut_length_mm": round(job.cut_length, 1),
+            "idle_length_mm": round(job.idle_length, 1)}
 
 
 def _where(result, contour: np.ndarray, moves: list, gcode_lines: list[str]
@@ -90,17 +79,9 @@ def _where(result, contour: np.ndarray, moves: list, gcode_lines: list[str]
 
 def single_part(kind: str, size: float, s: float) -> tuple[Nest, dict[str, Any]]:
     """One part of ``kind`` in a ``size`` × ``size`` mm cell at (20, 20) mm."""
-    job = Nest()
-    job._lines = ["%", f"(single {kind})", "G21 G90 G17 G94", f"F{_FEED:g}"]
-    getattr(job, kind)(20.0, 20.0, size, size, s)
-    job._rapid(10.0, 10.0)
-    job._lines += ["M30", "%"]
-    job.gcode = "\n".join(job._lines) + "\n"
-    return job, {"seed": f"{kind} {size:g} mm s={s:g}", "cols": 1, "rows": 1,
-                 "cell_mm": [size, size], "parts": [{"kind": kind, "s": s}],
-                 "contours": job.contours, "blocks": job.blocks,
-                 "cut_length_mm": round(job.cut_length, 1),
-                 "idle_length_mm": round(job.idle_length, 1)}
+    parts = [Part(kind, 20.0, 20.0, size, size, s)]
+    job = layout(parts, title=f"single {kind}")
+    return job, _facts(job, parts, f"{kind} {size:g} mm s={s:g}")
 
 
 def nest_run(gcode: str, profile: str, overrides: dict[str, Any]) -> dict[str, Any]:
@@ -130,7 +111,7 @@ def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--seeds", type=int, nargs="+", default=[1, 2, 3])
     ap.add_argument("--runs", nargs="+", choices=list(RUNS), default=["trapezoid", "zvd"])
-    ap.add_argument("--single", nargs="*", choices=_KINDS, default=None,
+    ap.add_argument("--single", nargs="*", choices=KINDS, default=None,
                     help="one part of each kind (180 mm cell, s=0.5) instead of seeds")
     ap.add_argument("--seed001", action="store_true",
                     help="seed 001's nest itself (the study's), to check this bench against it")
@@ -138,7 +119,7 @@ def main(argv: list[str] | None = None) -> int:
     args = ap.parse_args(argv)
     jobs = ([lambda k=k: single_part(k, 180.0, 0.5) for k in args.single]
             if args.single is not None else
-            [lambda seed=seed: random_nest(seed) for seed in args.seeds])
+            [lambda seed=seed: _random(seed) for seed in args.seeds])
     if args.seed001:
         def study() -> tuple[Nest, dict[str, Any]]:
             job = nest()
