@@ -35,6 +35,8 @@ _COMP_SHAPED = {**COMPENSATED, "controller.shaper.curve_share": COMPENSATED_SHAR
 RUNS = {"trapezoid": ("trapezoid", {}),
         "zvd": ("trapezoid+zvd", _COMP_SHAPED),
         "ei": ("trapezoid+ei", _COMP_SHAPED),
+        "zv": ("trapezoid+zv", _COMP_SHAPED),
+        "mzv": ("trapezoid+mzv", _COMP_SHAPED),
         "comp": ("trapezoid", COMPENSATED)}
 """Short name: (profile, overrides) exactly as the study sets them."""
 
