@@ -23,13 +23,11 @@ from typing import Any
 
 import numpy as np
 
-from twin.analysis.compare import law_figures, true_contour_error
-from twin.analysis.studies.common import run_items
+from twin.analysis.studies import shaping_laser
 from twin.analysis.studies.nest import KINDS, Nest, Part, layout, nest, random_nest
-from twin.analysis.studies.shaping_laser import COMPENSATED, COMPENSATED_SHARE, MACHINE
+from twin.analysis.studies.shaping_laser import COMPENSATED, COMPENSATED_SHARE
 from twin.controller.gcode import parse
 from twin.controller.gcode.items import Move
-from twin.session.run import RunSpec
 
 _COMP_SHAPED = {**COMPENSATED, "controller.shaper.curve_share": COMPENSATED_SHARE}
 RUNS = {"trapezoid": ("trapezoid", {}),
@@ -87,25 +85,13 @@ def single_part(kind: str, size: float, s: float) -> tuple[Nest, dict[str, Any]]
 
 
 def nest_run(gcode: str, profile: str, overrides: dict[str, Any]) -> dict[str, Any]:
-    """The study's ``_nest_run`` figures, plus where the largest contour error sits."""
-    items: list = []
-
-    def build(cfg, start):
-        items[:] = parse(gcode, start=tuple(start.tolist()))
-        return list(items)
-
+    """The study's figures of the run, plus where the largest contour error sits."""
     t0 = time.process_time()
-    result = run_items(RunSpec(machine=MACHINE, profile=profile, planner="lookahead",
-                               overrides=overrides, max_time=4000.0), build, keep_fine=True)
-    contour = true_contour_error(result)
-    f = law_figures(result, contour)
-    return {"status": result.summary["status"],
-            "cycle_time_s": result.summary["cycle_time_s"],
-            "residual_vibration_um": f["residual_vibration_um"],
-            "max_contour_error_um": f["max_contour_error_um"],
-            "rms_contour_error_um": f["rms_contour_error_um"],
-            "worst": _where(result, contour, [m for m in items if isinstance(m, Move)],
-                            gcode.splitlines()),
+    result, contour, figures = shaping_laser.nest_run(gcode, profile, overrides)
+    start = tuple(np.asarray(result.record["table_position"])[0, :2].tolist())
+    moves = [m for m in parse(gcode, start=start) if isinstance(m, Move)]
+    return {**{k: v for k, v in figures.items() if k != "elastic_oscillation_um"},
+            "worst": _where(result, contour, moves, gcode.splitlines()),
             "cpu_s": round(time.process_time() - t0, 1)}
 
 

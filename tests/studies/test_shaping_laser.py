@@ -26,8 +26,8 @@ def _job(rng) -> str:
 @pytest.mark.parametrize("seed", [3] if CI else [3, 4, 5])
 def test_ei_cancels_the_belt_vibration_between_stops(seed):
     gcode = _job(np.random.default_rng(seed))
-    plain = shaping_laser._nest_run(gcode, "trapezoid", {})
-    shaped = shaping_laser._nest_run(gcode, "trapezoid+ei", {})
+    plain = shaping_laser.nest_run(gcode, "trapezoid", {})[2]
+    shaped = shaping_laser.nest_run(gcode, "trapezoid+ei", {})[2]
     assert plain["status"] == shaped["status"] == "FINISHED"
     assert shaped["residual_vibration_um"] <= 0.2 * plain["residual_vibration_um"]
     # EI adds one mode period (63 ms) per stop, 3 to 6 stops: within 5 % of a job of seconds
@@ -55,11 +55,11 @@ def test_the_compensations_keep_shaped_circles_within_the_tolerance(seed):
     compensations from the controller's belief keep the table within the 50 µm tolerance,
     at the uncapped cycle time plus the exact stops' wait, and the vibration cancelled."""
     gcode = _circles(np.random.default_rng(seed))
-    uncapped = shaping_laser._nest_run(gcode, "trapezoid+ei",
-                                       {"controller.shaper.curve_share": 0.0})
-    comp = shaping_laser._nest_run(gcode, "trapezoid+ei", {
+    uncapped = shaping_laser.nest_run(gcode, "trapezoid+ei",
+                                      {"controller.shaper.curve_share": 0.0})[2]
+    comp = shaping_laser.nest_run(gcode, "trapezoid+ei", {
         **shaping_laser.COMPENSATED,
-        "controller.shaper.curve_share": shaping_laser.COMPENSATED_SHARE})
+        "controller.shaper.curve_share": shaping_laser.COMPENSATED_SHARE})[2]
     assert uncapped["status"] == comp["status"] == "FINISHED"
     assert comp["max_contour_error_um"] <= 50.0
     assert comp["max_contour_error_um"] <= 0.5 * uncapped["max_contour_error_um"]

@@ -57,8 +57,11 @@ PERTURBED = {"axes.x.transmission.stiffness.belt": 0.7 * 4.0e5,
 higher (the controller keeps the nominal machine file as its model)."""
 
 
-def _nest_run(gcode: str, profile: str, overrides: dict[str, Any],
-              truth: dict[str, Any] | None = None) -> dict[str, Any]:
+def nest_run(gcode: str, profile: str, overrides: dict[str, Any],
+             truth: dict[str, Any] | None = None) -> tuple[Any, Any, dict[str, Any]]:
+    """A nest program run on ``MACHINE`` by look-ahead with ``profile`` and ``overrides``
+    (``truth``: overrides of the machine alone, the controller keeping ``MACHINE``'s
+    belief): the run, its true contour error and the study's figures of it."""
     def build(cfg, start):
         return list(parse(gcode, start=tuple(start.tolist())))
 
@@ -68,12 +71,13 @@ def _nest_run(gcode: str, profile: str, overrides: dict[str, Any],
                        build, keep_fine=True)
     contour = true_contour_error(result)
     f = law_figures(result, contour)
-    return {"status": result.summary["status"],
-            "cycle_time_s": result.summary["cycle_time_s"],
-            "residual_vibration_um": f["residual_vibration_um"],
-            "elastic_oscillation_um": f["elastic_oscillation_um"],
-            "max_contour_error_um": f["max_contour_error_um"],
-            "rms_contour_error_um": f["rms_contour_error_um"]}
+    return result, contour, {
+        "status": result.summary["status"],
+        "cycle_time_s": result.summary["cycle_time_s"],
+        "residual_vibration_um": f["residual_vibration_um"],
+        "elastic_oscillation_um": f["elastic_oscillation_um"],
+        "max_contour_error_um": f["max_contour_error_um"],
+        "rms_contour_error_um": f["rms_contour_error_um"]}
 
 
 def run_study(*, quick: bool = False) -> dict[str, Any]:
@@ -109,7 +113,7 @@ def run_study(*, quick: bool = False) -> dict[str, Any]:
              "jerk-limited": ("jerk-limited", {}, None),
              "trapezoid, perturbed machine": ("trapezoid", {}, PERTURBED),
              f"{shaped} (compensated), perturbed machine": (shaped, comp_shaped, PERTURBED)}
-    runs = {name: _nest_run(job.gcode, profile, ov, truth)
+    runs = {name: nest_run(job.gcode, profile, ov, truth)[2]
             for name, (profile, ov, truth) in plans.items()}
     base = runs["trapezoid"]
     tolerance_um = cfg.controller.contour_tolerance * 1e6
