@@ -83,6 +83,22 @@ _FAULTS = {RegulatorStatus.FOLLOWING_ERROR: ControllerStatus.FOLLOWING_ERROR,
            RegulatorStatus.INVALID_INPUT: ControllerStatus.INVALID_INPUT}
 
 
+def _shaped_planning(settings: ControllerSettings, shaper: ReferenceShaper
+                     ) -> dict[str, Any]:
+    """The planner's options an active shaper asks for: exact stops wait its duration,
+    curves are capped so that it cuts them within its share of the contour tolerance; with
+    the smoothing compensation only its fourth-order error and its transients at curvature
+    steps are left to cap."""
+    tolerance, share = settings.contour_tolerance, settings.shaper.curve_share
+    out: dict[str, Any] = {
+        "stop_dwell": shaper.duration,
+        "curve_acceleration": curve_acceleration(shaper.shapers, tolerance, share)}
+    if settings.compensation.smoothing:
+        out["curve_quartic"] = curve_quartic(shaper.shapers, tolerance, share)
+        out["curve_step"] = curve_step_acceleration(shaper.shapers, tolerance, share)
+    return out
+
+
 class Controller(ManualCommands):
     """The cyclic controller of a two-axis table (see the module docstring).
 
@@ -200,15 +216,7 @@ class Controller(ManualCommands):
         """ReferenceCompensation: the reference's offsets (``settings.compensation``)."""
         if shaper.active and not isinstance(corner_model, NoCornerLimit):
             corner_model = ShapedCornerModel(corner_model, shaper.shapers)
-            share = settings.shaper.curve_share
-            shaped["stop_dwell"] = shaper.duration
-            shaped["curve_acceleration"] = curve_acceleration(
-                shaper.shapers, settings.contour_tolerance, share)
-            if comp.smoothing:   # left: the fourth-order error, the transients at steps
-                shaped["curve_quartic"] = curve_quartic(
-                    shaper.shapers, settings.contour_tolerance, share)
-                shaped["curve_step"] = curve_step_acceleration(
-                    shaper.shapers, settings.contour_tolerance, share)
+            shaped = _shaped_planning(settings, shaper)
         options: dict[str, Any] = {"law": profile or settings.profile,
                                    "mode": planner or settings.planner,
                                    "lookahead": lookahead or settings.lookahead,
