@@ -20,6 +20,7 @@ from twin.analysis.frequency.excitation import (
     prbs,
 )
 from twin.analysis.frequency.prediction import (
+    closed_loop_modes,
     design_loop,
     predict,
 )
@@ -286,11 +287,12 @@ def measure(machine, *, driver: str = "sim", axis: str = "x", loop: str = "mecha
     info["accelerometer_rate_hz"] = (base.accelerometer.sample_rate
                                      if seen_by == "accelerometer" else None)
     top = float(f[good].max()) if good.any() else 0.0
+    poles = closed_loop_modes(belief, axis, position)
     unseen = modes.unseen(belief, axis, position, seen_by, loop, top,
-                          found=[r.frequency for r in resonances])
+                          found=[r.frequency for r in resonances], poles=poles)
     info.update(_info(base, belief, driver, exc, amplitude, offset, averages,
-                      len(measured), rec, f,
-                      response, prediction, good, axis, position))
+                      len(measured), rec, f, response, prediction, good, axis, position,
+                      poles))
     result = FrequencyResponse(f, response, coherence, prediction, resonances, margins,
                                unseen, loop, seen_by, axis, UNITS[loop], position, info)
     if out_dir is not None:
@@ -341,7 +343,7 @@ def _info(base: MachineConfig, belief: MachineConfig, driver: str, exc: Excitati
           amplitude: float, offset: float, averages: int, periods: int, rec,
           f: np.ndarray,
           response: np.ndarray, prediction: np.ndarray, good: np.ndarray, axis: str,
-          position: float) -> dict[str, Any]:
+          position: float, poles: list[complex]) -> dict[str, Any]:
     return {
         "machine": base.name, "controller_model": belief.name, "driver": driver,
         "excitation": {"kind": exc.kind, "ticks_per_period": exc.length,
@@ -350,7 +352,7 @@ def _info(base: MachineConfig, belief: MachineConfig, driver: str, exc: Excitati
                        "averages": averages, "periods_measured": periods},
         "machine_time_s": len(rec.slot) * exc.period,
         "accelerometer_samples_lost": int(rec.lost),
-        **modes.compared(response, prediction, good, belief, axis, position),
+        **modes.compared(response, prediction, good, belief, axis, position, poles),
         "deadlines": None if rec.stats is None else rec.stats.to_dict(),
     }
 

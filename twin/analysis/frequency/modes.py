@@ -27,10 +27,12 @@ USABLE = 0.5
 
 
 def compared(response: np.ndarray, prediction: np.ndarray, good: np.ndarray,
-             belief: MachineConfig, axis: str, position: float) -> dict[str, Any]:
+             belief: MachineConfig, axis: str, position: float,
+             poles: list[complex] | None = None) -> dict[str, Any]:
     """The record's ``agreement`` (the measurement against the prediction on the ``good``
     lines: their count, the largest gain (dB) and phase (degrees) error) and
-    ``analytic_modes`` (``closed_loop_modes`` of the belief at ``position``: Hz, ζ)."""
+    ``analytic_modes`` (``poles``, default ``closed_loop_modes`` of the belief at
+    ``position``: Hz, ζ)."""
     ratio = response[good] / prediction[good]
     return {
         "agreement": {
@@ -41,22 +43,25 @@ def compared(response: np.ndarray, prediction: np.ndarray, good: np.ndarray,
             if len(ratio) else None},
         "analytic_modes": [{"frequency_hz": abs(s) / (2 * math.pi),
                             "damping": -s.real / abs(s)}
-                           for s in closed_loop_modes(belief, axis, position)],
+                           for s in (closed_loop_modes(belief, axis, position)
+                                     if poles is None else poles)],
     }
 
 
 def unseen(belief: MachineConfig, axis: str, position: float, sensor: str, loop: str,
-            top: float, found: list[float] | None = None) -> list[str]:
+            top: float, found: list[float] | None = None,
+            poles: list[complex] | None = None) -> list[str]:
     """The belief's elastic modes this measurement cannot see, each with the reason; with
     ``found`` (the resonances' frequencies, Hz) also those inside the measured band that
     no resonance within ``NEAR`` of their closed-loop frequency stands for (their peak did
-    not stand out of the noise)."""
+    not stand out of the noise; ``poles``: those closed-loop modes, if computed already)."""
     chain = axis_mechanics(belief, axis, position)
     free = chain.frequencies("free") / (2.0 * math.pi)
     locked = chain.frequencies("locked") / (2.0 * math.pi)
     motor = sensor == "motor" or loop == "position"
-    near = ([abs(p) / (2.0 * math.pi) for p in closed_loop_modes(belief, axis, position)]
-            if found is not None else [])
+    if found is not None and poles is None:
+        poles = closed_loop_modes(belief, axis, position)
+    near = [abs(p) / (2.0 * math.pi) for p in poles] if found is not None and poles else []
     out = []
     for i, f in enumerate(free):
         if motor and i < len(locked) and 40.0 * math.log10(f / locked[i]) < 1.0:
