@@ -35,15 +35,18 @@ then along the circle to where a quadratic in the vertex number, fitted by least
 to the window's places along the circle, puts it: the chords' lengths may vary smoothly
 along the curve (CAM's chords follow the curvature), but not from chord to chord, where
 they would leave a piece of line with a full curvature step between two blends.
-The fits of many vertices are made at once (numpy), ``CHUNK`` at a time, on the programmed
-points (not on points already moved), so the stream is faired in constant memory.
+The fits of many vertices are made at once (compiled loops around NumPy's eigenvectors and
+solves), ``CHUNK`` at a time, on the programmed points (not on points already moved), so
+the stream is faired in constant memory.
 """
 
 from __future__ import annotations
 
+import math
 from collections.abc import Callable, Iterable, Iterator
 from typing import Any, NamedTuple
 
+import numba
 import numpy as np
 
 from twin.controller.gcode.items import PathControl
@@ -167,47 +170,153 @@ def _fit(local: np.ndarray, use: np.ndarray, offsets: np.ndarray) -> np.ndarray:
     """Where each vertex goes (local, scaled coordinates: the vertex at the origin): onto
     its fitted circle along the radius, and along the circle to where a quadratic in the
     vertex number puts it through its neighbours' places (the chords' lengths vary
-    smoothly along the curve). NaN where no fit is made."""
-    x, y = local[..., 0], local[..., 1]
-    rows = np.stack([x * x + y * y, x, y, np.ones_like(x)], axis=-1) * use[..., None]
-    # the smallest singular vector: the normal matrix's eigenvector of the least eigenvalue
-    # (eigh of 4 × 4 is 3x faster than an SVD of the rows; in the chords' scale its
-    # accuracy is far below MIN_MOVE)
-    vec = np.linalg.eigh(np.einsum("nki,nkj->nij", rows, rows))[1]
-    a, d, e, f = (vec[:, k, 0] for k in range(4))
-    g = np.hypot(d, e)
-    disc = g * g - 4.0 * a * f
-    ok = (g > 0.0) & (disc >= 0.0) & (use.sum(axis=1) >= 4)
-    g = np.where(ok, g, 1.0)
-    t = np.where(ok, -2.0 * f / (g + np.sqrt(np.maximum(disc, 0.0))), 0.0)
-    ux, uy = d / g, e / g                      # the radial direction (either sense)
-    fx, fy = t * ux, t * uy                    # the foot on the circle
-    with np.errstate(divide="ignore", invalid="ignore"):
-        radius = np.where(np.abs(a) > 1e-12 * g, np.hypot(fx + 0.5 * d / a,
-                                                          fy + 0.5 * e / a), np.inf)
-    wide = radius > 1e6                        # straight, in the chords' scale
-    rx, ry = x - fx[:, None], y - fy[:, None]
-    cross = ux[:, None] * ry - uy[:, None] * rx
-    dot = ux[:, None] * rx + uy[:, None] * ry
-    sign = np.where(a >= 0.0, 1.0, -1.0)[:, None]     # the centre lies at −sign·u
-    radius = np.where(wide, 1.0, radius)          # unused where wide
-    rr = radius[:, None]
-    # arc length along the circle from the foot (centre on the −sign·u side)
-    arc = np.where(wide[:, None], cross, rr * np.arctan2(sign * cross, rr + sign * dot) * sign)
-    j = np.broadcast_to(offsets.astype(float), arc.shape)
-    basis = np.stack([np.ones_like(arc), j, j * j], axis=-1) * use[..., None]
-    normal = np.einsum("nki,nkj->nij", basis, basis)
-    rhs = np.einsum("nki,nk->ni", basis, arc)
-    solvable = ok & (np.abs(np.linalg.det(normal)) > 1e-12)
-    normal[~solvable] = np.eye(3)
-    s = np.where(solvable, np.linalg.solve(normal, rhs[..., None])[..., 0, 0], 0.0)
-    phi = s / radius
-    along = np.where(wide, s, radius * np.sin(phi))
-    across = np.where(wide, 0.0, -2.0 * radius * np.sin(0.5 * phi) ** 2) * sign[:, 0]
-    # the tangent w = (−u_y, u_x) is the direction in which `cross` counts
-    sx = fx + across * ux - along * uy
-    sy = fy + across * uy + along * ux
-    return np.where(ok[:, None], np.stack([sx, sy], axis=1), np.nan)
+    smoothly along the curve). NaN where no fit is made.
+
+    The arithmetic runs compiled (``_normal_matrices``, ``_circles``, ``_along``,
+    ``_steps``), element by element in NumPy's own order of operations; the eigenvectors,
+    the solves, and the arc tangent stay NumPy's (LAPACK, and NumPy's own vectorised
+    ``arctan2``), so the result is NumPy's bit for bit."""
+    x = np.ascontiguousarray(local[..., 0])
+    y = np.ascontiguousarray(local[..., 1])
+    weight = use.astype(float)
+    # the smallest singular vector of the rows (|p|², x, y, 1): the normal matrix's
+    # eigenvector of the least eigenvalue (eigh of 4 × 4 is 3x faster than an SVD of the
+    # rows; in the chords' scale its accuracy is far below MIN_MOVE)
+    vec = np.linalg.eigh(_normal_matrices(x, y, weight))[1]
+    circle, num, den = _circles(np.ascontiguousarray(vec[:, :, 0]), x, y, weight)
+    normal, rhs = _along(np.arctan2(num, den), num, circle, weight,
+                         offsets.astype(float))
+    ok = circle[:, 0] != 0.0
+    # with ≥ 4 distinct vertex numbers the quadratic's normal matrix is regular (its
+    # determinant is ≥ 4): every fit (ok) is solvable
+    normal[~ok] = np.eye(3)
+    s = np.linalg.solve(normal, rhs[..., None])[..., 0, 0]
+    return _steps(s, circle)
+
+
+@numba.njit(cache=True)
+def _normal_matrices(x, y, weight):  # pragma: no cover - compiled
+    """Σ_k r_k r_kᵀ of the rows r = (x² + y², x, y, 1)·w per vertex (n, 4, 4)."""
+    n, m = x.shape
+    out = np.empty((n, 4, 4))
+    row = np.empty((m, 4))
+    for q in range(n):
+        for k in range(m):
+            xk, yk, w = x[q, k], y[q, k], weight[q, k]
+            row[k, 0] = (xk * xk + yk * yk) * w
+            row[k, 1] = xk * w
+            row[k, 2] = yk * w
+            row[k, 3] = 1.0 * w
+        for i in range(4):
+            for j in range(4):
+                acc = 0.0
+                for k in range(m):
+                    acc += row[k, i] * row[k, j]
+                out[q, i, j] = acc
+    return out
+
+
+# per vertex in ``circle``: ok (1.0 or 0.0), the foot (fx, fy), the radial direction
+# (ux, uy), the radius (1.0 where wide), wide (1.0 or 0.0), the sign of A
+_OK, _FX, _FY, _UX, _UY, _RADIUS, _WIDE, _SIGN = range(8)
+
+
+@numba.njit(cache=True)
+def _circles(vec, x, y, weight):  # pragma: no cover - compiled
+    """The fitted circle of each vertex from its eigenvector (a, d, e, f) (``circle``, the
+    columns above), and per point the arc tangent's arguments sign·cross, r + sign·dot (the
+    point's angle along the circle from the foot)."""
+    n, m = x.shape
+    circle = np.empty((n, 8))
+    num = np.empty((n, m))
+    den = np.empty((n, m))
+    for q in range(n):
+        a, d, e, f = vec[q, 0], vec[q, 1], vec[q, 2], vec[q, 3]
+        g = math.hypot(d, e)
+        disc = g * g - 4.0 * a * f
+        used = 0.0
+        for k in range(m):
+            used += weight[q, k]
+        ok = g > 0.0 and disc >= 0.0 and used >= 4.0
+        if not ok:
+            g = 1.0
+        t = -2.0 * f / (g + math.sqrt(max(disc, 0.0))) if ok else 0.0
+        ux, uy = d / g, e / g                  # the radial direction (either sense)
+        fx, fy = t * ux, t * uy                # the foot on the circle
+        radius = math.inf
+        if abs(a) > 1e-12 * g:
+            radius = math.hypot(fx + 0.5 * d / a, fy + 0.5 * e / a)
+        wide = radius > 1e6                    # straight, in the chords' scale
+        sign = 1.0 if a >= 0.0 else -1.0      # the centre lies at −sign·u
+        if wide:
+            radius = 1.0                       # unused where wide
+        circle[q, _OK] = 1.0 if ok else 0.0
+        circle[q, _FX], circle[q, _FY], circle[q, _UX], circle[q, _UY] = fx, fy, ux, uy
+        circle[q, _RADIUS], circle[q, _WIDE], circle[q, _SIGN] = radius, wide, sign
+        for k in range(m):
+            rx, ry = x[q, k] - fx, y[q, k] - fy
+            cross = ux * ry - uy * rx
+            dot = ux * rx + uy * ry
+            # wide: the arc length is `cross` itself (kept in num, den unused)
+            num[q, k] = cross if wide else sign * cross
+            den[q, k] = 1.0 if wide else radius + sign * dot
+    return circle, num, den
+
+
+@numba.njit(cache=True)
+def _along(angle, num, circle, weight, offsets):  # pragma: no cover - compiled
+    """Each point's arc length along its vertex's circle from the foot, and the normal
+    equations (n, 3, 3), (n, 3) of the quadratic in the vertex number through them."""
+    n, m = num.shape
+    normal = np.empty((n, 3, 3))
+    rhs = np.empty((n, 3))
+    basis = np.empty((m, 3))
+    arc = np.empty(m)
+    for q in range(n):
+        radius, sign = circle[q, _RADIUS], circle[q, _SIGN]
+        wide = circle[q, _WIDE] != 0.0
+        for k in range(m):
+            arc[k] = num[q, k] if wide else radius * angle[q, k] * sign
+            j, w = offsets[k], weight[q, k]
+            basis[k, 0] = 1.0 * w
+            basis[k, 1] = j * w
+            basis[k, 2] = j * j * w
+        for i in range(3):
+            for c in range(3):
+                acc = 0.0
+                for k in range(m):
+                    acc += basis[k, i] * basis[k, c]
+                normal[q, i, c] = acc
+            acc = 0.0
+            for k in range(m):
+                acc += basis[k, i] * arc[k]
+            rhs[q, i] = acc
+    return normal, rhs
+
+
+@numba.njit(cache=True)
+def _steps(s, circle):  # pragma: no cover - compiled
+    """The vertex's place on its circle at arc length ``s`` from the foot (n, 2); NaN
+    where no fit is made."""
+    n = len(s)
+    out = np.empty((n, 2))
+    for q in range(n):
+        if circle[q, _OK] == 0.0:
+            out[q, 0] = out[q, 1] = math.nan
+            continue
+        fx, fy, ux, uy = circle[q, _FX], circle[q, _FY], circle[q, _UX], circle[q, _UY]
+        radius, sign = circle[q, _RADIUS], circle[q, _SIGN]
+        if circle[q, _WIDE] != 0.0:
+            along, across = s[q], 0.0 * sign
+        else:
+            phi = s[q] / radius
+            half = math.sin(0.5 * phi)
+            along = radius * math.sin(phi)
+            across = -2.0 * radius * (half * half) * sign
+        # the tangent w = (−u_y, u_x) is the direction in which `cross` counts
+        out[q, 0] = fx + across * ux - along * uy
+        out[q, 1] = fy + across * uy + along * ux
+    return out
 
 
 def fair(items: Iterable[Any], tolerance: float,
