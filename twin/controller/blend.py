@@ -64,6 +64,9 @@ _SNAP = 1e-9
 """What is left of a line between its two blends below this (m) is nothing."""
 _STILL = (0.0, 0.0)
 """The moves of a line's vertices that fairing did not touch."""
+_new = tuple.__new__
+"""``_new(BlendedBlock, (segment, feed, line, blend))``: the tuple without the Python-level
+``__new__`` of a NamedTuple (two per blended line)."""
 
 
 def blend_radius(angle: float, room: float, tolerance: float) -> float:
@@ -164,7 +167,8 @@ class Blender:
                 if pend is not None:
                     yield self._flush(pend)
                     pend = None
-                yield item if type(item) is BlendedBlock else BlendedBlock(seg, feed, line)
+                yield item if type(item) is BlendedBlock else _new(BlendedBlock,
+                                                                       (seg, feed, line, False))
                 continue
             nxt = _Pending()
             nxt.segment = seg
@@ -201,7 +205,7 @@ class Blender:
     def _flush(p: _Pending) -> BlendedBlock:
         """The pending line from its trimmed start to its programmed end."""
         seg = p.segment if p.start is p.origin else Line.between(p.start, p.end)
-        return BlendedBlock(seg, p.feed, p.line)
+        return _new(BlendedBlock, (seg, p.feed, p.line, False))
 
     def _corner(self, a: _Pending, b: _Pending) -> tuple[BlendedBlock | None, BlendedBlock] | None:
         """Blend the kink between ``a`` (pending) and ``b`` (next): the trimmed ``a`` (None
@@ -225,7 +229,7 @@ class Blender:
         p_out = _midpoint(b) if reach >= b.half else (vx + reach * b.ux, vy + reach * b.uy)
         trimmed = None
         if math.dist(a.start, p_in) > _SNAP:
-            trimmed = BlendedBlock(Line.between(a.start, p_in), a.feed, a.line)
+            trimmed = _new(BlendedBlock, (Line.between(a.start, p_in), a.feed, a.line, False))
         else:                               # the blends of this line meet
             p_in = a.start
         ccw = cross > 0.0
@@ -235,7 +239,7 @@ class Blender:
         self.blends += 1
         b.start = p_out
         feed = a.feed if a.feed < b.feed else b.feed
-        return trimmed, BlendedBlock(arc, feed, b.line, blend=True)
+        return trimmed, _new(BlendedBlock, (arc, feed, b.line, True))
 
 
 def _midpoint(p: _Pending) -> tuple[float, float]:

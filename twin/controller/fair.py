@@ -394,13 +394,14 @@ class _Chain:
         if final:
             fin.append((pts[-1], 0.0))
         lines = self.lines
+        new = tuple.__new__                 # without the NamedTuple's Python __new__
         count = min(len(lines), len(fin) - 1 - self.emit)
         for j in range(count):
             seg, feed, line = lines[j]
             (p0, m0), (p1, m1) = fin[self.emit + j], fin[self.emit + j + 1]
             if m0 or m1:
                 seg = Line.between(p0, p1)
-            yield FairedLine(seg, feed, line, (m0, m1))
+            yield new(FairedLine, (seg, feed, line, (m0, m1)))
         del lines[:count]
         self.emit += count
         if final:
