@@ -21,7 +21,7 @@ kinks are blended:
 * a vertex moves at most ``SHARE`` of the blend tolerance and a quarter of its shorter
   chord; a fit that would move it further is no fit of a smooth curve there, and it stays;
 * the blend at a vertex then takes the tolerance less the largest move of the vertex and
-  its two neighbours (``FairedLine.moved``), so the rounded path stays within the blend
+  its two neighbours (``FairedLines.moved``), so the rounded path stays within the blend
   tolerance of the programmed polygon (a point of a faired chord is within the larger move
   of its ends of the programmed chord);
 * a circle fitted through points of a circle is that circle: an exactly chorded circle is
@@ -52,7 +52,7 @@ import numpy as np
 from twin.controller.gcode.items import PathControl
 from twin.controller.geometry import Line
 
-__all__ = ["CHUNK", "MAX_TURN", "MIN_MOVE", "REACH", "SHARE", "FairedLine", "fair",
+__all__ = ["CHUNK", "MAX_TURN", "MIN_MOVE", "REACH", "SHARE", "FairedLines", "fair",
            "fair_points"]
 
 REACH = 4
@@ -69,25 +69,23 @@ _ROOM_SHARE = 0.25
 """Largest move of a vertex as a share of its shorter chord."""
 
 
-class FairedLine(NamedTuple):
-    """A feed line of a chorded curve after fairing (a tuple item of the blender's stream).
+class FairedLines(NamedTuple):
+    """Consecutive feed lines of a chain after fairing (one item of the blender's stream).
 
     Attributes
     ----------
-    segment : Line
-        The line between the faired vertices.
-    feed : float
-        Feed (m/s).
-    line : int
-        Source line.
-    moved : (float, float)
-        How far its start and its end vertex moved (m).
+    points : list of (float, float)
+        Their final vertices (m), one more than the lines: line k runs from ``points[k]``
+        to ``points[k + 1]``.
+    moved : list of float
+        How far each vertex moved (m).
+    lines : list of (Line, float, int)
+        The lines as programmed: segment, feed (m/s), source line.
     """
 
-    segment: Any
-    feed: float
-    line: int
-    moved: tuple[float, float]
+    points: list[tuple[float, float]]
+    moved: list[float]
+    lines: list[tuple[Any, float, int]]
 
 
 def _curve_nodes(pts: np.ndarray, tolerance: float) -> np.ndarray:
@@ -319,15 +317,17 @@ def _steps(s, circle):  # pragma: no cover - compiled
     return out
 
 
-def fair(items: Iterable[Any], tolerance: float,
-         path_tolerance: Callable[[Any], float]) -> Iterator[Any]:
+def fair(items: Iterable[Any], tolerance: float, path_tolerance: Callable[[Any], float],
+         fit: bool = True) -> Iterator[Any]:
     """The stream with the vertices of its chorded curves faired (module doc).
 
-    Feed lines come out as ``FairedLine``s; everything else passes through in order, and
-    anything that is not a contiguous feed line ends a chain, and so does an exception of
-    the source (after the lines read before it). ``path_tolerance`` maps a
-    ``PathControl`` to the blend tolerance it sets (`Blender._path_tolerance`);
-    ``tolerance`` is the one in force at the start. A tolerance of 0 (G61) fairs nothing.
+    The feed lines of a chain come out as ``FairedLines``, a batch at a time (up to about
+    ``CHUNK``); everything else passes through in order, and anything that is not a
+    contiguous feed line ends a chain, and so does an exception of the source (after the
+    lines read before it). ``path_tolerance`` maps a ``PathControl`` to the blend
+    tolerance it sets (`Blender._path_tolerance`); ``tolerance`` is the one in force at
+    the start. A tolerance of 0 (G61) chains and fairs nothing (the lines pass through);
+    ``fit`` False chains the lines without moving a vertex.
     """
     chain = _Chain()
     source = iter(items)
@@ -338,76 +338,81 @@ def fair(items: Iterable[Any], tolerance: float,
             break
         except Exception:               # what was read before the fault still runs
             if chain.lines:
-                yield from chain.flush(tolerance, True)
+                yield from chain.flush(tolerance, True, fit)
             raise
         if isinstance(item, tuple):
             seg, feed = item[0], item[1]
             if type(seg) is Line and feed is not None and tolerance > 0.0:
                 start, end = seg._ends
                 if chain.lines and start != chain.pts[-1]:
-                    yield from chain.flush(tolerance, True)
+                    yield from chain.flush(tolerance, True, fit)
                 if not chain.lines:
                     chain.open(start)
                 chain.pts.append(end)
                 chain.lines.append((seg, feed, item[2]))
                 if len(chain.lines) >= CHUNK + 2 * REACH + 4:
-                    yield from chain.flush(tolerance, False)
+                    yield from chain.flush(tolerance, False, fit)
                 continue
         if chain.lines:
-            yield from chain.flush(tolerance, True)
+            yield from chain.flush(tolerance, True, fit)
         if type(item) is PathControl:
             tolerance = path_tolerance(item)
         yield item
     if chain.lines:
-        yield from chain.flush(tolerance, True)
+        yield from chain.flush(tolerance, True, fit)
 
 
 class _Chain:
     """The contiguous feed lines in hand: their programmed vertices ``pts`` (a few before
-    the lines as the fits' context), the final vertices ``fin`` (position, move) of the
-    first of them, and the lines not yet out, the first starting at vertex ``emit``."""
+    the lines as the fits' context), the final vertices ``fin`` and their moves ``moved``
+    from the first of them on, and the lines not yet out, the first starting at vertex
+    ``emit``."""
 
-    __slots__ = ("emit", "fin", "lines", "pts")
+    __slots__ = ("emit", "fin", "lines", "moved", "pts")
 
     def __init__(self):
         self.pts: list[tuple[float, float]] = []
-        self.fin: list[tuple[tuple[float, float], float]] = []
+        self.fin: list[tuple[float, float]] = []
+        self.moved: list[float] = []
         self.lines: list[tuple[Any, float, int]] = []
         self.emit = 0
 
     def open(self, start: tuple[float, float]) -> None:
         self.pts[:] = [start]
-        self.fin[:] = [(start, 0.0)]
+        self.fin[:] = [start]
+        self.moved[:] = [0.0]
         self.emit = 0
 
-    def flush(self, tolerance: float, final: bool) -> Iterator[FairedLine]:
+    def flush(self, tolerance: float, final: bool, fit: bool) -> Iterator[FairedLines]:
         """Fair the vertices that can be (all when ``final``, else those whose fits read
-        only vertices in hand) and yield the lines whose ends are final."""
-        pts, fin = self.pts, self.fin
+        only vertices in hand) and yield the lines whose ends are final, as one batch."""
+        pts, fin, moves = self.pts, self.fin, self.moved
         n = len(pts)
         first = len(fin)
         last = n - 1 if final else n - REACH - 2
         if last > first:
-            faired, moved = fair_points(np.asarray(pts), tolerance, first, last)
-            fin.extend(((p[0], p[1]), m) for p, m in zip(faired.tolist(), moved.tolist(),
-                                                        strict=True))
+            if fit:
+                faired, moved = fair_points(np.asarray(pts), tolerance, first, last)
+                fin.extend(map(tuple, faired.tolist()))
+                moves.extend(moved.tolist())
+            else:
+                fin.extend(pts[first:last])
+                moves.extend([0.0] * (last - first))
         if final:
-            fin.append((pts[-1], 0.0))
-        lines = self.lines
-        new = tuple.__new__                 # without the NamedTuple's Python __new__
-        count = min(len(lines), len(fin) - 1 - self.emit)
-        for j in range(count):
-            seg, feed, line = lines[j]
-            (p0, m0), (p1, m1) = fin[self.emit + j], fin[self.emit + j + 1]
-            if m0 or m1:
-                seg = Line.between(p0, p1)
-            yield new(FairedLine, (seg, feed, line, (m0, m1)))
-        del lines[:count]
-        self.emit += count
+            fin.append(pts[-1])
+            moves.append(0.0)
+        lines, emit = self.lines, self.emit
+        count = min(len(lines), len(fin) - 1 - emit)
+        if count > 0:
+            yield FairedLines(fin[emit:emit + count + 1], moves[emit:emit + count + 1],
+                              lines[:count])
         if final:
             self.lines.clear()
             return
+        del lines[:count]
+        self.emit += count
         keep = max(0, len(fin) - REACH - 2)     # vertices dropped: the rest is context
         del pts[:keep]
         del fin[:keep]
+        del moves[:keep]
         self.emit -= keep
