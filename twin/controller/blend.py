@@ -189,52 +189,56 @@ class Blender:
 
     def _batch(self, pend: list | None, batch: FairedLines, out: list) -> list:
         """Blend the kinks from the pending line through a batch of lines (``out`` gets the
-        blocks that are done); the new pending line: [segment, origin, end, start, moves,
-        feed, line, trimmed] (its start trimmed by the blend before it when ``trimmed``)."""
+        blocks that are done); the new pending line: [segment, origin, end, start, start's
+        move, end's move, feed, line, trimmed] (its start trimmed by the blend before it
+        when ``trimmed``)."""
         points, moved, lines = batch
         k = 0
         if pend is None:
             seg, feed, line = lines[0]
             if points[0] == points[1]:      # a line of zero length: its error
                 Line.between(points[0], points[1])
-            pend = [seg, points[0], points[1], points[0], (moved[0], moved[1]), feed, line,
+            pend = [seg, points[0], points[1], points[0], moved[0], moved[1], feed, line,
                     False]
             k = 1
-        (ox, oy), (ex, ey), (sx, sy) = pend[1], pend[2], pend[3]
+        a_seg, (ox, oy), a_end, a_start, a_m0, a_m1, a_feed, a_line, a_trim = pend
         corners = _corners(np.array(points[k:]), np.array(moved[k:]),
-                           (ox, oy, ex, ey, sx, sy, pend[4][0], pend[4][1]), self.tolerance)
-        for c in corners.tolist():
-            seg, feed, line = lines[k]
-            nxt = [seg, points[k], points[k + 1], points[k], (moved[k], moved[k + 1]), feed,
-                   line, False]
+                           (ox, oy, a_end[0], a_end[1], a_start[0], a_start[1], a_m0, a_m1),
+                           self.tolerance)
+        between, made, append, blends = Line.between, Arc.made, out.append, 0
+        a_origin = pend[1]
+        for c, (seg, feed, line), p0, p1, m0, m1 in zip(corners.tolist(), lines[k:],
+                                                        points[k:], points[k + 1:], moved[k:],
+                                                        moved[k + 1:], strict=False):
             kind = c[0]
-            if kind < 0.0:                  # a line of zero length: its error
-                Line.between(points[k], points[k + 1])
-            if kind == 0.0:
-                out.append(_flush(pend))
+            if kind == 0.0:                 # no blend: the line before to its end
+                append(_new(BlendedBlock, (between(a_start, a_end) if a_trim or a_m0 or a_m1
+                                           else a_seg, a_feed, a_line, False)))
+                start, trim = p0, False
+            elif kind < 0.0:                # a line of zero length: its error
+                between(p0, p1)
             else:
-                start, p_in, p_out, center = pend[3], (c[2], c[3]), (c[4], c[5]), (c[6], c[7])
+                p_in, start, center = (c[2], c[3]), (c[4], c[5]), (c[6], c[7])
                 ccw = c[11] > 0.0
                 if kind == 2.0:             # off its circle: Arc's error
-                    Arc.between(p_in, p_out, center, ccw=ccw, tol=_ARC_TOL)
-                if c[1]:
-                    out.append(_new(BlendedBlock, (Line.between(start, p_in), pend[5],
-                                                   pend[6], False)))
-                arc = Arc.made(p_in, p_out, center, ccw, (c[8], c[9], c[10]))
-                self.blends += 1
-                out.append(_new(BlendedBlock, (arc, pend[5] if pend[5] < feed else feed, line,
-                                               True)))
-                nxt[3], nxt[7] = p_out, True
-            pend = nxt
-            k += 1
-        return pend
+                    Arc.between(p_in, start, center, ccw=ccw, tol=_ARC_TOL)
+                if c[1]:                    # what is left of the line before
+                    append(_new(BlendedBlock, (between(a_start, p_in), a_feed, a_line, False)))
+                append(_new(BlendedBlock, (made(p_in, start, center, ccw, c[8], c[9], c[10]),
+                                           a_feed if a_feed < feed else feed, line, True)))
+                blends += 1
+                trim = True
+            a_seg, a_origin, a_end, a_start, a_m0, a_m1, a_feed, a_line, a_trim = \
+                seg, p0, p1, start, m0, m1, feed, line, trim
+        self.blends += blends
+        return [a_seg, a_origin, a_end, a_start, a_m0, a_m1, a_feed, a_line, a_trim]
 
 
 def _flush(p: list) -> BlendedBlock:
     """The pending line from its (trimmed) start to its end; untrimmed and not moved by the
     fairing, the segment as programmed."""
-    seg, _, end, start, moved, feed, line, trimmed = p
-    if trimmed or moved[0] or moved[1]:
+    seg, _, end, start, m0, m1, feed, line, trimmed = p
+    if trimmed or m0 or m1:
         seg = Line.between(start, end)
     return _new(BlendedBlock, (seg, feed, line, False))
 

@@ -370,12 +370,12 @@ class Arc(Segment):
 
     @classmethod
     def made(cls, p0: tuple[float, float], p1: tuple[float, float], c: tuple[float, float],
-             ccw: bool, shape: tuple[float, float, float]) -> Arc:
+             ccw: bool, radius: float, theta0: float, span: float) -> Arc:
         """The arc of less than a turn between points already given as finite floats whose
-        ``shape`` (radius, start angle, |sweep|) `arc_span` has given and whose end the
-        caller has checked on the circle (the blender's compiled corners)."""
+        radius, start angle and |sweep| `arc_span` has given and whose end the caller has
+        checked on the circle (the blender's compiled corners)."""
         arc = cls.__new__(cls)
-        arc._fill(p0, p1, c, ccw, 0, *shape)
+        arc._fill(p0, p1, c, ccw, 0, radius, theta0, span)
         return arc
 
     def _set(self, p0: tuple[float, float], p1: tuple[float, float], c: tuple[float, float],
