@@ -132,41 +132,70 @@ def fair_points(pts: np.ndarray, tolerance: float, first: int = 1,
     if last <= first or n < 3:
         return out, moved
     flags = _curve_nodes(pts, tolerance)
-    idx = np.arange(n)
-    # the nearest vertex on each side that is no curve node: a fit does not reach past it
-    stop = np.where(flags, -1, idx)
-    prev_stop = np.maximum.accumulate(stop)
-    stop = np.where(flags, n, idx)
-    next_stop = np.minimum.accumulate(stop[::-1])[::-1]
-    which = np.arange(first, last)
-    which = which[flags[which]]
-    if not len(which):
-        return out, moved
-    left = np.minimum(REACH, which - prev_stop[which])
-    right = np.minimum(REACH, next_stop[which] - which)
-    offsets = np.arange(-REACH, REACH + 1)
-    cols = which[:, None] + offsets[None, :]
-    use = (offsets[None, :] >= -left[:, None]) & (offsets[None, :] <= right[:, None])
-    cols = np.clip(cols, 0, n - 1)
-    d = np.diff(pts, axis=0)
-    length = np.hypot(d[:, 0], d[:, 1])
-    scale = 0.5 * (length[which - 1] + length[which])
-    local = (pts[cols] - pts[which][:, None, :]) / scale[:, None, None]
-    step = _fit(local, use, offsets)
-    step *= scale[:, None]
-    dist = np.hypot(step[:, 0], step[:, 1])
-    limit = np.minimum(SHARE * tolerance,
-                       _ROOM_SHARE * np.minimum(length[which - 1], length[which]))
-    move = (dist <= limit) & (dist >= MIN_MOVE)
-    k = which - first
-    out[k[move]] += step[move]
-    moved[k[move]] = dist[move]
+    which, x, y, weight, scale, limit = _windows(pts, flags, first, last, tolerance)
+    if len(which):
+        _place(_fit(x, y, weight), scale, limit, which - first, out, moved)
     return out, moved
 
 
-def _fit(local: np.ndarray, use: np.ndarray, offsets: np.ndarray) -> np.ndarray:
-    """Where each vertex goes (local, scaled coordinates: the vertex at the origin): onto
-    its fitted circle along the radius, and along the circle to where a quadratic in the
+@numba.njit(cache=True)
+def _windows(pts, flags, first, last, tolerance):  # pragma: no cover - compiled
+    """The curve nodes among the vertices ``first … last − 1`` and their fits' windows: the
+    ``REACH`` vertices on each side, up to the nearest vertex that is no curve node (a fit
+    does not reach past it: ``weight`` 0 beyond), in coordinates local to the vertex and
+    scaled by its chords (``x``, ``y``: the vertex at the origin, ``scale`` the mean of its
+    chords); ``limit``: the largest move of each (m)."""
+    n = len(pts)
+    prev_stop = np.empty(n, np.int64)
+    next_stop = np.empty(n, np.int64)
+    stop = -1
+    for i in range(n):
+        if not flags[i]:
+            stop = i
+        prev_stop[i] = stop
+    stop = n
+    for i in range(n - 1, -1, -1):
+        if not flags[i]:
+            stop = i
+        next_stop[i] = stop
+    length = np.empty(n - 1)
+    for i in range(n - 1):
+        length[i] = math.hypot(pts[i + 1, 0] - pts[i, 0], pts[i + 1, 1] - pts[i, 1])
+    which = np.array([i for i in range(first, last) if flags[i]], dtype=np.int64)
+    m, width = len(which), 2 * REACH + 1
+    x, y, weight = np.empty((m, width)), np.empty((m, width)), np.empty((m, width))
+    scale, limit = np.empty(m), np.empty(m)
+    for q in range(m):
+        i = which[q]
+        left, right = min(REACH, i - prev_stop[i]), min(REACH, next_stop[i] - i)
+        sc = 0.5 * (length[i - 1] + length[i])
+        for o in range(-REACH, REACH + 1):
+            col = min(max(i + o, 0), n - 1)
+            x[q, o + REACH] = (pts[col, 0] - pts[i, 0]) / sc
+            y[q, o + REACH] = (pts[col, 1] - pts[i, 1]) / sc
+            weight[q, o + REACH] = 1.0 if -left <= o <= right else 0.0
+        scale[q] = sc
+        limit[q] = min(SHARE * tolerance, _ROOM_SHARE * min(length[i - 1], length[i]))
+    return which, x, y, weight, scale, limit
+
+
+@numba.njit(cache=True)
+def _place(step, scale, limit, k, out, moved):  # pragma: no cover - compiled
+    """Move the vertices ``k`` of ``out`` by their fits' ``step`` (scaled coordinates) where
+    it is a move of at least ``MIN_MOVE`` and at most ``limit``; ``moved``: how far."""
+    for q in range(len(k)):
+        sx, sy = step[q, 0] * scale[q], step[q, 1] * scale[q]
+        dist = math.hypot(sx, sy)
+        if dist <= limit[q] and dist >= MIN_MOVE:
+            out[k[q], 0] += sx
+            out[k[q], 1] += sy
+            moved[k[q]] = dist
+
+
+def _fit(x: np.ndarray, y: np.ndarray, weight: np.ndarray) -> np.ndarray:
+    """Where each vertex goes (local, scaled coordinates ``x``, ``y`` of its window, the
+    vertex at the origin; ``weight`` 1 for the points its fit takes, else 0): onto its
+    fitted circle along the radius, and along the circle to where a quadratic in the
     vertex number puts it through its neighbours' places (the chords' lengths vary
     smoothly along the curve). NaN where no fit is made.
 
@@ -174,16 +203,13 @@ def _fit(local: np.ndarray, use: np.ndarray, offsets: np.ndarray) -> np.ndarray:
     ``_steps``), element by element in NumPy's own order of operations; the eigenvectors,
     the solves, and the arc tangent stay NumPy's (LAPACK, and NumPy's own vectorised
     ``arctan2``), so the result is NumPy's bit for bit."""
-    x = np.ascontiguousarray(local[..., 0])
-    y = np.ascontiguousarray(local[..., 1])
-    weight = use.astype(float)
     # the smallest singular vector of the rows (|p|², x, y, 1): the normal matrix's
     # eigenvector of the least eigenvalue (eigh of 4 × 4 is 3x faster than an SVD of the
     # rows; in the chords' scale its accuracy is far below MIN_MOVE)
     vec = np.linalg.eigh(_normal_matrices(x, y, weight))[1]
     circle, num, den = _circles(np.ascontiguousarray(vec[:, :, 0]), x, y, weight)
     normal, rhs = _along(np.arctan2(num, den), num, circle, weight,
-                         offsets.astype(float))
+                         np.arange(-REACH, REACH + 1.0))
     ok = circle[:, 0] != 0.0
     # with ≥ 4 distinct vertex numbers the quadratic's normal matrix is regular (its
     # determinant is ≥ 4): every fit (ok) is solvable
