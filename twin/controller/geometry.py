@@ -125,6 +125,8 @@ class Segment(ABC):
         Arc length (m), > 0.
     """
 
+    __slots__ = ()
+
     start: np.ndarray
     end: np.ndarray
     length: float
@@ -245,6 +247,9 @@ class Segment(ABC):
 class Line(Segment):
     """Straight segment from ``start`` to ``end`` (m); they must differ."""
 
+    # slots: the planner makes and reads several per programmed line
+    __slots__ = ("_arrays", "_ends", "_ux", "_uy", "length")
+
     def __init__(self, start, end):
         # floats only: the planner builds one per block; the arrays come when asked
         self._set(_pair(start, "start"), _pair(end, "end"))
@@ -347,6 +352,9 @@ class Arc(Segment):
     PlanningError
         Zero radius, end off the circle, bad ``ccw``/``turns``/``tol``.
     """
+
+    __slots__ = ("_arrays", "_k", "_sign", "_theta0", "_xy", "ccw", "length", "radius", "sweep",
+                 "turns")
 
     def __init__(self, start, end, center, *, ccw: bool, turns: int = 0, tol: float = 1e-9):
         if not isinstance(ccw, bool | np.bool_):
