@@ -224,7 +224,8 @@ class Blender:
                     Arc.between(p_in, start, center, ccw=ccw, tol=_ARC_TOL)
                 if c[1]:                    # what is left of the line before
                     append(_new(BlendedBlock, (between(a_start, p_in), a_feed, a_line, False)))
-                append(_new(BlendedBlock, (made(p_in, start, center, ccw, c[8], c[9], c[10]),
+                append(_new(BlendedBlock, (made(p_in, start, center, ccw, c[8], c[9], c[10],
+                                                (c[12], c[13], c[14], c[15])),
                                            a_feed if a_feed < feed else feed, line, True)))
                 blends += 1
                 trim = True
@@ -248,7 +249,8 @@ def _corners(points, moved, pend, tolerance):  # pragma: no cover - compiled
     """The blends from a pending line through lines ``points[k] → points[k + 1]`` (m) in
     turn: per line, [kind (0 none, 1 a blend before it, 2 a blend off its circle, −1 the line
     has no length), whether the line before is left before the blend, the blend's start,
-    end and centre (x, y), its radius, start angle and |sweep|, its sense (±1)].
+    end and centre (x, y), its radius, start angle and |sweep|, its sense (±1), its end
+    tangents (`arc_span`)].
 
     ``pend``: the pending line's origin, end and (trimmed) start, and its vertices' moves;
     ``moved``: the points' moves (fairing). The arithmetic is the planner's `Line`
@@ -257,7 +259,7 @@ def _corners(points, moved, pend, tolerance):  # pragma: no cover - compiled
     length = hypot(ex - ox, ey - oy)
     aux, auy, ahalf = (ex - ox) / length, (ey - oy) / length, 0.5 * length
     n = len(points) - 1
-    out = np.zeros((n, 12))
+    out = np.zeros((n, 16))
     for k in range(n):
         bx0, by0 = points[k, 0], points[k, 1]
         bx1, by1 = points[k + 1, 0], points[k + 1, 1]
@@ -294,12 +296,14 @@ def _corners(points, moved, pend, tolerance):  # pragma: no cover - compiled
                 nx, ny = (-auy, aux) if ccw else (auy, -aux)
                 cx, cy = px + radius * nx, py + radius * ny
                 sign = 1.0 if ccw else -1.0
-                r, r_end, theta0, span = arc_span(px, py, qx, qy, cx, cy, sign, 0, _ARC_TOL)
+                r, r_end, theta0, span, tangents = arc_span(px, py, qx, qy, cx, cy, sign, 0,
+                                                            _ARC_TOL)
                 out[k, 0] = 1.0 if r != 0.0 and abs(r_end - r) <= _ARC_TOL else 2.0
                 out[k, 1] = 1.0 if left else 0.0
                 out[k, 2], out[k, 3], out[k, 4], out[k, 5] = px, py, qx, qy
                 out[k, 6], out[k, 7], out[k, 8], out[k, 9] = cx, cy, r, theta0
                 out[k, 10], out[k, 11] = span, sign
+                out[k, 12], out[k, 13], out[k, 14], out[k, 15] = tangents
                 bsx, bsy = qx, qy
         ox, oy, ex, ey, sx, sy = bx0, by0, bx1, by1, bsx, bsy
         m0, m1 = moved[k], moved[k + 1]

@@ -94,11 +94,14 @@ def hypot(x: float, y: float) -> float:
 
 @numba.njit(cache=True)
 def arc_span(x0: float, y0: float, x1: float, y1: float, cx: float, cy: float, sign: float,
-             turns: int, tol: float) -> tuple[float, float, float, float]:
-    """(radius, end's distance from the centre, start angle, |sweep|) of the arc about
-    (cx, cy) from (x0, y0) to (x1, y1) (m, rad), ``sign`` +1 counter-clockwise, with
-    ``turns`` extra full turns; an end within ``tol`` of the start is a full circle. The
-    one computation of an arc's shape: ``Arc`` and the blender's compiled corners."""
+             turns: int, tol: float) -> tuple[float, float, float, float, tuple[float, float,
+                                                                                  float, float]]:
+    """(radius, end's distance from the centre, start angle, |sweep|, end tangents) of the
+    arc about (cx, cy) from (x0, y0) to (x1, y1) (m, rad), ``sign`` +1 counter-clockwise,
+    with ``turns`` extra full turns; an end within ``tol`` of the start is a full circle.
+    The end tangents (t0x, t0y, t1x, t1y) are those of ``arc_point`` at 0 and at the
+    length (`Arc.end_tangents`). The one computation of an arc's shape: ``Arc`` and the
+    blender's compiled corners."""
     sx, sy, ex, ey = x0 - cx, y0 - cy, x1 - cx, y1 - cy
     theta0 = math.atan2(sy, sx)
     if hypot(ex - sx, ey - sy) <= tol:
@@ -107,7 +110,13 @@ def arc_span(x0: float, y0: float, x1: float, y1: float, cx: float, cy: float, s
         span = ((math.atan2(ey, ex) - theta0) * sign) % TAU
     if span == 0.0:
         span = TAU
-    return hypot(sx, sy), hypot(ex, ey), theta0, span + TAU * turns
+    span += TAU * turns
+    radius = hypot(sx, sy)
+    # θ0 + κ·length, as Arc has them (no arc without a radius: Arc's error, not ours)
+    phi = theta0 + sign / radius * (radius * span) if radius != 0.0 else theta0
+    tangents = (-sign * math.sin(theta0), sign * math.cos(theta0), -sign * math.sin(phi),
+                sign * math.cos(phi))
+    return radius, hypot(ex, ey), theta0, span, tangents
 
 
 class Segment(ABC):
@@ -353,8 +362,8 @@ class Arc(Segment):
         Zero radius, end off the circle, bad ``ccw``/``turns``/``tol``.
     """
 
-    __slots__ = ("_arrays", "_k", "_sign", "_theta0", "_xy", "ccw", "length", "radius", "sweep",
-                 "turns")
+    __slots__ = ("_arrays", "_ends_t", "_k", "_sign", "_theta0", "_xy", "ccw", "length",
+                 "radius", "sweep", "turns")
 
     def __init__(self, start, end, center, *, ccw: bool, turns: int = 0, tol: float = 1e-9):
         if not isinstance(ccw, bool | np.bool_):
@@ -378,18 +387,19 @@ class Arc(Segment):
 
     @classmethod
     def made(cls, p0: tuple[float, float], p1: tuple[float, float], c: tuple[float, float],
-             ccw: bool, radius: float, theta0: float, span: float) -> Arc:
+             ccw: bool, radius: float, theta0: float, span: float,
+             tangents: tuple[float, float, float, float]) -> Arc:
         """The arc of less than a turn between points already given as finite floats whose
-        radius, start angle and |sweep| `arc_span` has given and whose end the caller has
-        checked on the circle (the blender's compiled corners)."""
+        radius, start angle, |sweep| and end tangents `arc_span` has given and whose end
+        the caller has checked on the circle (the blender's compiled corners)."""
         arc = cls.__new__(cls)
-        arc._fill(p0, p1, c, ccw, 0, radius, theta0, span)
+        arc._fill(p0, p1, c, ccw, 0, radius, theta0, span, tangents)
         return arc
 
     def _set(self, p0: tuple[float, float], p1: tuple[float, float], c: tuple[float, float],
              ccw: bool, turns: int, tol: float) -> None:
-        radius, end_radius, theta0, span = arc_span(p0[0], p0[1], p1[0], p1[1], c[0], c[1],
-                                                    1.0 if ccw else -1.0, turns, tol)
+        radius, end_radius, theta0, span, tangents = arc_span(
+            p0[0], p0[1], p1[0], p1[1], c[0], c[1], 1.0 if ccw else -1.0, turns, tol)
         if radius == 0.0:
             raise PlanningError(f"arc of zero radius: start = center = {list(p0)}")
         if abs(end_radius - radius) > tol:
@@ -397,10 +407,11 @@ class Arc(Segment):
                 f"arc end point is not on the circle: |end − center| = {end_radius!r} m, "
                 f"|start − center| = {radius!r} m, difference "
                 f"{abs(end_radius - radius):.3g} m > tol = {tol:.3g} m")
-        self._fill(p0, p1, c, ccw, turns, radius, theta0, span)
+        self._fill(p0, p1, c, ccw, turns, radius, theta0, span, tangents)
 
     def _fill(self, p0: tuple[float, float], p1: tuple[float, float], c: tuple[float, float],
-              ccw: bool, turns: int, radius: float, theta0: float, span: float) -> None:
+              ccw: bool, turns: int, radius: float, theta0: float, span: float,
+              tangents: tuple[float, float, float, float]) -> None:
         sign = 1.0 if ccw else -1.0
         self.radius, self.ccw, self._sign, self._theta0 = radius, bool(ccw), sign, theta0
         self.turns = int(turns)
@@ -408,6 +419,7 @@ class Arc(Segment):
         self.length = radius * span
         self._k = sign / radius
         self._xy = (*c, *p0, *p1)
+        self._ends_t = tangents
         self._arrays: tuple[np.ndarray, np.ndarray, np.ndarray] | None = None
 
     @property
@@ -442,10 +454,7 @@ class Arc(Segment):
         """Unit tangents at the start and at the end, (t0x, t0y, t1x, t1y): those of
         ``frame(0)`` and ``frame(length)``, in the same arithmetic as ``arc_point``, for
         the planner's blocks without two compiled calls."""
-        sign, th0 = self._sign, self._theta0
-        phi = th0 + self._k * self.length
-        return -sign * math.sin(th0), sign * math.cos(th0), -sign * math.sin(phi), \
-            sign * math.cos(phi)
+        return self._ends_t                 # `arc_span` computed them with the arc
 
     def _points(self, s):
         phi = self._theta0 + self._k * s
