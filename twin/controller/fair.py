@@ -356,6 +356,8 @@ def fair(items: Iterable[Any], tolerance: float, path_tolerance: Callable[[Any],
     ``fit`` False chains the lines without moving a vertex.
     """
     chain = _Chain()
+    pts, lines = chain.pts, chain.lines     # the chain's own lists: emptied, never replaced
+    full = CHUNK + 2 * REACH + 4
     source = iter(items)
     while True:
         try:
@@ -370,16 +372,17 @@ def fair(items: Iterable[Any], tolerance: float, path_tolerance: Callable[[Any],
             seg, feed = item[0], item[1]
             if type(seg) is Line and feed is not None and tolerance > 0.0:
                 start, end = seg._ends
-                if chain.lines and start != chain.pts[-1]:
-                    yield from chain.flush(tolerance, True, fit)
-                if not chain.lines:
+                if not lines:
                     chain.open(start)
-                chain.pts.append(end)
-                chain.lines.append((seg, feed, item[2]))
-                if len(chain.lines) >= CHUNK + 2 * REACH + 4:
+                elif start != pts[-1]:          # not contiguous: a chain of its own
+                    yield from chain.flush(tolerance, True, fit)
+                    chain.open(start)
+                pts.append(end)
+                lines.append((seg, feed, item[2]))
+                if len(lines) >= full:
                     yield from chain.flush(tolerance, False, fit)
                 continue
-        if chain.lines:
+        if lines:
             yield from chain.flush(tolerance, True, fit)
         if type(item) is PathControl:
             tolerance = path_tolerance(item)
