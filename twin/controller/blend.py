@@ -202,7 +202,8 @@ class Blender:
                     False]
             k = 1
         a_seg, (ox, oy), a_end, a_start, a_m0, a_m1, a_feed, a_line, a_trim = pend
-        corners = _corners(np.array(points[k:]), np.array(moved[k:]),
+        corners = _corners(np.array(points[k:], dtype=float),
+                           np.array(moved[k:], dtype=float),
                            (ox, oy, a_end[0], a_end[1], a_start[0], a_start[1], a_m0, a_m1),
                            self.tolerance)
         between, made, append, blends = Line.between, Arc.made, out.append, 0

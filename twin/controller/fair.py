@@ -422,7 +422,7 @@ class _Chain:
         if last > first:
             if fit:
                 faired, moved = fair_points(np.asarray(pts), tolerance, first, last)
-                fin.extend(map(tuple, faired.tolist()))
+                fin.extend(zip(faired[:, 0].tolist(), faired[:, 1].tolist(), strict=True))
                 moves.extend(moved.tolist())
             else:
                 fin.extend(pts[first:last])
