@@ -145,6 +145,7 @@ from twin.controller.gcode.items import Dwell, Move, PathControl, ProgramEnd
 from twin.controller.loop_defaults import default_corner_model
 from twin.controller.profiles import Limits, min_distance
 from twin.controller.profiles.laws import check_law
+from twin.controller.stop_zones import StopZones
 from twin.controller.window import Window
 from twin.controller.workzone import WorkZone
 from twin.errors import ConfigError, PlanningError, TwinError
@@ -266,6 +267,7 @@ class Planner:
         self.min_feed = float(min_feed)
         self.max_program_time = float(max_program_time)
         self._time_bound = 0.0
+        self._zones: StopZones | None = None
 
     @classmethod
     def from_settings(cls, settings: ControllerSettings, axes: Mapping[str, AxisConfig],
@@ -331,7 +333,9 @@ class Planner:
         # step: plain calls, no generator per block
         out: list[PlannedBlock] = []
         self._out = out
-        append, pop, end_run = self._append, self._pop, self._end_run
+        append, flush, end_run = self._append, self._flush, self._end_run
+        self._zones = None if self.mode != "lookahead" or self.lookahead < 2 else StopZones(
+            rules, self.law, 0.5 * self._view, lambda b: self._push(window, b), runs)
         exact_stop = False
         run: WindowBlock | None = None       # the run being grown
         held: WindowBlock | None = None      # a run closed for its length, its successor to come
@@ -369,8 +373,7 @@ class Planner:
                         end_run(window, held, run)
                         run = held = None
                     append(window, block)
-                    while window:
-                        pop(window)
+                    flush(window)
                     continue
             elif type(item) is PathControl:     # G61, G61.1, G64: no stop, nothing to run
                 exact_stop = item.mode == "exact_stop"
@@ -383,8 +386,7 @@ class Planner:
                 if run is not None:
                     end_run(window, held, run)
                     run = held = None
-                while window:
-                    pop(window)
+                flush(window)
                 yield from out
                 out.clear()
                 yield item
@@ -413,8 +415,7 @@ class Planner:
             absorb(run, tail)
         if run is not None:
             end_run(window, held, run)
-        while window:
-            pop(window)
+        flush(window)
         yield from out
         out.clear()
         if error is not None:
@@ -506,6 +507,25 @@ class Planner:
         self._append(window, close_run(run))
 
     def _append(self, window: deque[WindowBlock], b: WindowBlock) -> None:
+        """Add ``b`` to the window through the stop zones (`twin.controller.stop_zones`:
+        a rapid is a stop before it)."""
+        zones = self._zones
+        if zones is None:
+            self._push(window, b)
+        elif b.rapid:
+            zones.stop()
+            self._push(window, b)
+        else:
+            zones.feed(b)
+
+    def _flush(self, window: deque[WindowBlock]) -> None:
+        """A stop: the zones before it laid, every block leaves the window."""
+        if self._zones is not None:
+            self._zones.stop()
+        while window:
+            self._pop(window)
+
+    def _push(self, window: deque[WindowBlock], b: WindowBlock) -> None:
         """Add ``b`` to the window (both passes, `twin.controller.window`); the blocks that
         leave it go to ``_out``."""
         self._length += b.length

@@ -1,0 +1,314 @@
+"""Stop zones: a curve next to a stop gets the tangential limits its reachable speed allows.
+
+A curve's tangential limits (`twin.controller.segment_limits`) are computed at its speed
+cap V: there the centripetal acceleration v²κ and the curvature's jerk (v³κ², 3·v·a_t·κ)
+take most of the budgets. Where a contour starts from rest, or ends at a stop, the speed is
+far below V and those shares are small: a G2/G3 arc (or a run of blends) that kept the
+limits of V for its whole length accelerated out of a stop more slowly than a chorded copy
+of it whose first chord, a line, accelerates at the line's limits (issue 30: a circle of
+r = 0.5 mm took up to 17 % longer as G3 than as chords within 0.02 mm).
+
+Design: levels of speed by distance from the stop
+-------------------------------------------------
+Next to each stop (the start of a contour from rest, its end before a stop: a rapid, a
+dwell, an event, the program end, G61.1) the path is cut into at most ``len(LEVELS)``
+zones ``[D_(k−1), D_k]`` (distance from the stop) with speed caps ``v_1 < v_2 < … < V``.
+The curves in zone k are capped at ``v_k`` and take the tangential limits their arcs allow
+up to ``v_k`` (`BlockRules.slow`); a block that straddles a zone's border is split there
+(an arc at the exact distance: both parts keep the block's number; a run between its
+members, at the border nearer the distance; a line, whose limits do not depend on the
+speed, is never capped or split). Zone k is as long as one speed change of the law from
+``v_(k−1)`` to ``v_k`` at the limits of ``v_k``, so the profile from rest reaches each cap at
+its zone's end. The caps are constraints the look-ahead holds like any other: the jerk and
+acceleration bounds of `segment_limits` hold at every speed up to a block's cap with its
+limits, so they hold in every zone.
+
+The levels are chosen per stop by the law's closed forms: among no zone, one level
+``v_1 = f·V`` and two levels (f from ``FRACTIONS``), the one whose speed changes from rest to
+V lose the least time against cruising at V over the same distance,
+``Σ t_k − (Σ d_k)/V``, the changes using the limits of the curve with the largest
+curvature next to the stop (the lowest). For a law that must end each change at zero
+acceleration a zone border costs a pause of the acceleration; the choice weighs it (the
+smooth laws mostly take one level, the trapezoid two). A level is taken only if its zones
+fit within ``reach`` (half the look-ahead view: the braking distance from the top feed) and
+within half the contour (both ends of a short contour reach V).
+
+Streaming: the blocks pass through a buffer that holds the path within ``reach`` of the
+newest block (so the end zone can still be laid when a stop comes) and, after a stop, the
+first ``reach`` of the contour (the start zone is laid once it is in); memory stays bounded
+by ``reach`` over the shortest block. Splines (curves other than arcs) get no zone.
+"""
+
+from __future__ import annotations
+
+import math
+from collections import deque
+from collections.abc import Callable
+
+from twin.controller.block_rules import BlockRules, WindowBlock, absorb, close_run, open_run
+from twin.controller.geometry import TAU, Arc, Line
+from twin.controller.profiles import Limits
+from twin.controller.profiles.laws import change_time, max_end_speed
+
+__all__ = ["FRACTIONS", "StopZones", "choose_levels", "split_block"]
+
+FRACTIONS = (0.3, 0.4, 0.5, 0.6, 0.7, 0.8, 0.9)
+"""Candidate zone caps as shares of the curve's cap V."""
+
+_EPS = 1e-9
+"""Splits nearer than this to a block's end (m) are not made."""
+
+
+def choose_levels(law: str, v_cap: float, limits_at: Callable[[float], Limits], reach: float,
+                  room: float, v_entry: float = 0.0) -> list[tuple[float, float]]:
+    """The zones next to a stop, ``[(D_k, v_k)]`` with D_k the zone's far border from the
+    stop (m) and v_k its speed cap (m/s), increasing; empty when none saves time.
+
+    Parameters
+    ----------
+    law : str
+        Acceleration law.
+    v_cap : float
+        The curve's speed cap V (m/s).
+    limits_at : callable
+        Tangential limits of the curve at speeds up to v (``Limits``).
+    reach : float
+        Longest the zones may reach from the stop (m).
+    room : float
+        Longest the zones plus the change from the last cap to V may take (m).
+    v_entry : float
+        Fastest the curve is entered from the stop's side (m/s): 0 where it starts at the
+        stop, else the cap of the node after the lines between (a change ends there).
+    """
+    if not v_cap > v_entry:
+        return []
+    lim_cap = limits_at(v_cap)
+    t0 = change_time(law, v_cap - v_entry, lim_cap)
+    best, levels = t0 - 0.5 * (v_entry + v_cap) * t0 / v_cap, []    # no zone
+    caps = [f * v_cap for f in FRACTIONS if f * v_cap > v_entry]
+    lims = [limits_at(v) for v in caps]
+    for i, v1 in enumerate(caps):
+        t1 = change_time(law, v1 - v_entry, lims[i])
+        d1 = 0.5 * (v_entry + v1) * t1
+        if d1 > reach:
+            break
+        t2 = change_time(law, v_cap - v1, lim_cap)
+        d2 = 0.5 * (v1 + v_cap) * t2
+        lost = t1 + t2 - (d1 + d2) / v_cap
+        if lost < best and d1 + d2 <= room:
+            best, levels = lost, [(d1, v1)]
+        for k in range(i + 1, len(caps)):
+            v2 = caps[k]
+            t12 = change_time(law, v2 - v1, lims[k])
+            d12 = d1 + 0.5 * (v1 + v2) * t12
+            if d12 > reach:
+                break
+            t3 = change_time(law, v_cap - v2, lim_cap)
+            d3 = 0.5 * (v2 + v_cap) * t3
+            lost = t1 + t12 + t3 - (d12 + d3) / v_cap
+            if lost < best and d12 + d3 <= room:
+                best, levels = lost, [(d1, v1), (d12, v2)]
+    return levels
+
+
+def split_arc(arc: Arc, s: float) -> tuple[Arc, Arc] | None:
+    """The arc cut ``s`` (m) from its start into two arcs of its circle; None where the
+    cut would be degenerate (within ``_EPS`` of an end, or of a whole turn)."""
+    if not _EPS < s < arc.length - _EPS:
+        return None
+    span = abs(arc.sweep)
+    first, second = s / arc.radius, span - s / arc.radius
+    turns1, rem1 = divmod(first, TAU)
+    turns2, rem2 = divmod(second, TAU)
+    if min(rem1, TAU - rem1, rem2, TAU - rem2) * arc.radius <= _EPS:
+        return None
+    x, y, *_ = arc.frame(s)
+    start, end, center = arc.start, arc.end, arc.center
+    a = Arc(start, (x, y), center, ccw=arc.ccw, turns=int(turns1), tol=1e-9)
+    b = Arc((x, y), end, center, ccw=arc.ccw, turns=int(turns2), tol=1e-9)
+    if abs(a.length + b.length - arc.length) > 1e-9:
+        return None
+    return a, b
+
+
+def _as_block(members: list[WindowBlock]) -> WindowBlock:
+    run = open_run(members[0])
+    for m in members[1:]:
+        absorb(run, m)
+    return close_run(run)
+
+
+def split_block(rules: BlockRules, b: WindowBlock, s: float
+                ) -> tuple[WindowBlock, WindowBlock] | None:
+    """``b`` (a block or a run) cut about ``s`` (m) from its start: an arc exactly there
+    (both parts keep its number), a run between its members at the border nearer ``s``
+    (or in the arc member that holds ``s``); None where no cut is possible (a line, a
+    spline, a run whose nearer border is one of its ends)."""
+    if b.members is None:
+        seg = b.segment
+        if type(seg) is not Arc:
+            return None
+        parts = split_arc(seg, s)
+        if parts is None:
+            return None
+        return tuple(rules.block(p, b.feed, b.line, b.blend, index=b.index)  # type: ignore
+                     for p in parts)
+    members = b.members
+    i, c0 = 0, 0.0
+    while c0 + members[i].length < s:       # the member that holds s
+        c0 += members[i].length
+        i += 1
+        if i == len(members):
+            return None
+    m = members[i]
+    c1 = c0 + m.length
+    front, back = members[:i], members[i + 1:]
+    parts = split_block(rules, m, s - c0) if type(m.segment) is Arc else None
+    if parts is not None:
+        front, back = [*front, parts[0]], [parts[1], *back]
+    elif s - c0 < c1 - s:
+        back = [m, *back]
+    else:
+        front = [*front, m]
+    if not front or not back:
+        return None
+    return _as_block(front), _as_block(back)
+
+
+class StopZones:
+    """Lays the stop zones (module doc) on a stream of window blocks.
+
+    Parameters
+    ----------
+    rules : BlockRules
+        The planner's rules (caps at a speed, block parts).
+    law : str
+        Acceleration law.
+    reach : float
+        Longest a zone reaches from its stop (m); the buffer holds this much path.
+    emit : callable
+        Takes each block (zoned) in order, as it may enter the window.
+    """
+
+    def __init__(self, rules: BlockRules, law: str, reach: float,
+                 emit: Callable[[WindowBlock], None], runs: bool = True):
+        self._rules, self._law, self._reach, self._emit = rules, law, reach, emit
+        self._runs = runs
+        self._buf: deque[WindowBlock] = deque()
+        self._length = 0.0              # of the buffer
+        self._fresh = True              # the buffer starts at a stop, its zone not laid yet
+        self._contour = 0.0             # path since the last stop
+
+    def feed(self, b: WindowBlock) -> None:
+        """A feed block (or run) follows the ones before without a stop."""
+        buf = self._buf
+        buf.append(b)
+        self._length += b.length
+        self._contour += b.length
+        if self._fresh:
+            if self._length < self._reach:
+                return
+            self._lay(start=True, room=math.inf)
+            self._fresh = False
+        reach, emit = self._reach, self._emit
+        while len(buf) > 1 and self._length - buf[0].length >= reach:
+            x = buf.popleft()
+            self._length -= x.length
+            emit(x)
+
+    def stop(self) -> None:
+        """A stop follows: lay the zones and emit everything held."""
+        buf = self._buf
+        if buf:
+            room = 0.5 * self._contour
+            if self._fresh:
+                self._lay(start=True, room=room)
+            self._lay(start=False, room=room)
+            emit = self._emit
+            while buf:
+                emit(buf.popleft())
+        self._length = self._contour = 0.0
+        self._fresh = True
+
+    # ------------------------------------------------------------------ internals
+    def _lay(self, start: bool, room: float) -> None:
+        """The zones at the buffer's start (after a stop) or end (before one)."""
+        seq = list(self._buf) if start else list(reversed(self._buf))
+        reach = self._reach
+        arc, arc_blend, v_cap, line_acc, line_jerk = None, False, math.inf, math.inf, math.inf
+        s = 0.0
+        for b in seq:                         # the curve next to the stop
+            if s >= reach:
+                break
+            for m in b.members or (b,):
+                seg = m.segment
+                if type(seg) is Arc:
+                    if arc is None or seg.radius < arc.radius:
+                        arc, arc_blend = seg, m.blend
+                    v_cap = min(v_cap, b.v_nom)
+                elif type(seg) is Line:
+                    line_acc, line_jerk = min(line_acc, m.acc), min(line_jerk, m.jerk)
+                else:
+                    return                    # a spline next to the stop: no zone
+            s += b.length
+        if arc is None:
+            return
+        rules = self._rules
+        entry, entry_cap = 0.0, 0.0           # the lines before the curve, its entry
+        i = next(k for k, b in enumerate(seq)
+                 if any(type(m.segment) is Arc for m in b.members or (b,)))
+        lead = sum(b.length for b in seq[:i])
+        if i > 0:
+            near, far = seq[i - 1], seq[i]
+            if not start:
+                near, far = far, near
+            near = near.members[-1] if near.members else near
+            far = far.members[0] if far.members else far
+            entry_cap = rules.node_cap(near, far)
+            entry = min(entry_cap, math.sqrt(2.0 * rules.limits.max_acceleration * lead))
+
+        def limits_at(v: float) -> Limits:
+            acc, jerk = rules.curve_limits(arc, v, arc_blend)
+            return Limits.trusted(v, min(acc, line_acc), min(jerk, line_jerk))
+
+        law = self._law
+        levels = choose_levels(law, v_cap, limits_at, reach, room) if lead > 0.0 and \
+            self._runs else []
+        merge = bool(levels) and levels[0][0] > lead + _EPS and max_end_speed(
+            law, 0.0, lead, limits_at(levels[0][1])) <= entry_cap
+        if not merge:                         # the curve's zones from its entry
+            levels = [(lead + d, v) for d, v in choose_levels(
+                law, v_cap, limits_at, reach - lead, room - lead, entry)]
+        if not levels:
+            return
+        out: list[WindowBlock] = []
+        k, s = 0, 0.0
+        for b in seq:
+            while k < len(levels) and s < levels[k][0]:
+                border, v = levels[k]
+                near = border - s
+                if b.length <= near + _EPS:
+                    rules.slow(b, v)
+                    break
+                parts = split_block(rules, b, near if start else b.length - near)
+                if parts is None:
+                    if near >= 0.5 * b.length:
+                        rules.slow(b, v)
+                        break
+                    k += 1
+                    continue
+                zone, b = parts if start else parts[::-1]
+                rules.slow(zone, v)
+                out.append(zone)
+                s += zone.length
+                k += 1
+            out.append(b)
+            s += b.length
+        if merge:                             # the lines join the first zone's run
+            near_stop = out[:i + 1] if start else out[i::-1]         # in path order
+            zone = _as_block([m for b in near_stop for m in (b.members or (b,))])
+            rules.slow(zone, levels[0][1])
+            if max_end_speed(law, 0.0, lead, zone.limits) <= entry_cap:
+                out[:i + 1] = [zone]
+        self._buf.clear()
+        self._buf.extend(out if start else reversed(out))
