@@ -11,7 +11,8 @@ jerk, the jerk that step shows), where the curvature jumps the step of the norma
 acceleration as the samples see it; ``BlockRules.follow`` lets a sliver of line between
 two curves carry the curvature across. ``BlockRules.joins`` says whether a block may join a
 run; ``open_run``, ``absorb`` and ``close_run`` grow a run and close it into one window
-block.
+block. ``BlockRules.slow`` caps a block or run below its cap with the tangential limits its
+arcs allow there (the stop zones of `twin.controller.stop_zones`).
 """
 
 from __future__ import annotations

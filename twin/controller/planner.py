@@ -70,6 +70,20 @@ stop keeps the node between them too slow to bind (`BlockRules.slow_node`: a pro
 from or to rest passes a node d from the stop at most at √(2·A·d)): a circle sent as
 chords then runs one speed change from rest to rest, as the G3 arc does.
 
+Stop zones: a curve next to a stop
+----------------------------------
+A curve's tangential limits are computed at its speed cap, where its centripetal
+acceleration and curvature jerk take most of the budgets. Next to a stop (a contour's start
+from rest, its end before a rapid, a dwell, an event, the program end, and every block
+under G61.1) the speed is far lower, so `twin.controller.stop_zones` cuts the curve there
+into zones of rising speed caps, each with the tangential limits its arcs allow up to its
+cap (an arc is split at the zone's border, both parts keeping its number). The levels are
+chosen per stop with the law's closed forms (the least time lost from rest to the cap); a
+contour's lead chords join the first zone's run where the node to the curve cannot bind.
+A G2/G3 circle and its chords then start and stop alike (issue 30: their cycle times
+within 2.3 % for every law, down from 8.9-16.6 % at r = 0.5 mm). The zones hold the
+blocks within half the view of a stop before the window sees them.
+
 Streaming and incremental
 -------------------------
 ``Planner.plan(items)`` is a generator: it reads motion items one at a time, holds at most

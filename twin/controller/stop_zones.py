@@ -45,24 +45,54 @@ import math
 from collections import deque
 from collections.abc import Callable
 
-from twin.controller.block_rules import BlockRules, WindowBlock, absorb, close_run, open_run
+from twin.controller.block_rules import (
+    RUN_CAP_SHARE,
+    BlockRules,
+    WindowBlock,
+    absorb,
+    close_run,
+    open_run,
+)
 from twin.controller.geometry import TAU, Arc, Line
 from twin.controller.profiles import Limits
-from twin.controller.profiles.laws import change_time, max_end_speed
+from twin.controller.profiles.laws import change_time, max_end_speed, min_distance
 
-__all__ = ["FRACTIONS", "StopZones", "choose_levels", "split_block"]
+__all__ = ["FRACTIONS", "ZONE_SAMPLES", "StopZones", "choose_levels", "split_arc", "split_block",
+           "zone"]
 
 FRACTIONS = (0.3, 0.4, 0.5, 0.6, 0.7, 0.8, 0.9)
 """Candidate zone caps as shares of the curve's cap V."""
+
+ZONE_SAMPLES = 8
+"""Start speeds tried in [u, w) for the longest change to a zone's cap (`zone`)."""
 
 _EPS = 1e-9
 """Splits nearer than this to a block's end (m) are not made."""
 
 
+def zone(law: str, u: float, w: float, limits: Limits) -> tuple[float, float]:
+    """(time (s), length (m)) of a zone entered at ``u`` whose cap ``w`` the look-ahead
+    reaches at its end: its reach from u is the monotone envelope of `twin.controller.reach`
+    (the least end speed over any start at or above u), so the zone is as long as the
+    longest change to w from a speed in [u, w) (``ZONE_SAMPLES`` of them), and the profile
+    cruises at w over what that adds to the change from u."""
+    t = change_time(law, w - u, limits)
+    d = 0.5 * (u + w) * t
+    if law == "trapezoid":                  # monotone: the change from u is the longest
+        return t, d
+    longest = d
+    for k in range(1, ZONE_SAMPLES):
+        x = u + (w - u) * k / ZONE_SAMPLES
+        longest = max(longest, 0.5 * (x + w) * change_time(law, w - x, limits))
+    return t + (longest - d) / w, longest
+
+
 def choose_levels(law: str, v_cap: float, limits_at: Callable[[float], Limits], reach: float,
-                  room: float, v_entry: float = 0.0) -> list[tuple[float, float]]:
-    """The zones next to a stop, ``[(D_k, v_k)]`` with D_k the zone's far border from the
-    stop (m) and v_k its speed cap (m/s), increasing; empty when none saves time.
+                  room: float, v_entry: float = 0.0, v_exit: float | None = None
+                  ) -> list[tuple[float, float]]:
+    """The zones next to a stop, ``[(D_k, v_k)]`` with D_k the zone's far border from where
+    the curve is entered (m) and v_k its speed cap (m/s), increasing; empty when none saves
+    time.
 
     Parameters
     ----------
@@ -73,23 +103,27 @@ def choose_levels(law: str, v_cap: float, limits_at: Callable[[float], Limits], 
     limits_at : callable
         Tangential limits of the curve at speeds up to v (``Limits``).
     reach : float
-        Longest the zones may reach from the stop (m).
+        Longest the zones may reach (m).
     room : float
-        Longest the zones plus the change from the last cap to V may take (m).
+        How long the curve is (m): the zones, the change from the last cap to V and the
+        change from V to ``v_exit`` must fit in it.
     v_entry : float
         Fastest the curve is entered from the stop's side (m/s): 0 where it starts at the
         stop, else the cap of the node after the lines between (a change ends there).
+    v_exit : float, optional
+        The cap of the node that ends the curve on its other side (m/s); None: V.
     """
     if not v_cap > v_entry:
         return []
     lim_cap = limits_at(v_cap)
+    if v_exit is not None and v_exit < v_cap:
+        room -= min_distance(law, v_exit, v_cap, lim_cap)
     t0 = change_time(law, v_cap - v_entry, lim_cap)
     best, levels = t0 - 0.5 * (v_entry + v_cap) * t0 / v_cap, []    # no zone
     caps = [f * v_cap for f in FRACTIONS if f * v_cap > v_entry]
     lims = [limits_at(v) for v in caps]
     for i, v1 in enumerate(caps):
-        t1 = change_time(law, v1 - v_entry, lims[i])
-        d1 = 0.5 * (v_entry + v1) * t1
+        t1, d1 = zone(law, v_entry, v1, lims[i])
         if d1 > reach:
             break
         t2 = change_time(law, v_cap - v1, lim_cap)
@@ -99,13 +133,13 @@ def choose_levels(law: str, v_cap: float, limits_at: Callable[[float], Limits], 
             best, levels = lost, [(d1, v1)]
         for k in range(i + 1, len(caps)):
             v2 = caps[k]
-            t12 = change_time(law, v2 - v1, lims[k])
-            d12 = d1 + 0.5 * (v1 + v2) * t12
+            t12, d12 = zone(law, v1, v2, lims[k])
+            t12, d12 = t1 + t12, d1 + d12
             if d12 > reach:
                 break
             t3 = change_time(law, v_cap - v2, lim_cap)
             d3 = 0.5 * (v2 + v_cap) * t3
-            lost = t1 + t12 + t3 - (d12 + d3) / v_cap
+            lost = t12 + t3 - (d12 + d3) / v_cap
             if lost < best and d12 + d3 <= room:
                 best, levels = lost, [(d1, v1), (d12, v2)]
     return levels
@@ -271,14 +305,27 @@ class StopZones:
             acc, jerk = rules.curve_limits(arc, v, arc_blend)
             return Limits.trusted(v, min(acc, line_acc), min(jerk, line_jerk))
 
+        stretch = seq[i].length     # the curve up to a node that binds below V (if held)
+        v_exit = None
+        for k in range(i + 1, len(seq)):
+            near, far = seq[k - 1], seq[k]
+            if not start:
+                near, far = far, near
+            near = near.members[-1] if near.members else near
+            first = far.members[0] if far.members else far
+            exit_cap = min(seq[k].v_nom, rules.node_cap(near, first))
+            if exit_cap < RUN_CAP_SHARE * v_cap:
+                room, v_exit = min(room, lead + stretch), exit_cap
+                break
+            stretch += seq[k].length
         law = self._law
-        levels = choose_levels(law, v_cap, limits_at, reach, room) if lead > 0.0 and \
-            self._runs else []
+        levels = choose_levels(law, v_cap, limits_at, reach, room, 0.0, v_exit) if \
+            lead > 0.0 and self._runs else []
         merge = bool(levels) and levels[0][0] > lead + _EPS and max_end_speed(
             law, 0.0, lead, limits_at(levels[0][1])) <= entry_cap
         if not merge:                         # the curve's zones from its entry
             levels = [(lead + d, v) for d, v in choose_levels(
-                law, v_cap, limits_at, reach - lead, room - lead, entry)]
+                law, v_cap, limits_at, reach - lead, room - lead, entry, v_exit)]
         if not levels:
             return
         out: list[WindowBlock] = []
