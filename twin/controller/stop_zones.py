@@ -11,27 +11,42 @@ r = 0.5 mm took up to 17 % longer as G3 than as chords within 0.02 mm).
 Design: levels of speed by distance from the stop
 -------------------------------------------------
 Next to each stop (the start of a contour from rest, its end before a stop: a rapid, a
-dwell, an event, the program end, G61.1) the path is cut into at most ``len(LEVELS)``
-zones ``[D_(k−1), D_k]`` (distance from the stop) with speed caps ``v_1 < v_2 < … < V``.
-The curves in zone k are capped at ``v_k`` and take the tangential limits their arcs allow
+dwell, an event, the program end, every block under G61.1) the curve there is cut into at
+most two zones ``[D_(k−1), D_k]`` with speed caps ``v_1 < v_2 < V`` before the rest of it.
+The blocks in zone k are capped at ``v_k`` and take the tangential limits their arcs allow
 up to ``v_k`` (`BlockRules.slow`); a block that straddles a zone's border is split there
-(an arc at the exact distance: both parts keep the block's number; a run between its
-members, at the border nearer the distance; a line, whose limits do not depend on the
-speed, is never capped or split). Zone k is as long as one speed change of the law from
-``v_(k−1)`` to ``v_k`` at the limits of ``v_k``, so the profile from rest reaches each cap at
-its zone's end. The caps are constraints the look-ahead holds like any other: the jerk and
-acceleration bounds of `segment_limits` hold at every speed up to a block's cap with its
-limits, so they hold in every zone.
+(an arc at the exact distance, both parts keeping the block's number; a run between its
+members, at the border nearer the distance, or inside the arc member that holds it; a
+line, whose limits do not depend on the speed, is never capped or split). The caps are
+constraints the look-ahead holds like any other, and the jerk and acceleration bounds of
+`segment_limits` hold at every speed up to a block's cap with the limits computed at that
+cap: they hold in every zone.
 
-The levels are chosen per stop by the law's closed forms: among no zone, one level
-``v_1 = f·V`` and two levels (f from ``FRACTIONS``), the one whose speed changes from rest to
-V lose the least time against cruising at V over the same distance,
-``Σ t_k − (Σ d_k)/V``, the changes using the limits of the curve with the largest
-curvature next to the stop (the lowest). For a law that must end each change at zero
-acceleration a zone border costs a pause of the acceleration; the choice weighs it (the
-smooth laws mostly take one level, the trapezoid two). A level is taken only if its zones
-fit within ``reach`` (half the look-ahead view: the braking distance from the top feed) and
-within half the contour (both ends of a short contour reach V).
+Zone k is as long as the look-ahead needs to reach ``v_k`` from ``v_(k−1)`` at the limits
+of ``v_k`` (`zone`: its monotone reach, the longest change to v_k from any speed in
+between), so the profile reaches each cap at its zone's end. The levels are chosen per
+stop with the law's closed forms (`choose_levels`): among no zone, one level ``f·V`` and
+two levels (f from ``FRACTIONS``), the one whose changes from the curve's entry speed to V
+lose the least time against cruising at V over the same path, ``Σ t_k − (Σ d_k)/V``, with
+the limits of the curve of largest curvature within ``reach`` of the stop (the lowest). For
+a law that ends every change at zero acceleration a zone border costs a pause of it; the
+choice weighs that (on laser_belt's circles of r = 0.5-10 mm the smooth laws take one
+level at 0.6-0.9 V or none, the trapezoid two at 0.5 and 0.8 V). A choice must fit: the
+zones within ``reach`` (half the look-ahead view, the braking distance from the top feed),
+and the zones, the change on to V and the change back to the cap of the node that ends
+the curve on its far side (a node that binds below 0.95 V, ``RUN_CAP_SHARE``; else at most
+half the contour) within the curve.
+
+Where the curve does not start at the stop
+------------------------------------------
+A contour written as chords starts with a half chord, a line, whose node into the curve
+steps the curvature (`BlockRules.node_cap`). For the smooth laws those lines join the
+first zone's run where the node cannot bind there: the run from rest reaches at most
+``max_end_speed`` of its limits over the lines' length, and that must be within the node's
+cap (the rule of `BlockRules.slow_node` with the zone's limits); the circle written as
+chords then starts as its G3 arc does. Otherwise (the trapezoid, or a node that would
+bind) the zones start at the curve, from the speed the node and the lines allow
+(``v_entry``). A curve that begins further than ``reach`` from the stop gets no zone.
 
 Streaming: the blocks pass through a buffer that holds the path within ``reach`` of the
 newest block (so the end zone can still be laid when a stop comes) and, after a stop, the
