@@ -17,7 +17,9 @@ from twin.controller.gcode import parse
 from twin.controller.geometry import Arc
 from twin.controller.interpolator import Interpolator, InterpolatorStatus
 from twin.controller.planner import PlannedBlock, Planner
-from twin.controller.profiles import LAWS
+from twin.controller.profiles import LAWS, Limits, min_distance
+from twin.controller.profiles.laws import change_time
+from twin.controller.reach import monotone_end_speed, reach_floor
 
 LASER = load_machine("laser_belt")
 FULL = not os.environ.get("CI")
@@ -153,3 +155,22 @@ def test_an_arc_is_cut_on_its_circle(seed):
         np.testing.assert_allclose((ux, uy, kk), (tx, ty, k), rtol=1e-9, atol=1e-9)
     assert stop_zones.split_arc(arc, 0.0) is None and stop_zones.split_arc(arc, arc.length) \
         is None
+
+
+@pytest.mark.parametrize("seed", range(10))
+def test_a_zone_is_as_long_as_the_lookahead_needs_to_reach_its_cap(seed):
+    """Random law, limits and speeds: the zone's length is the longest change to its cap
+    from any speed between (a dense grid, brute force), and the look-ahead's monotone reach
+    (`twin.controller.reach`) from the entry speed over that length gets to the cap."""
+    rng = np.random.default_rng(4300 + seed)
+    law = LAWS[rng.integers(len(LAWS))]
+    w = rng.uniform(0.002, 0.05)
+    u = w * rng.choice([0.0, rng.uniform(0.0, 0.95)])
+    lim = Limits(w, rng.uniform(0.1, 2.0), rng.uniform(2.0, 100.0))
+    t, d = stop_zones.zone(law, u, w, lim)
+    grid = np.linspace(u, w, 20001)[:-1]
+    brute = max(min_distance(law, float(x), w, lim) for x in grid)
+    assert brute <= d * (1.0 + 1e-9) and d <= brute * (1.0 + 1e-6), (law, d, brute)
+    assert monotone_end_speed(law, u, d * (1.0 + 1e-9), lim, reach_floor(law, d, lim)) \
+        >= w * (1.0 - 1e-9)
+    assert t >= change_time(law, w - u, lim)

@@ -189,11 +189,11 @@ class BlockRules:
         b.members = None
         return b
 
-    def curve_limits(self, seg: Arc, v: float, blend: bool = False) -> tuple[float, float]:
+    def curve_limits(self, seg: Arc, v: float) -> tuple[float, float]:
         """Tangential acceleration (m/s²) and jerk (m/s³) of the arc ``seg`` at speeds up
-        to ``v`` (m/s; within its caps): `SegmentLimits.curve_caps` at that speed."""
-        _, acc, jerk = self._caps.curve_caps(seg, v, blend)
-        return acc, jerk
+        to ``v`` (m/s; within its caps): `SegmentLimits.tangential`, as its caps give them
+        at its cap."""
+        return self._caps.tangential(v, 1.0 / seg.radius)
 
     def slow(self, b: WindowBlock, v: float) -> None:
         """Cap ``b`` (a block or a run) at ``v`` (m/s) and raise its tangential limits to
@@ -209,7 +209,7 @@ class BlockRules:
         for m in b.members or (b,):
             seg = m.segment
             if type(seg) is Arc:
-                a, j = self.curve_limits(seg, v if v < m.v_nom else m.v_nom, m.blend)
+                a, j = self.curve_limits(seg, v if v < m.v_nom else m.v_nom)
                 arc = True
             elif type(seg) is Line:
                 a, j = m.acc, m.jerk

@@ -133,6 +133,7 @@ from __future__ import annotations
 import math
 from collections import deque
 from collections.abc import Iterable, Iterator, Mapping, Sequence
+from functools import partial
 from typing import Any
 
 from twin.config import AxisConfig, ControllerSettings
@@ -349,7 +350,7 @@ class Planner:
         self._out = out
         append, flush, end_run = self._append, self._flush, self._end_run
         self._zones = None if self.mode != "lookahead" or self.lookahead < 2 else StopZones(
-            rules, self.law, 0.5 * self._view, lambda b: self._push(window, b), runs)
+            rules, self.law, 0.5 * self._view, partial(self._push, window), runs)
         exact_stop = False
         run: WindowBlock | None = None       # the run being grown
         held: WindowBlock | None = None      # a run closed for its length, its successor to come

@@ -72,14 +72,10 @@ from twin.controller.geometry import TAU, Arc, Line
 from twin.controller.profiles import Limits
 from twin.controller.profiles.laws import change_time, max_end_speed, min_distance
 
-__all__ = ["FRACTIONS", "ZONE_SAMPLES", "StopZones", "choose_levels", "split_arc", "split_block",
-           "zone"]
+__all__ = ["FRACTIONS", "StopZones", "choose_levels", "split_arc", "split_block", "zone"]
 
 FRACTIONS = (0.3, 0.4, 0.5, 0.6, 0.7, 0.8, 0.9)
 """Candidate zone caps as shares of the curve's cap V."""
-
-ZONE_SAMPLES = 8
-"""Start speeds tried in [u, w) for the longest change to a zone's cap (`zone`)."""
 
 _EPS = 1e-9
 """Splits nearer than this to a block's end (m) are not made."""
@@ -87,18 +83,26 @@ _EPS = 1e-9
 
 def zone(law: str, u: float, w: float, limits: Limits) -> tuple[float, float]:
     """(time (s), length (m)) of a zone entered at ``u`` whose cap ``w`` the look-ahead
-    reaches at its end: its reach from u is the monotone envelope of `twin.controller.reach`
-    (the least end speed over any start at or above u), so the zone is as long as the
-    longest change to w from a speed in [u, w) (``ZONE_SAMPLES`` of them), and the profile
-    cruises at w over what that adds to the change from u."""
+    reaches at its end.
+
+    Its reach from u is the monotone envelope of `twin.controller.reach` (the least end
+    speed over any start at or above u), so the zone is as long as the longest change to w
+    from a speed x in [u, w), and the profile cruises at w over what that adds to the
+    change from u. The change from x covers ``(x + w)/2 · T(w − x)``: with Δ = w − x it
+    grows with Δ where the acceleration limit binds (the trapezoid's and the shape laws'
+    ``k_a·Δ/A``), peaks at Δ = 2w/3 where the jerk limit does (``T ∝ √Δ``) and, for the
+    S-curve's ``Δ/A + A/J``, at Δ = w − A²/(2J): those three Δ (within (0, w − u]) hold
+    the longest.
+    """
     t = change_time(law, w - u, limits)
     d = 0.5 * (u + w) * t
     if law == "trapezoid":                  # monotone: the change from u is the longest
         return t, d
     longest = d
-    for k in range(1, ZONE_SAMPLES):
-        x = u + (w - u) * k / ZONE_SAMPLES
-        longest = max(longest, 0.5 * (x + w) * change_time(law, w - x, limits))
+    a, j = limits.max_acceleration, limits.max_jerk
+    for dv in (2.0 * w / 3.0, w - a * a / (2.0 * j)):
+        if 0.0 < dv < w - u:
+            longest = max(longest, (w - 0.5 * dv) * change_time(law, dv, limits))
     return t + (longest - d) / w, longest
 
 
@@ -284,7 +288,7 @@ class StopZones:
         """The zones at the buffer's start (after a stop) or end (before one)."""
         seq = list(self._buf) if start else list(reversed(self._buf))
         reach = self._reach
-        arc, arc_blend, v_cap, line_acc, line_jerk = None, False, math.inf, math.inf, math.inf
+        arc, v_cap, line_acc, line_jerk = None, math.inf, math.inf, math.inf
         s = 0.0
         for b in seq:                         # the curve next to the stop
             if s >= reach:
@@ -293,7 +297,7 @@ class StopZones:
                 seg = m.segment
                 if type(seg) is Arc:
                     if arc is None or seg.radius < arc.radius:
-                        arc, arc_blend = seg, m.blend
+                        arc = seg
                     v_cap = min(v_cap, b.v_nom)
                 elif type(seg) is Line:
                     line_acc, line_jerk = min(line_acc, m.acc), min(line_jerk, m.jerk)
@@ -317,7 +321,7 @@ class StopZones:
             entry = min(entry_cap, math.sqrt(2.0 * rules.limits.max_acceleration * lead))
 
         def limits_at(v: float) -> Limits:
-            acc, jerk = rules.curve_limits(arc, v, arc_blend)
+            acc, jerk = rules.curve_limits(arc, v)
             return Limits.trusted(v, min(acc, line_acc), min(jerk, line_jerk))
 
         stretch = seq[i].length     # the curve up to a node that binds below V (if held)
