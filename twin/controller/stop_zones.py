@@ -251,6 +251,7 @@ class StopZones:
         self._length = 0.0              # of the buffer
         self._fresh = True              # the buffer starts at a stop, its zone not laid yet
         self._contour = 0.0             # path since the last stop
+        self._head = 0                  # blocks at the buffer's front in the start zone
 
     def feed(self, b: WindowBlock) -> None:
         """A feed block (or run) follows the ones before without a stop."""
@@ -267,6 +268,8 @@ class StopZones:
         while len(buf) > 1 and self._length - buf[0].length >= reach:
             x = buf.popleft()
             self._length -= x.length
+            if self._head:
+                self._head -= 1
             emit(x)
 
     def stop(self) -> None:
@@ -281,12 +284,15 @@ class StopZones:
             while buf:
                 emit(buf.popleft())
         self._length = self._contour = 0.0
-        self._fresh = True
+        self._fresh, self._head = True, 0
 
     # ------------------------------------------------------------------ internals
     def _lay(self, start: bool, room: float) -> None:
-        """The zones at the buffer's start (after a stop) or end (before one)."""
-        seq = list(self._buf) if start else list(reversed(self._buf))
+        """The zones at the buffer's start (after a stop) or end (before one: what the
+        start zone laid is left as it is)."""
+        held = list(self._buf)
+        front = [] if start else held[:self._head]
+        seq = held if start else held[len(front):][::-1]
         reach = self._reach
         arc, v_cap, line_acc, line_jerk = None, math.inf, math.inf, math.inf
         s = 0.0
@@ -348,18 +354,21 @@ class StopZones:
         if not levels:
             return
         out: list[WindowBlock] = []
-        k, s = 0, 0.0
+        k, s, zoned = 0, 0.0, 0
         for b in seq:
+            inside = False
             while k < len(levels) and s < levels[k][0]:
                 border, v = levels[k]
                 near = border - s
                 if b.length <= near + _EPS:
                     rules.slow(b, v)
+                    inside = True
                     break
                 parts = split_block(rules, b, near if start else b.length - near)
                 if parts is None:
                     if near >= 0.5 * b.length:
                         rules.slow(b, v)
+                        inside = True
                         break
                     k += 1
                     continue
@@ -367,7 +376,9 @@ class StopZones:
                 rules.slow(zone, v)
                 out.append(zone)
                 s += zone.length
+                zoned += 1
                 k += 1
+            zoned += inside
             out.append(b)
             s += b.length
         if merge:                             # the lines join the first zone's run
@@ -376,5 +387,8 @@ class StopZones:
             rules.slow(zone, levels[0][1])
             if max_end_speed(law, 0.0, lead, zone.limits) <= entry_cap:
                 out[:i + 1] = [zone]
+                zoned -= i
+        if start:
+            self._head = zoned
         self._buf.clear()
-        self._buf.extend(out if start else reversed(out))
+        self._buf.extend(out if start else front + out[::-1])
