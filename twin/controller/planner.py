@@ -81,8 +81,9 @@ cap (an arc is split at the zone's border, both parts keeping its number). The l
 chosen per stop with the law's closed forms (the least time lost from rest to the cap); a
 contour's lead chords join the first zone's run where the node to the curve cannot bind.
 A G2/G3 circle and its chords then start and stop alike (issue 30: their cycle times
-within 2.3 % for every law, down from 8.9-16.6 % at r = 0.5 mm). The zones hold the
-blocks within half the view of a stop before the window sees them.
+within 2.3 % for every law, down from 7.9-16.6 % at r = 0.5 mm). The zones hold the
+blocks within half the view of a stop before the window sees them; an arc split at a zone
+border leaves the planner as two blocks of the same number and line.
 
 Streaming and incremental
 -------------------------
