@@ -26,12 +26,13 @@ Zone k is as long as the look-ahead needs to reach ``v_k`` from ``v_(k−1)`` at
 of ``v_k`` (`zone`: its monotone reach, the longest change to v_k from any speed in
 between), so the profile reaches each cap at its zone's end. The levels are chosen per
 stop with the law's closed forms (`choose_levels`): among no zone, one level ``f·V`` and
-two levels (f from ``FRACTIONS``), the one whose changes from the curve's entry speed to V
-lose the least time against cruising at V over the same path, ``Σ t_k − (Σ d_k)/V``, with
-the limits of the curve of largest curvature within ``reach`` of the stop (the lowest). For
-a law that ends every change at zero acceleration a zone border costs a pause of it; the
-choice weighs that (on laser_belt's circles of r = 0.5-10 mm the smooth laws take one
-level at 0.6-0.9 V or none, the trapezoid two at 0.5 and 0.8 V). A choice must fit: the
+(the trapezoid) two levels (f from ``FRACTIONS``), the one whose changes from the curve's
+entry speed to V lose the least time against cruising at V over the same path,
+``Σ t_k − (Σ d_k)/V``, with the limits of the curve of largest curvature within ``reach``
+of the stop (the lowest). For a law that ends every change at zero acceleration a zone
+border costs a pause of it; the choice weighs that (on laser_belt's circles of
+r = 0.5-10 mm the smooth laws take one level at 0.6-0.9 V or none, the trapezoid two at
+0.5 and 0.8 V). A choice must fit: the
 zones within ``reach`` (half the look-ahead view, the braking distance from the top feed),
 and the zones, the change on to V and the change back to the cap of the node that ends
 the curve on its far side (a node that binds below 0.95 V, ``RUN_CAP_SHARE``; else at most
@@ -111,7 +112,10 @@ def choose_levels(law: str, v_cap: float, limits_at: Callable[[float], Limits], 
                   ) -> list[tuple[float, float]]:
     """The zones next to a stop, ``[(D_k, v_k)]`` with D_k the zone's far border from where
     the curve is entered (m) and v_k its speed cap (m/s), increasing; empty when none saves
-    time.
+    time. Two levels for the trapezoid, whose zone borders cost nothing; one for the laws
+    that end every change at zero acceleration (a second border is a second pause of it:
+    on the bench's programs, its circles and the small lettering, two levels never won for
+    them, 0 of 420 stops).
 
     Parameters
     ----------
@@ -141,23 +145,26 @@ def choose_levels(law: str, v_cap: float, limits_at: Callable[[float], Limits], 
     best, levels = t0 - 0.5 * (v_entry + v_cap) * t0 / v_cap, []    # no zone
     caps = [f * v_cap for f in FRACTIONS if f * v_cap > v_entry]
     lims = [limits_at(v) for v in caps]
+    rest = []                                 # the change from each cap on to V
+    for v in caps:
+        t = change_time(law, v_cap - v, lim_cap)
+        rest.append((t, 0.5 * (v + v_cap) * t))
+    two = law == "trapezoid"
     for i, v1 in enumerate(caps):
         t1, d1 = zone(law, v_entry, v1, lims[i])
         if d1 > reach:
             break
-        t2 = change_time(law, v_cap - v1, lim_cap)
-        d2 = 0.5 * (v1 + v_cap) * t2
+        t2, d2 = rest[i]
         lost = t1 + t2 - (d1 + d2) / v_cap
         if lost < best and d1 + d2 <= room:
             best, levels = lost, [(d1, v1)]
-        for k in range(i + 1, len(caps)):
+        for k in range(i + 1, len(caps) if two else 0):
             v2 = caps[k]
             t12, d12 = zone(law, v1, v2, lims[k])
             t12, d12 = t1 + t12, d1 + d12
             if d12 > reach:
                 break
-            t3 = change_time(law, v_cap - v2, lim_cap)
-            d3 = 0.5 * (v2 + v_cap) * t3
+            t3, d3 = rest[k]
             lost = t12 + t3 - (d12 + d3) / v_cap
             if lost < best and d12 + d3 <= room:
                 best, levels = lost, [(d1, v1), (d12, v2)]
