@@ -11,7 +11,8 @@ jerk, the jerk that step shows), where the curvature jumps the step of the norma
 acceleration as the samples see it; ``BlockRules.follow`` lets a sliver of line between
 two curves carry the curvature across. ``BlockRules.joins`` says whether a block may join a
 run; ``open_run``, ``absorb`` and ``close_run`` grow a run and close it into one window
-block.
+block. ``BlockRules.slow`` caps a block or run below its cap with the tangential limits its
+arcs allow there (the stop zones of `twin.controller.stop_zones`).
 """
 
 from __future__ import annotations
@@ -144,15 +145,21 @@ class BlockRules:
         contour limit."""
         return self.rapid_velocity if feed is None else min(feed, self.limits.max_velocity)
 
-    def block(self, seg: Segment, feed: float | None, line: int, blend: bool = False
-               ) -> WindowBlock:
+    def block(self, seg: Segment, feed: float | None, line: int, blend: bool = False,
+              index: int | None = None) -> WindowBlock:
+        """The window block of ``seg``: its caps, tangential limits, end tangents and
+        curvatures; numbered ``count`` (counted), or ``index`` (a part of a block already
+        numbered: `twin.controller.stop_zones` splits blocks next to stops)."""
         v_cap = self.full_speed(feed)
         b = WindowBlock()
         b.segment, b.feed, b.line, b.blend = seg, feed, line, blend
         b.rapid = feed is None
         b.length = seg.length
-        b.index = self.count
-        self.count += 1
+        if index is None:
+            b.index = self.count
+            self.count += 1
+        else:
+            b.index = index
         if type(seg) is Line:
             ux, uy = seg._ux, seg._uy      # float fast path (same package)
             b.t0x = b.t1x = ux
@@ -181,6 +188,40 @@ class BlockRules:
         b.acc, b.jerk = acc, jerk
         b.members = None
         return b
+
+    def curve_limits(self, seg: Arc, v: float) -> tuple[float, float]:
+        """Tangential acceleration (m/s²) and jerk (m/s³) of the arc ``seg`` at speeds up
+        to ``v`` (m/s; within its caps): `SegmentLimits.tangential`, as its caps give them
+        at its cap."""
+        return self._caps.tangential(v, 1.0 / seg.radius)
+
+    def slow(self, b: WindowBlock, v: float) -> None:
+        """Cap ``b`` (a block or a run) at ``v`` (m/s) and raise its tangential limits to
+        what its arcs allow up to that speed (a curve's limits are computed at its cap:
+        below it the centripetal acceleration and the curvature's jerk leave more of the
+        budgets to the tangent). Nothing changes for ``v ≥ b.v_nom``, for a block without
+        an arc (a line's limits do not depend on the speed), or with a curve other than an
+        arc (a spline's caps are sampled: left as they are)."""
+        if not v < b.v_nom:
+            return
+        acc = jerk = math.inf
+        arc = False
+        for m in b.members or (b,):
+            seg = m.segment
+            if type(seg) is Arc:
+                a, j = self.curve_limits(seg, v if v < m.v_nom else m.v_nom)
+                arc = True
+            elif type(seg) is Line:
+                a, j = m.acc, m.jerk
+            else:
+                return
+            if a < acc:
+                acc = a
+            if j < jerk:
+                jerk = j
+        if arc:
+            b.v_nom, b.acc, b.jerk = v, acc, jerk
+            b.limits = tangential_limits(v, acc, jerk)
 
     def follow(self, prev: WindowBlock, b: WindowBlock) -> None:
         """Note that ``b`` follows ``prev`` (consecutive feed blocks): a sliver of line after

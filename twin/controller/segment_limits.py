@@ -148,14 +148,21 @@ class SegmentLimits:
             if self.jerk:
                 v = min(v, (CRUISE_JERK * j_tot / math.hypot(kappa * kappa, dkappa))
                         ** (1.0 / 3.0))
+        return (v, *self.tangential(v, kappa, dkappa))
+
+    def tangential(self, v: float, kappa: float, dkappa: float = 0.0) -> tuple[float, float]:
+        """Tangential acceleration (m/s²) and jerk (m/s³) a curve of largest curvature
+        ``kappa`` (1/m) and curvature rate ``dkappa`` (1/m²) allows at speeds up to ``v``
+        (m/s, within its speed cap): the split of the budgets in the module doc."""
+        a_tot, j_tot = self._curve_totals
         a_n = v * v * kappa
-        a_t = math.sqrt(a_tot * a_tot - a_n * a_n)
+        a_t = math.sqrt(max(a_tot * a_tot - a_n * a_n, 0.0))
         if not self.jerk:
-            return v, a_t, j_tot
+            return a_t, j_tot
         v3 = v * v * v
         if kappa > 0.0:
             a_t = min(a_t, (JERK_NORMAL * j_tot - v3 * dkappa) / (3.0 * v * kappa))
-        return v, a_t, JERK_TANGENTIAL * j_tot - v3 * kappa * kappa
+        return a_t, JERK_TANGENTIAL * j_tot - v3 * kappa * kappa
 
 
 def _max_abs_sin(a: float, b: float) -> float:
