@@ -125,7 +125,10 @@ class SegmentLimits:
         lx, ly = self.axis_limits
         a_tot, j_tot = self._curve_totals
         if type(seg) is Arc:
-            mx, my = _arc_tangent_extent(seg)
+            if v_cap <= lx.max_velocity and v_cap <= ly.max_velocity:
+                mx = my = 0.0          # a tangent component ≤ 1: no axis can cap the speed
+            else:
+                mx, my = _arc_tangent_extent(seg)
             kappa, dkappa = 1.0 / seg.radius, 0.0
         else:
             mx, my, kappa, dkappa = _sampled_extent(seg)
