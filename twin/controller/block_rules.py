@@ -72,8 +72,9 @@ class WindowBlock:
     length their sum, its caps their lowest (``acc``, ``jerk``: the tangential limits).
     """
 
-    __slots__ = ("acc", "blend", "feed", "index", "jerk", "k0", "k1", "length", "limits",
-                 "line", "members", "rapid", "segment", "t0x", "t0y", "t1x", "t1y", "v_nom")
+    __slots__ = ("acc", "blend", "feed", "from_k", "from_x", "from_y", "index", "jerk", "k0",
+                 "k1", "length", "limits", "line", "members", "node", "rapid", "segment", "t0x",
+                 "t0y", "t1x", "t1y", "v_nom")
 
 
 class BlockRules:
@@ -138,19 +139,22 @@ class BlockRules:
         self._curve_step = float(curve_step)
         self._view = view
         self._limits_cache: dict[tuple[float, float, float], Limits] = {}
+        self._top = limits.max_velocity
         self.count = 0
 
     def full_speed(self, feed: float | None) -> float:
         """A block's speed before any other cap (m/s): rapid, or the feed within the
         contour limit."""
-        return self.rapid_velocity if feed is None else min(feed, self.limits.max_velocity)
+        top = self._top
+        return self.rapid_velocity if feed is None else (top if top < feed else feed)
 
     def block(self, seg: Segment, feed: float | None, line: int, blend: bool = False,
               index: int | None = None) -> WindowBlock:
         """The window block of ``seg``: its caps, tangential limits, end tangents and
         curvatures; numbered ``count`` (counted), or ``index`` (a part of a block already
         numbered: `twin.controller.stop_zones` splits blocks next to stops)."""
-        v_cap = self.full_speed(feed)
+        top = self._top                     # full_speed, inlined (once per block)
+        v_cap = self.rapid_velocity if feed is None else (top if top < feed else feed)
         b = WindowBlock()
         b.segment, b.feed, b.line, b.blend = seg, feed, line, blend
         b.rapid = feed is None
@@ -174,20 +178,29 @@ class BlockRules:
                 _, _, b.t0x, b.t0y, b.k0, _ = seg.frame(0.0)
                 _, _, b.t1x, b.t1y, b.k1, _ = seg.frame(seg.length)
             v_nom, acc, jerk = self._caps.curve_caps(seg, v_cap, blend)
-        b.v_nom = v_nom
-        if b.k0 != 0.0:                     # a curve's caps are its own: no reuse
-            lim = tangential_limits(v_nom, acc, jerk)
-        else:                               # lines of one direction and feed share theirs
-            key = (v_nom, acc, jerk)
-            lim = self._limits_cache.get(key)
-            if lim is None:
-                if len(self._limits_cache) > 256:
-                    self._limits_cache.clear()
-                lim = self._limits_cache[key] = tangential_limits(v_nom, acc, jerk)
-        b.limits = lim
-        b.acc, b.jerk = acc, jerk
+        b.v_nom, b.acc, b.jerk = v_nom, acc, jerk
+        b.limits = None                     # made when needed (`limits_of`)
         b.members = None
+        b.from_x = math.nan                 # no node limit kept yet (`node_cap`)
         return b
+
+    def limits_of(self, b: WindowBlock) -> Limits:
+        """``b``'s tangential limits (``b.limits``), made on first use: a block that joins
+        a run never needs its own. Lines of one direction and feed share theirs."""
+        lim = b.limits
+        if lim is not None:
+            return lim
+        key = (b.v_nom, b.acc, b.jerk)
+        if type(b.segment) is not Line:     # a curve's caps are its own: no reuse
+            lim = b.limits = tangential_limits(*key)
+            return lim
+        lim = self._limits_cache.get(key)
+        if lim is None:
+            if len(self._limits_cache) > 256:
+                self._limits_cache.clear()
+            lim = self._limits_cache[key] = tangential_limits(*key)
+        b.limits = lim
+        return lim
 
     def curve_limits(self, seg: Arc, v: float) -> tuple[float, float]:
         """Tangential acceleration (m/s²) and jerk (m/s³) of the arc ``seg`` at speeds up
@@ -240,8 +253,22 @@ class BlockRules:
     def node_cap(self, prev: WindowBlock, b: WindowBlock) -> float:
         """The speed limit of the node from ``prev`` to ``b`` (m/s): both segments' caps,
         and at a kink the corner model and the velocity step, where the curvature jumps the
-        step of the normal acceleration (module doc)."""
+        step of the normal acceleration (module doc); ``prev`` and ``b`` are blocks, not
+        runs. A node is asked for up to three times: its own part (`node_limit`) is kept on
+        ``b`` (``b.node``) with the end of ``prev`` it was computed for (``b.from_*``)."""
         emax = prev.v_nom if prev.v_nom < b.v_nom else b.v_nom
+        if b.from_x != prev.t1x or b.from_y != prev.t1y or b.from_k != prev.k1:
+            b.from_x, b.from_y, b.from_k = prev.t1x, prev.t1y, prev.k1
+            b.node = self.node_limit(prev, b)
+        node = b.node
+        return node if node < emax else emax
+
+    def node_limit(self, prev: WindowBlock, b: WindowBlock) -> float:
+        """The node's limit from its geometry alone (m/s; inf where nothing limits it): the
+        corner model and the velocity step at a kink, the step of the normal acceleration
+        where the curvature jumps. Blocks' ends are fixed once made (`follow` sets a
+        sliver's curvature before any node of it is asked for)."""
+        emax = math.inf
         cross = prev.t1x * b.t0y - prev.t1y * b.t0x
         dot = prev.t1x * b.t0x + prev.t1y * b.t0y
         angle = math.atan2(abs(cross), dot)

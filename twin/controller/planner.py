@@ -557,7 +557,7 @@ class Planner:
             if b.v_nom < emax:
                 emax = b.v_nom
             linked = True
-        self._speeds.append(b.length, b.limits, emax, linked)
+        self._speeds.append(b.length, self._rules.limits_of(b), emax, linked)
         window.append(b)
         while len(window) >= self.lookahead or (
                 len(window) > 1 and self._length - window[0].length >= self._view):

@@ -392,7 +392,7 @@ class StopZones:
             near_stop = out[:i + 1] if start else out[i::-1]         # in path order
             zone = _as_block([m for b in near_stop for m in (b.members or (b,))])
             rules.slow(zone, levels[0][1])
-            if max_end_speed(law, 0.0, lead, zone.limits) <= entry_cap:
+            if max_end_speed(law, 0.0, lead, rules.limits_of(zone)) <= entry_cap:
                 out[:i + 1] = [zone]
                 zoned -= i
         if start:
