@@ -557,17 +557,26 @@ class Planner:
             if b.v_nom < emax:
                 emax = b.v_nom
             linked = True
-        self._speeds.append(b.length, self._rules.limits_of(b), emax, linked)
+        # the window's first block leaves once the window holds `lookahead`, or the view
+        # lies behind it: the first so found is committed in the same compiled call
+        n = len(window)
+        leaves = n + 1 >= self.lookahead or (n > 0 and
+                                             self._length - window[0].length >= self._view)
+        ends = self._speeds.append(b.length, self._rules.limits_of(b), emax, linked, leaves)
         window.append(b)
-        while len(window) >= self.lookahead or (
-                len(window) > 1 and self._length - window[0].length >= self._view):
-            self._pop(window)
+        if leaves:
+            self._pop(window, ends)
+            while len(window) >= self.lookahead or (
+                    len(window) > 1 and self._length - window[0].length >= self._view):
+                self._pop(window)
 
-    def _pop(self, window: deque[WindowBlock]) -> None:
-        """Commit the window's first block (or run); what it plans goes to ``_out``."""
+    def _pop(self, window: deque[WindowBlock], ends: tuple[float, float] | None = None
+             ) -> None:
+        """Commit the window's first block (or run), or take its speeds ``ends`` (entry, end)
+        as committed; what it plans goes to ``_out``."""
         b = window.popleft()
         self._length -= b.length
-        entry, v_end = self._speeds.commit()
+        entry, v_end = ends or self._speeds.commit()
         if b.members is None:
             self._out.append(PlannedBlock(b.segment, b.feed, entry, b.v_nom, v_end, self.law,
                                           b.limits, b.line, b.index, b.blend))

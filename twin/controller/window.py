@@ -102,6 +102,14 @@ def _commit(w: np.ndarray, head: int, n: int, kind: int, ka: float,
     return entry, v_end
 
 
+@numba.njit(cache=True)
+def _append_commit(w: np.ndarray, head: int, n: int, kind: int, ka: float, kj: float,
+                   length: float, v_max: float, acc: float, jerk: float, emax: float,
+                   linked: bool) -> tuple[float, float]:
+    _append(w, head, n, kind, ka, kj, length, v_max, acc, jerk, emax, linked)
+    return _commit(w, head, n + 1, kind, ka, kj)
+
+
 class Window:
     """The speeds of a look-ahead window of at most ``size`` blocks (compiled passes).
 
@@ -123,15 +131,24 @@ class Window:
     def __len__(self) -> int:
         return self._n
 
-    def append(self, length: float, limits: Limits, emax: float, linked: bool) -> None:
+    def append(self, length: float, limits: Limits, emax: float, linked: bool,
+               commit: bool = False) -> tuple[float, float] | None:
         """Add a block of ``length`` (m) and tangential ``limits``; ``emax`` caps its start
         (m/s: its node's cap, 0 at an exact stop), and, when ``linked``, so does how fast
-        the block before it can end. Runs the backward pass."""
+        the block before it can end. Runs the backward pass. ``commit``: then `commit`
+        (one compiled call), returning what it returns."""
         if not length >= 0.0:
             max_end_speed(self._law, 0.0, length, limits)       # raises, naming it
+        if commit:
+            ends = _append_commit(self._w, self._head, self._n, self._kind, self._ka,
+                                  self._kj, length, limits.max_velocity,
+                                  limits.max_acceleration, limits.max_jerk, emax, linked)
+            self._head = (self._head + 1) % self._w.shape[0]
+            return ends
         _append(self._w, self._head, self._n, self._kind, self._ka, self._kj, length,
                 limits.max_velocity, limits.max_acceleration, limits.max_jerk, emax, linked)
         self._n += 1
+        return None
 
     def commit(self) -> tuple[float, float]:
         """Take out the oldest block: (its entry speed, its end speed) (m/s), the end
@@ -158,7 +175,12 @@ class PythonWindow:
     def __len__(self) -> int:
         return len(self._rows)
 
-    def append(self, length: float, limits: Limits, emax: float, linked: bool) -> None:
+    def append(self, length: float, limits: Limits, emax: float, linked: bool,
+               commit: bool = False) -> tuple[float, float] | None:
+        self._append(length, limits, emax, linked)
+        return self.commit() if commit else None
+
+    def _append(self, length: float, limits: Limits, emax: float, linked: bool) -> None:
         floor = python_reach_floor(self._law, length, limits)
         rows = self._rows
         if linked:
