@@ -544,14 +544,16 @@ class Planner:
     def _push(self, window: deque[WindowBlock], b: WindowBlock) -> None:
         """Add ``b`` to the window (both passes, `twin.controller.window`); the blocks that
         leave it go to ``_out``."""
-        self._length += b.length
-        prev = window[-1] if window else None
+        self._length = length = self._length + b.length
+        rules = self._rules
+        n = len(window)
+        prev = window[-1] if n else None
         if prev is None or self.mode == "stop" or prev.rapid or b.rapid:
             emax, linked = 0.0, False
         else:
             last = prev.members[-1] if prev.members else prev
             first = b.members[0] if b.members else b
-            emax = self._rules.node_cap(last, first)
+            emax = rules.node_cap(last, first)
             if prev.v_nom < emax:
                 emax = prev.v_nom
             if b.v_nom < emax:
@@ -559,10 +561,8 @@ class Planner:
             linked = True
         # the window's first block leaves once the window holds `lookahead`, or the view
         # lies behind it: the first so found is committed in the same compiled call
-        n = len(window)
-        leaves = n + 1 >= self.lookahead or (n > 0 and
-                                             self._length - window[0].length >= self._view)
-        ends = self._speeds.append(b.length, self._rules.limits_of(b), emax, linked, leaves)
+        leaves = n + 1 >= self.lookahead or (n > 0 and length - window[0].length >= self._view)
+        ends = self._speeds.append(b.length, rules.limits_of(b), emax, linked, leaves)
         window.append(b)
         if leaves:
             self._pop(window, ends)

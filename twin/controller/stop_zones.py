@@ -264,20 +264,20 @@ class StopZones:
         """A feed block (or run) follows the ones before without a stop."""
         buf = self._buf
         buf.append(b)
-        self._length += b.length
+        self._length = length = self._length + b.length
         self._contour += b.length
         if self._fresh:
-            if self._length < self._reach:
+            if length < self._reach:
                 return
             self._lay(start=True, room=math.inf)
             self._fresh = False
-        reach, emit = self._reach, self._emit
-        while len(buf) > 1 and self._length - buf[0].length >= reach:
+        reach = self._reach
+        while length - buf[0].length >= reach and len(buf) > 1:
             x = buf.popleft()
-            self._length -= x.length
+            self._length = length = length - x.length
             if self._head:
                 self._head -= 1
-            emit(x)
+            self._emit(x)
 
     def stop(self) -> None:
         """A stop follows: lay the zones and emit everything held."""
