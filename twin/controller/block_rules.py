@@ -136,6 +136,7 @@ class BlockRules:
         # a sliver: ℓ·√(A·|κ|) ≤ SLIVER_JERK·J·T², written ℓ·√|κ| ≤ SLIVER_JERK·J·T²/√A
         self._sliver = None if self._jerk_step is None else (
             SLIVER_JERK * j_total * period * period / math.sqrt(limits.max_acceleration))
+        self.slivers = self._sliver is not None     # whether `follow` can change a block
         self._curve_step = float(curve_step)
         self._view = view
         self._limits_cache: dict[tuple[float, float, float], Limits] = {}
@@ -172,7 +173,7 @@ class BlockRules:
             v_nom, acc, jerk = self._caps.line_caps(abs(ux), abs(uy), v_cap)
         else:
             if type(seg) is Arc:
-                b.t0x, b.t0y, b.t1x, b.t1y = seg.end_tangents()
+                b.t0x, b.t0y, b.t1x, b.t1y = seg._ends_t   # end_tangents (same package)
                 b.k0 = b.k1 = seg._k
             else:
                 _, _, b.t0x, b.t0y, b.k0, _ = seg.frame(0.0)

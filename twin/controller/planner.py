@@ -134,7 +134,6 @@ from __future__ import annotations
 import math
 from collections import deque
 from collections.abc import Iterable, Iterator, Mapping, Sequence
-from functools import partial
 from typing import Any
 
 from twin.config import AxisConfig, ControllerSettings
@@ -333,6 +332,7 @@ class Planner:
             After the blocks planned before the fault (which end at rest) have been yielded.
         """
         window: deque[WindowBlock] = deque()
+        self._blocks = window                # the window's blocks (their speeds: _speeds)
         self._speeds = self._window(self.law, self.lookahead)
         stream: Iterator[Any] = self._checked(items)
         if self.mode == "lookahead" and self.blend > 0.0:
@@ -341,7 +341,8 @@ class Planner:
         error: TwinError | None = None
         rules = self._rules
         rules.count = 0
-        block_of, joins_of, follow = rules.block, rules.joins, rules.follow
+        block_of, joins_of = rules.block, rules.joins
+        follow = rules.follow if rules.slivers else None
         last: WindowBlock | None = None      # the feed block before, for `follow`
         self._time_bound = 0.0
         self._length = 0.0
@@ -351,7 +352,7 @@ class Planner:
         self._out = out
         append, flush, end_run = self._append, self._flush, self._end_run
         self._zones = None if self.mode != "lookahead" or self.lookahead < 2 else StopZones(
-            rules, self.law, 0.5 * self._view, partial(self._push, window), runs)
+            rules, self.law, 0.5 * self._view, self._push, runs)
         exact_stop = False
         run: WindowBlock | None = None       # the run being grown
         held: WindowBlock | None = None      # a run closed for its length, its successor to come
@@ -375,21 +376,21 @@ class Planner:
                     if block.rapid:
                         absorb(run, tail)
                     else:
-                        end_run(window, held, run)
+                        end_run(held, run)
                         run, held, rest = open_run(tail), None, False
                     tail = None
                 if block.rapid:
                     last = None
                 else:
-                    if last is not None:
+                    if last is not None and follow is not None:
                         follow(last, block)
                     last = block
                 if exact_stop:                  # G61.1: every block ends at rest
                     if run is not None:
-                        end_run(window, held, run)
+                        end_run(held, run)
                         run = held = None
-                    append(window, block)
-                    flush(window)
+                    append(block)
+                    flush()
                     continue
             elif type(item) is PathControl:     # G61, G61.1, G64: no stop, nothing to run
                 exact_stop = item.mode == "exact_stop"
@@ -400,9 +401,9 @@ class Planner:
                     absorb(run, tail)
                     tail = None
                 if run is not None:
-                    end_run(window, held, run)
+                    end_run(held, run)
                     run = held = None
-                flush(window)
+                flush()
                 yield from out
                 out.clear()
                 yield item
@@ -410,7 +411,7 @@ class Planner:
                     break
                 continue
             if not runs:
-                append(window, block)
+                append(block)
                 continue
             joins = joins_of(run, block, rest) if run is not None else APART
             if joins == JOINS:
@@ -421,17 +422,17 @@ class Planner:
                 continue
             if joins == TOO_LONG:              # the same curve goes on: hold this part
                 if held is not None:
-                    append(window, close_run(held))
+                    append(close_run(held))
                 held = run
             elif run is not None:
-                end_run(window, held, run)
+                end_run(held, run)
                 held = None
             run, rest = open_run(block), after_stop
         if tail is not None:
             absorb(run, tail)
         if run is not None:
-            end_run(window, held, run)
-        flush(window)
+            end_run(held, run)
+        flush()
         yield from out
         out.clear()
         if error is not None:
@@ -509,43 +510,43 @@ class Planner:
         return (b.v_nom >= run.v_nom and b.acc >= run.acc and b.jerk >= run.jerk
                 and self._rules.slow_node(run, b, b.length))
 
-    def _end_run(self, window: deque[WindowBlock], held: WindowBlock | None,
-                 run: WindowBlock) -> None:
+    def _end_run(self, held: WindowBlock | None, run: WindowBlock) -> None:
         """Append the last run of a curve, and the part of it held before: one run if the
         last is short (so that a change near the curve's end is not cut in two)."""
         if held is not None:
             if run.length < 0.5 * self._view:
                 for m in run.members:
                     absorb(held, m)
-                self._append(window, close_run(held))
+                self._append(close_run(held))
                 return
-            self._append(window, close_run(held))
-        self._append(window, close_run(run))
+            self._append(close_run(held))
+        self._append(close_run(run))
 
-    def _append(self, window: deque[WindowBlock], b: WindowBlock) -> None:
+    def _append(self, b: WindowBlock) -> None:
         """Add ``b`` to the window through the stop zones (`twin.controller.stop_zones`:
         a rapid is a stop before it)."""
         zones = self._zones
         if zones is None:
-            self._push(window, b)
+            self._push(b)
         elif b.rapid:
             zones.stop()
-            self._push(window, b)
+            self._push(b)
         else:
             zones.feed(b)
 
-    def _flush(self, window: deque[WindowBlock]) -> None:
+    def _flush(self) -> None:
         """A stop: the zones before it laid, every block leaves the window."""
         if self._zones is not None:
             self._zones.stop()
+        window = self._blocks
         while window:
-            self._pop(window)
+            self._pop()
 
-    def _push(self, window: deque[WindowBlock], b: WindowBlock) -> None:
+    def _push(self, b: WindowBlock) -> None:
         """Add ``b`` to the window (both passes, `twin.controller.window`); the blocks that
         leave it go to ``_out``."""
         self._length = length = self._length + b.length
-        rules = self._rules
+        rules, window = self._rules, self._blocks
         n = len(window)
         prev = window[-1] if n else None
         if prev is None or self.mode == "stop" or prev.rapid or b.rapid:
@@ -565,16 +566,15 @@ class Planner:
         ends = self._speeds.append(b.length, rules.limits_of(b), emax, linked, leaves)
         window.append(b)
         if leaves:
-            self._pop(window, ends)
+            self._pop(ends)
             while len(window) >= self.lookahead or (
                     len(window) > 1 and self._length - window[0].length >= self._view):
-                self._pop(window)
+                self._pop()
 
-    def _pop(self, window: deque[WindowBlock], ends: tuple[float, float] | None = None
-             ) -> None:
+    def _pop(self, ends: tuple[float, float] | None = None) -> None:
         """Commit the window's first block (or run), or take its speeds ``ends`` (entry, end)
         as committed; what it plans goes to ``_out``."""
-        b = window.popleft()
+        b = self._blocks.popleft()
         self._length -= b.length
         entry, v_end = ends or self._speeds.commit()
         if b.members is None:
