@@ -38,6 +38,8 @@ view at the higher. So caps within about 5 % join, and so does a short block, or
 start of a run, whose cap is further off: a run cut at every scatter of the caps of a
 chorded curve would confine its changes of speed to pieces a few chords long."""
 
+_SLACK = 1.0 - RUN_CAP_SHARE
+
 RUN_LIMIT_SHARE = 0.6
 """A block joins a run only if its tangential acceleration and jerk limits agree with the
 run's within this share, or the part whose limits the joining lowers (the block, or the run
@@ -304,23 +306,25 @@ class BlockRules:
         (`slow_node`), neither the node nor the run's higher limits keep ``b`` apart."""
         if b.rapid or run.rapid:
             return APART
-        cap = run.v_nom
-        lo, hi = (b.v_nom, cap) if b.v_nom < cap else (cap, b.v_nom)
-        slowed = run.length if b.v_nom < cap else b.length      # what the lower cap slows
-        if slowed * (1.0 / lo - 1.0 / hi) > (1.0 - RUN_CAP_SHARE) * max(
-                (run.length + b.length) / lo, self._view / hi):
+        cap, v, length = run.v_nom, b.v_nom, run.length
+        if v < cap:                     # the lower cap slows the run so far
+            lo, hi, slowed = v, cap, length
+        else:                           # or the block
+            lo, hi, slowed = cap, v, b.length
+        both = length + b.length
+        time, view = both / lo, self._view / hi
+        if slowed * (1.0 / lo - 1.0 / hi) > _SLACK * (view if view > time else time):
             return APART
-        start = rest and self.slow_node(run, b, run.length)
-        share, short = RUN_LIMIT_SHARE, (1.0 - RUN_CAP_SHARE) * (run.length + b.length)
-        if ((b.acc < share * run.acc or b.jerk < share * run.jerk) and run.length > short
+        start = rest and self.slow_node(run, b, length)
+        share, short = RUN_LIMIT_SHARE, _SLACK * both
+        if ((b.acc < share * run.acc or b.jerk < share * run.jerk) and length > short
                 and not start):
             return APART                # the run's changes would be slowed
         if (b.acc * share > run.acc or b.jerk * share > run.jerk) and b.length > short:
             return APART                # the block's would
-        last = run.members[-1] if run.members else run
-        if not start and self.node_cap(last, b) < (cap if cap < b.v_nom else b.v_nom):
+        if not start and self.node_cap(run.members[-1], b) < lo:
             return APART
-        return TOO_LONG if run.length >= self._view else JOINS
+        return TOO_LONG if length >= self._view else JOINS
 
     def slow_node(self, run: WindowBlock, b: WindowBlock, length: float) -> bool:
         """Whether the node from ``run`` to ``b`` cannot bind because it lies ``length``
