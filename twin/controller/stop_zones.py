@@ -183,9 +183,9 @@ def split_arc(arc: Arc, s: float) -> tuple[Arc, Arc] | None:
     if min(rem1, TAU - rem1, rem2, TAU - rem2) * arc.radius <= _EPS:
         return None
     x, y, *_ = arc.frame(s)
-    start, end, center = arc.start, arc.end, arc.center
-    a = Arc(start, (x, y), center, ccw=arc.ccw, turns=int(turns1), tol=1e-9)
-    b = Arc((x, y), end, center, ccw=arc.ccw, turns=int(turns2), tol=1e-9)
+    cx, cy, x0, y0, x1, y1 = arc._xy      # start, end, centre as floats (same package)
+    a = Arc((x0, y0), (x, y), (cx, cy), ccw=arc.ccw, turns=int(turns1), tol=1e-9)
+    b = Arc((x, y), (x1, y1), (cx, cy), ccw=arc.ccw, turns=int(turns2), tol=1e-9)
     if abs(a.length + b.length - arc.length) > 1e-9:
         return None
     return a, b
