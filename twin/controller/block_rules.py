@@ -193,10 +193,10 @@ class BlockRules:
         lim = b.limits
         if lim is not None:
             return lim
-        key = (b.v_nom, b.acc, b.jerk)
         if type(b.segment) is not Line:     # a curve's caps are its own: no reuse
-            lim = b.limits = tangential_limits(*key)
+            lim = b.limits = tangential_limits(b.v_nom, b.acc, b.jerk)
             return lim
+        key = (b.v_nom, b.acc, b.jerk)
         lim = self._limits_cache.get(key)
         if lim is None:
             if len(self._limits_cache) > 256:

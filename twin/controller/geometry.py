@@ -273,10 +273,10 @@ class Line(Segment):
 
     def _set(self, p0: tuple[float, float], p1: tuple[float, float]) -> None:
         dx, dy = p1[0] - p0[0], p1[1] - p0[1]
-        self.length = math.hypot(dx, dy)
-        if self.length == 0.0:
+        self.length = length = math.hypot(dx, dy)
+        if length == 0.0:
             raise PlanningError(f"line of zero length: start = end = {list(p0)}")
-        self._ux, self._uy = dx / self.length, dy / self.length
+        self._ux, self._uy = dx / length, dy / length
         self._ends = (p0, p1)
         self._arrays: tuple[np.ndarray, np.ndarray, np.ndarray] | None = None
 

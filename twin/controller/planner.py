@@ -577,7 +577,8 @@ class Planner:
         b = self._blocks.popleft()
         self._length -= b.length
         entry, v_end = ends or self._speeds.commit()
-        if b.members is None:
+        members = b.members
+        if members is None:
             self._out.append(PlannedBlock(b.segment, b.feed, entry, b.v_nom, v_end, self.law,
                                           b.limits, b.line, b.index, b.blend))
             return
@@ -585,12 +586,12 @@ class Planner:
         # times and speeds inside it, are made when a block is used: RunMove)
         run = RunMove(self.law, b.length, entry, v_end, b.v_nom, b.limits)
         d0 = 0.0
-        last = len(b.members) - 1
-        out = self._out
-        for k, m in enumerate(b.members):
+        last = len(members) - 1
+        out, law, v_nom, limits = self._out, self.law, b.v_nom, b.limits
+        for k, m in enumerate(members):
             d1 = b.length if k == last else d0 + m.length
-            out.append(PlannedBlock(m.segment, m.feed, entry if k == 0 else None, b.v_nom,
-                                    v_end if k == last else None, self.law, b.limits, m.line,
+            out.append(PlannedBlock(m.segment, m.feed, entry if k == 0 else None, v_nom,
+                                    v_end if k == last else None, law, limits, m.line,
                                     m.index, m.blend, (run, d0, d1)))
             d0 = d1
 
