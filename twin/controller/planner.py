@@ -331,8 +331,7 @@ class Planner:
         PlanningError or GCodeError
             After the blocks planned before the fault (which end at rest) have been yielded.
         """
-        window: deque[WindowBlock] = deque()
-        self._blocks = window                # the window's blocks (their speeds: _speeds)
+        self._blocks: deque[WindowBlock] = deque()    # the window (its speeds: _speeds)
         self._speeds = self._window(self.law, self.lookahead)
         stream: Iterator[Any] = self._checked(items)
         if self.mode == "lookahead" and self.blend > 0.0:
@@ -538,8 +537,7 @@ class Planner:
         """A stop: the zones before it laid, every block leaves the window."""
         if self._zones is not None:
             self._zones.stop()
-        window = self._blocks
-        while window:
+        while self._blocks:
             self._pop()
 
     def _push(self, b: WindowBlock) -> None:
@@ -585,8 +583,7 @@ class Planner:
         # a run: one move over the members, each block its part of it (the move, and the
         # times and speeds inside it, are made when a block is used: RunMove)
         run = RunMove(self.law, b.length, entry, v_end, b.v_nom, b.limits)
-        d0 = 0.0
-        last = len(members) - 1
+        d0, last = 0.0, len(members) - 1
         out, law, v_nom, limits = self._out, self.law, b.v_nom, b.limits
         for k, m in enumerate(members):
             d1 = b.length if k == last else d0 + m.length
