@@ -116,13 +116,18 @@ class _Stalling(SimDriver):
         return super().read()
 
 
-def test_a_paced_phase_disturbed_by_a_stall_is_measured_again():
+def _paced_steps(driver):
+    """Two speed steps of tomsk_xy's twin run paced through ``driver`` (a SimDriver class)."""
     base = load_machine("tomsk_xy")
     plant = Plant(base, noise=False)
     plant.reset()
-    period = base.controller.period
     plan = [Piece("steps", "speed", 0.3, 1e-3), Piece("steps", "speed", 0.1, 0.0)]
-    log = run_plan(_Stalling(plant, period), base, plan, paced=True)
+    return run_plan(driver(plant, base.controller.period), base, plan, paced=True)
+
+
+def test_a_paced_phase_disturbed_by_a_stall_is_measured_again():
+    period = load_machine("tomsk_xy").controller.period
+    log = _paced_steps(_Stalling)
     reports = log.notes["deadlines"]
     first = reports[0]
     assert first["attempt"] == 0 and first["skipped"] >= 2   # the stall lost its slots
@@ -161,12 +166,8 @@ def test_a_paced_log_holds_when_each_tick_read_the_machine():
     time is when its read went out, not its slot's deadline (a replay on the deadlines
     applied the previous volts for a period too short). A loaded host makes more ticks late,
     never early, so both checks hold under load."""
-    base = load_machine("tomsk_xy")
-    plant = Plant(base, noise=False)
-    plant.reset()
-    period = base.controller.period
-    plan = [Piece("steps", "speed", 0.3, 1e-3), Piece("steps", "speed", 0.1, 0.0)]
-    log = run_plan(_SlowWrite(plant, period), base, plan, paced=True)
+    period = load_machine("tomsk_xy").controller.period
+    log = _paced_steps(_SlowWrite)
     t = log.data["t"]
     late = (t - t[0]) - np.arange(len(t)) * period     # after its slot (the first on time)
     assert late.min() >= -1e-4     # no read logged before its slot (a loaded host: later)

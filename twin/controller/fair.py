@@ -231,13 +231,20 @@ def _normal_matrices(x, y, weight):  # pragma: no cover - compiled
             row[k, 1] = xk * w
             row[k, 2] = yk * w
             row[k, 3] = 1.0 * w
-        for i in range(4):
-            for j in range(4):
-                acc = 0.0
-                for k in range(m):
-                    acc += row[k, i] * row[k, j]
-                out[q, i, j] = acc
+        _gram(row, out[q])
     return out
+
+
+@numba.njit(cache=True, inline="always")
+def _gram(rows, out):  # pragma: no cover - compiled
+    """out = rowsᵀ·rows, summed over the rows in their order (the normal matrix)."""
+    m, c = rows.shape
+    for i in range(c):
+        for j in range(c):
+            acc = 0.0
+            for k in range(m):
+                acc += rows[k, i] * rows[k, j]
+            out[i, j] = acc
 
 
 # per vertex in ``circle``: ok (1.0 or 0.0), the foot (fx, fy), the radial direction
@@ -305,12 +312,8 @@ def _along(angle, num, circle, weight, offsets):  # pragma: no cover - compiled
             basis[k, 0] = 1.0 * w
             basis[k, 1] = j * w
             basis[k, 2] = j * j * w
+        _gram(basis, normal[q])
         for i in range(3):
-            for c in range(3):
-                acc = 0.0
-                for k in range(m):
-                    acc += basis[k, i] * basis[k, c]
-                normal[q, i, c] = acc
             acc = 0.0
             for k in range(m):
                 acc += basis[k, i] * arc[k]
