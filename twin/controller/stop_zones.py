@@ -325,12 +325,7 @@ class StopZones:
                  if any(type(m.segment) is Arc for m in b.members or (b,)))
         lead = sum(b.length for b in seq[:i])
         if i > 0:
-            near, far = seq[i - 1], seq[i]
-            if not start:
-                near, far = far, near
-            near = near.members[-1] if near.members else near
-            far = far.members[0] if far.members else far
-            entry_cap = rules.node_cap(near, far)
+            entry_cap = _node_cap(rules, seq[i - 1], seq[i], start)
             entry = min(entry_cap, math.sqrt(2.0 * rules.limits.max_acceleration * lead))
 
         def limits_at(v: float) -> Limits:
@@ -340,12 +335,7 @@ class StopZones:
         stretch = seq[i].length     # the curve up to a node that binds below V (if held)
         v_exit = None
         for k in range(i + 1, len(seq)):
-            near, far = seq[k - 1], seq[k]
-            if not start:
-                near, far = far, near
-            near = near.members[-1] if near.members else near
-            first = far.members[0] if far.members else far
-            exit_cap = min(seq[k].v_nom, rules.node_cap(near, first))
+            exit_cap = min(seq[k].v_nom, _node_cap(rules, seq[k - 1], seq[k], start))
             if exit_cap < RUN_CAP_SHARE * v_cap:
                 room, v_exit = min(room, lead + stretch), exit_cap
                 break
@@ -360,34 +350,7 @@ class StopZones:
                 law, v_cap, limits_at, reach - lead, room - lead, entry, v_exit)]
         if not levels:
             return
-        out: list[WindowBlock] = []
-        k, s, zoned = 0, 0.0, 0
-        for b in seq:
-            inside = False
-            while k < len(levels) and s < levels[k][0]:
-                border, v = levels[k]
-                near = border - s
-                if b.length <= near + _EPS:
-                    rules.slow(b, v)
-                    inside = True
-                    break
-                parts = split_block(rules, b, near if start else b.length - near)
-                if parts is None:
-                    if near >= 0.5 * b.length:
-                        rules.slow(b, v)
-                        inside = True
-                        break
-                    k += 1
-                    continue
-                zone, b = parts if start else parts[::-1]
-                rules.slow(zone, v)
-                out.append(zone)
-                s += zone.length
-                zoned += 1
-                k += 1
-            zoned += inside
-            out.append(b)
-            s += b.length
+        out, zoned = _zoned(rules, seq, levels, start)
         if merge:                             # the lines join the first zone's run
             near_stop = out[:i + 1] if start else out[i::-1]         # in path order
             zone = _as_block([m for b in near_stop for m in (b.members or (b,))])
@@ -399,3 +362,48 @@ class StopZones:
             self._head = zoned
         self._buf.clear()
         self._buf.extend(out if start else front + out[::-1])
+
+
+def _node_cap(rules: BlockRules, a: WindowBlock, b: WindowBlock, start: bool) -> float:
+    """The cap of the node between ``a`` and ``b``, consecutive in ``seq``'s order (path
+    order after a stop, reversed before one)."""
+    near, far = (a, b) if start else (b, a)
+    near = near.members[-1] if near.members else near
+    far = far.members[0] if far.members else far
+    return rules.node_cap(near, far)
+
+
+def _zoned(rules: BlockRules, seq: list[WindowBlock], levels: list[tuple[float, float]],
+           start: bool) -> tuple[list[WindowBlock], int]:
+    """``seq`` (from the stop outwards) with its blocks capped at the ``levels``' speeds
+    up to their borders, a block straddling a border split there where it can be; and
+    how many blocks of it lie in a zone."""
+    out: list[WindowBlock] = []
+    k, s, zoned = 0, 0.0, 0
+    for b in seq:
+        inside = False
+        while k < len(levels) and s < levels[k][0]:
+            border, v = levels[k]
+            near = border - s
+            if b.length <= near + _EPS:
+                rules.slow(b, v)
+                inside = True
+                break
+            parts = split_block(rules, b, near if start else b.length - near)
+            if parts is None:
+                if near >= 0.5 * b.length:
+                    rules.slow(b, v)
+                    inside = True
+                    break
+                k += 1
+                continue
+            zone, b = parts if start else parts[::-1]
+            rules.slow(zone, v)
+            out.append(zone)
+            s += zone.length
+            zoned += 1
+            k += 1
+        zoned += inside
+        out.append(b)
+        s += b.length
+    return out, zoned
