@@ -69,12 +69,21 @@ class RunSummary:
     The actual velocity is the twin's table velocity when the record has it (a simulated
     run), else the derivative of the measured position (real I/O): numpy's second-order
     central difference on uneven times, one-sided at the ends, computed across the feeds
-    (each sample waits for the next one)."""
+    (each sample waits for the next one).
+
+    The errors are the controller's: its measured position (the motor's encoder) against
+    the path. A simulated run also measures the table's true position (the twin's truth):
+    ``table_max_contour_error_um`` and ``table_rms_contour_error_um``. On a stiff screw
+    the two agree; on a belt the table lags the motor by the belt's stretch, and a
+    compensation that leads the motor by it (``controller.compensation.stretch``) widens
+    the encoder's error while it narrows the table's."""
 
     def __init__(self, path: list):
         # No active-block hint: a table lagging several short blocks behind its reference
         # would be measured against the wrong ones. The exact search over the path is cheap.
         self._running = RunningSummary(path, block=SUMMARY_BLOCK) if path else None
+        self._table = RunningSummary(path, block=SUMMARY_BLOCK) if path else None
+        self._table_fed = False                             # the twin's truth came along
         self.samples = 0
         self._held: dict[str, np.ndarray] | None = None   # samples waiting for a derivative
         self._edge = True                                  # the first sample is not out yet
@@ -99,6 +108,11 @@ class RunSummary:
         velocity = truth.get("table_velocity") if truth is not None else None
         if velocity is not None:
             self._running.feed(*cols.values(), velocity)
+            table = truth.get("table_position")
+            if table is not None:
+                self._table.feed(cols["t"], cols["ref_position"], cols["ref_velocity"],
+                                 np.asarray(table, dtype=float), velocity)
+                self._table_fed = True
             return
         if self._held is not None:
             cols = {k: np.concatenate((self._held[k], v)) for k, v in cols.items()}
@@ -150,11 +164,17 @@ class RunSummary:
             self._held = None
         m = self._running.result()
         r = m.to_report()
+        table = {}
+        if self._table_fed:
+            t = self._table.result().to_report()
+            table = {"table_max_contour_error_um": t["max_contour_error_um"],
+                     "table_rms_contour_error_um": t["rms_contour_error_um"]}
         return {
             "cycle_time_s": r["cycle_time_s"],
             "path_length_mm": r["path_length_mm"],
             "max_contour_error_um": r["max_contour_error_um"],
             "rms_contour_error_um": r["rms_contour_error_um"],
+            **table,
             "max_coordinate_error_um": {a: r[f"max_coordinate_error_{a}_um"] for a in AXES},
             "max_velocity_error_um_s": {
                 a: m.max_velocity_error[i] * 1e6 for i, a in enumerate(AXES)},
