@@ -49,6 +49,13 @@ made, as the interpolator makes it) and streamed from a file through the G-code 
 (peak RSS), in lines per second of process CPU time, and the path stage (fairing and
 blending) alone.
 
+With ``--twin`` each program also runs on the twin with each law (the full controller;
+``--set KEY=VALUE`` overrides the machine, e.g.
+``controller.compensation.stretch=true``): the twin's cycle time and the largest contour
+error of the table's true path (``table_max_contour_error_um``) and of the encoder's
+(``encoder_max_contour_error_um``), the issue's "twin's max contour error" against which a
+faster path is held (a belt's table lags its motor by the stretch: the two differ).
+
 Prints one JSON object; ``--markdown`` also prints the summary tables to stderr.
 ``--quick``: smaller programs, one instance per class, two laws (a sanity run).
 """
@@ -72,7 +79,9 @@ import numpy as np
 from twin.analysis.studies import cam
 from twin.analysis.studies.cam_classes import CLASSES
 from twin.analysis.studies.circles import RADII, chord_independence
+from twin.analysis.studies.common import gcode_program, run_items
 from twin.config import load_machine
+from twin.config.overrides import parse_sets
 from twin.controller.blend import Blender
 from twin.controller.blocks import MotionBlock, segments_from_program
 from twin.controller.gcode import parse
@@ -350,6 +359,21 @@ def program_figures(cfg, text: str, laws, check_limits: bool) -> dict:
     return {**figures, "bound_s": round(bound, 3), "laws": out}
 
 
+def twin_figures(machine: str, text: str, laws, overrides: dict) -> dict:
+    """Per law, the twin's run of a program: cycle time (s), and the largest contour error
+    of the table's true path and of the encoder's (µm)."""
+    from twin.session.run import RunSpec
+
+    out = {}
+    for law in laws:
+        s = run_items(RunSpec(machine=machine, profile=law, planner="lookahead",
+                              overrides=overrides, max_time=4000.0), gcode_program(text)).summary
+        out[law] = {"status": s["status"], "cycle_time_s": round(s["cycle_time_s"], 3),
+                    "table_max_contour_error_um": round(s["table_max_contour_error_um"], 1),
+                    "encoder_max_contour_error_um": round(s["max_contour_error_um"], 1)}
+    return out
+
+
 def programs(args) -> dict[str, str]:
     """The bench's programs by name: the fixed ones and the random instances."""
     out = {
@@ -367,6 +391,7 @@ def programs(args) -> dict[str, str]:
 _STREAM = """
 import sys, time
 from twin.config import load_machine
+from twin.config.overrides import parse_sets
 from twin.controller.gcode import read_file
 from twin.controller.planner import Planner
 cfg = load_machine(sys.argv[2])
@@ -462,6 +487,18 @@ def markdown(result: dict) -> str:
                         cell += " ✗"
                 cells.append(cell)
             lines.append(f"| {name} | {radii} | " + " | ".join(cells) + " |")
+    twin = {name: p["twin"] for name, p in result["programs"].items() if "twin" in p}
+    if twin:
+        laws = list(next(iter(twin.values())))
+        lines += ["", "On the twin: cycle time (s), the table's true max contour error and the "
+                  "encoder's (µm)" + ("; " + ", ".join(f"{k} = {v}" for k, v in
+                                        result["overrides"].items())
+                                        if result["overrides"] else ""),
+                  "", "| program | " + " | ".join(laws) + " |", "|---|" + "---|" * len(laws)]
+        for name, per in twin.items():
+            lines.append(f"| {name} | " + " | ".join(
+                f"{r['cycle_time_s']:.2f} s, {r['table_max_contour_error_um']:.1f} "
+                f"({r['encoder_max_contour_error_um']:.1f})" for r in per.values()) + " |")
     chords = result["chord_independence"]
     if chords:
         radii = list(next(iter(chords.values()))["radii"])
@@ -497,6 +534,10 @@ def main() -> None:
     parser.add_argument("--no-limits", action="store_true",
                         help="skip interpolating the references (the slow part)")
     parser.add_argument("--markdown", action="store_true", help="tables on stderr")
+    parser.add_argument("--twin", action="store_true",
+                        help="also run each program on the twin with each law")
+    parser.add_argument("--set", action="append", default=[], metavar="KEY=VALUE",
+                        help="override of the machine for the twin runs (repeatable)")
     parser.add_argument("--skip", default="", help="comma-separated parts to skip: "
                         "programs, chords, throughput")
     args = parser.parse_args()
@@ -506,10 +547,14 @@ def main() -> None:
     laws = tuple(args.laws.split(",")) if args.laws else (
         ("trapezoid", "parabolic") if args.quick else LAWS)
     skip = set(filter(None, args.skip.split(",")))
+    overrides = parse_sets(args.set)          # as `twin run --set` reads them
     t0 = time.perf_counter()
     result = {"machine": args.machine, "grid_mm": GRID * 1e3, "seed": args.seed,
+              "overrides": overrides,
               "programs": {} if "programs" in skip else {
-                  name: program_figures(cfg, text, laws, not args.no_limits)
+                  name: {**program_figures(cfg, text, laws, not args.no_limits),
+                         **({"twin": twin_figures(args.machine, text, laws, overrides)}
+                            if args.twin else {})}
                   for name, text in programs(args).items()},
               "chord_independence": {} if "chords" in skip else chord_independence(
                   cfg, laws, RADII[:3] if args.quick else RADII),

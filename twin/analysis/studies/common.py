@@ -22,10 +22,20 @@ from twin.config import MachineConfig
 from twin.session.run import RunResult, RunSpec, run
 from twin.session.setup import RECORD_CHUNK, wire
 
-__all__ = ["ProgramBuilder", "fit_line", "percent", "run_items"]
+__all__ = ["ProgramBuilder", "fit_line", "gcode_program", "percent", "run_items"]
 
 ProgramBuilder = Callable[[MachineConfig, np.ndarray], list[Any]]
 """``build(cfg, start) -> items``: a program (planner items) from the table position (m)."""
+
+
+def gcode_program(gcode: str) -> ProgramBuilder:
+    """The ``build`` of a G-code text: its items read from the table's start position."""
+    from twin.controller.gcode import parse
+
+    def build(cfg: MachineConfig, start: np.ndarray) -> list[Any]:
+        return list(parse(gcode, start=tuple(start.tolist())))
+
+    return build
 
 
 def run_items(spec: RunSpec, build: ProgramBuilder, *, keep_fine: bool = False,

@@ -31,7 +31,7 @@ import numpy as np
 from twin.analysis.compare import true_contour_error
 from twin.analysis.studies import cam
 from twin.analysis.studies.circles import chord_independence
-from twin.analysis.studies.common import run_items
+from twin.analysis.studies.common import gcode_program, run_items
 from twin.config import load_machine
 from twin.controller.gcode import parse
 from twin.controller.planner import Planner
@@ -105,11 +105,8 @@ def _planned(gcode: str, law: str) -> float:
 
 
 def _run(gcode: str, law: str) -> dict[str, Any]:
-    def build(cfg, start):
-        return list(parse(gcode, start=tuple(start.tolist())))
-
     result = run_items(RunSpec(machine=MACHINE, profile=law, planner="lookahead",
-                               max_time=4000.0), build)
+                               max_time=4000.0), gcode_program(gcode))
     contour = true_contour_error(result)
     return {"status": result.summary["status"],
             "cycle_time_s": result.summary["cycle_time_s"],

@@ -29,10 +29,9 @@ from typing import Any
 import numpy as np
 
 from twin.analysis.compare import true_contour_error
-from twin.analysis.studies.common import run_items
+from twin.analysis.studies.common import gcode_program, run_items
 from twin.analysis.studies.nest import nest
 from twin.analysis.studies.seed001_corner import calibrated_model
-from twin.controller.gcode import parse
 from twin.session.run import RunSpec
 
 __all__ = ["SEED", "run_study"]
@@ -47,11 +46,8 @@ _QUICK_NEST = {"cols": 2, "rows": 1, "width": 300.0, "height": 150.0}
 
 
 def _job_run(gcode: str, planner: str, **options: Any) -> dict[str, Any]:
-    def build(cfg, start):
-        return list(parse(gcode, start=tuple(start.tolist())))
-
-    result = run_items(RunSpec(machine=MACHINE, planner=planner, max_time=4000.0), build,
-                          **options)
+    result = run_items(RunSpec(machine=MACHINE, planner=planner, max_time=4000.0),
+                       gcode_program(gcode), **options)
     s = result.summary
     contour = true_contour_error(result)
     return {"status": s["status"], "cycle_time_s": s["cycle_time_s"],

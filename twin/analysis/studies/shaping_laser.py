@@ -25,9 +25,8 @@ from typing import Any
 
 from twin.analysis.compare import law_figures, true_contour_error
 from twin.analysis.shaper import evaluate, model_modes, recommend
-from twin.analysis.studies.common import run_items
+from twin.analysis.studies.common import gcode_program, run_items
 from twin.analysis.studies.nest import nest
-from twin.controller.gcode import parse
 from twin.session.run import RunSpec
 
 __all__ = ["MACHINE", "run_study"]
@@ -62,13 +61,10 @@ def nest_run(gcode: str, profile: str, overrides: dict[str, Any],
     """A nest program run on ``MACHINE`` by look-ahead with ``profile`` and ``overrides``
     (``truth``: overrides of the machine alone, the controller keeping ``MACHINE``'s
     belief): the run, its true contour error and the study's figures of it."""
-    def build(cfg, start):
-        return list(parse(gcode, start=tuple(start.tolist())))
-
     result = run_items(RunSpec(machine=MACHINE, profile=profile, planner="lookahead",
                                overrides={**overrides, **(truth or {})},
                                controller_model=MACHINE if truth else None, max_time=4000.0),
-                       build, keep_fine=True)
+                       gcode_program(gcode), keep_fine=True)
     contour = true_contour_error(result)
     f = law_figures(result, contour)
     return result, contour, {
