@@ -32,6 +32,14 @@ class of ``twin.analysis.studies.cam_classes`` (small text, densely chorded smal
   ``ratio_to_capped``: lookahead / the yardstick with the speed also held to the planner's
   own caps of blocks and nodes (the curves' acceleration and jerk caps, the corner model,
   the velocity and curvature steps): what the speed profiles lose, apart from the caps;
+* ``ratio_to_jerk_aware`` (the laws that limit jerk): lookahead / the yardstick with the
+  speed also held where jerk itself decides it on this path, whatever the planner: on a
+  curve the acceleration vector turns at v·κ, a jerk of v³κ² at steady speed (``v³κ² ≤
+  J``), and where the curvature steps by Δκ between blocks the normal acceleration steps
+  by v²·Δκ within one period T of the controller (``v²·|Δκ| ≤ J·T``), J the contour's
+  max_jerk. The yardstick of the issue leaves jerk out; these two caps are what a
+  jerk-limited motion on the same rounded path cannot beat (the planner's own, in
+  ``ratio_to_capped``, split the budgets more conservatively);
 * ``axis_acceleration``, ``axis_jerk``: the largest |Δ²p|/T² and |Δ³p|/T³ of the sampled
   position reference per axis (every controller period T, as the interpolator produces
   it) over the axis' max_acceleration and max_jerk. A velocity step at a node counts as
@@ -207,6 +215,28 @@ def rule_caps(cfg, law: str, blocks: list[PlannedBlock]) -> list[tuple[float, fl
     return out
 
 
+def jerk_caps(cfg, law: str, blocks: list[PlannedBlock]) -> list[tuple[float, float]]:
+    """Per block of a piece, the speed caps jerk itself sets on its path (m/s): on the block
+    ``v³κ² ≤ J`` (κ its largest curvature) and at its start node ``v²·|Δκ| ≤ J·T`` (module
+    doc), the curvatures at the node as the planner sees them (a sliver of line between two
+    curves, passed within a fraction of a period, takes the curve's: `BlockRules.follow`);
+    ``inf`` where nothing caps."""
+    rules = Planner.from_settings(cfg.controller, cfg.axes, law=law, work_zone=None)._rules
+    j, period = cfg.controller.limits.max_jerk, cfg.controller.period
+    out, prev = [], None
+    for b in blocks:
+        kappa = _max_curvature(b.segment)
+        wb = rules.block(b.segment, b.feed, b.line, b.blend)
+        node = math.inf
+        if prev is not None:
+            rules.follow(prev, wb)
+            if wb.k0 != prev.k1:
+                node = math.sqrt(j * period / abs(wb.k0 - prev.k1))
+        out.append(((j / kappa**2) ** (1.0 / 3.0) if kappa > 0.0 else math.inf, node))
+        prev = wb
+    return out
+
+
 def bound_time(blocks: list[PlannedBlock], cfg, mean: float | None = None,
                caps: list[tuple[float, float]] | None = None) -> float:
     """TOPP-RA's time for one piece that starts and ends at rest (s). With ``mean`` the
@@ -310,11 +340,11 @@ def yardstick_acceleration(cfg, law: str, blocks: list[PlannedBlock]) -> float |
     return a / (1.0 + a * a / (j * v))
 
 
-def yardstick(cfg, law: str, parts: list, dwell: float, capped: bool = False) -> float:
-    """A law's yardstick for a whole plan (s): its pieces' bounds and the dwells; ``capped``:
-    also under the planner's caps of blocks and nodes (`rule_caps`)."""
+def yardstick(cfg, law: str, parts: list, dwell: float, caps=None) -> float:
+    """A law's yardstick for a whole plan (s): its pieces' bounds and the dwells; ``caps``
+    (`rule_caps`, `jerk_caps`): also under those caps of blocks and nodes."""
     return sum(bound_time(p, cfg, yardstick_acceleration(cfg, law, p),
-                          rule_caps(cfg, law, p) if capped else None)
+                          caps(cfg, law, p) if caps is not None else None)
                for p in parts) + dwell
 
 
@@ -345,10 +375,13 @@ def program_figures(cfg, text: str, laws, check_limits: bool) -> dict:
         stick = bound if law == "trapezoid" else yardstick(cfg, law, parts, dwell)
         blocks = sum(isinstance(i, PlannedBlock) for i in items)
         la = cycle_time(items)
-        capped = yardstick(cfg, law, parts, dwell, capped=True)
+        capped = yardstick(cfg, law, parts, dwell, caps=rule_caps)
+        aware = stick if law == "trapezoid" else yardstick(
+            cfg, law, parts, dwell, caps=jerk_caps)
         row = {"lookahead_s": round(la, 3), "yardstick_s": round(stick, 3),
                "ratio": round(la / stick, 4), "ratio_to_bound": round(la / bound, 4),
-               "ratio_to_capped": round(la / capped, 4), "blocks_per_s": round(blocks / seconds)}
+               "ratio_to_capped": round(la / capped, 4),
+               "ratio_to_jerk_aware": round(la / aware, 4), "blocks_per_s": round(blocks / seconds)}
         if check_limits:
             acc, jerk = sampled_limits(items, cfg)
             row["axis_acceleration"] = [round(r, 3) for r in acc]
@@ -487,6 +520,13 @@ def markdown(result: dict) -> str:
                         cell += " ✗"
                 cells.append(cell)
             lines.append(f"| {name} | {radii} | " + " | ".join(cells) + " |")
+        lines += ["", "Ratio to the jerk-aware yardstick (the laws that limit jerk; the caps "
+                  "v³κ² ≤ J and v²·|Δκ| ≤ J·T added) and to the planner's own caps", "",
+                  "| program | " + " | ".join(laws) + " |", "|---|" + "---|" * len(laws)]
+        for name, p in result["programs"].items():
+            lines.append(f"| {name} | " + " | ".join(
+                f"{p['laws'][law]['ratio_to_jerk_aware']:.3f} / "
+                f"{p['laws'][law]['ratio_to_capped']:.3f}" for law in laws) + " |")
     twin = {name: p["twin"] for name, p in result["programs"].items() if "twin" in p}
     if twin:
         laws = list(next(iter(twin.values())))
