@@ -32,6 +32,8 @@ def _rrd_points(path, entity: str) -> np.ndarray:
         if chunk.entity_path.lstrip("/") != entity:
             continue
         rb = chunk.to_record_batch()
+        if "Points2D:positions" not in rb.schema.names:      # the static draw order
+            continue
         pts.extend(row[0] for row in rb.column("Points2D:positions").to_pylist())
     return np.array(pts)
 

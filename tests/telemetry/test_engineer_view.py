@@ -75,6 +75,8 @@ def test_actual_path_is_coloured_by_its_contour_error(square):
     t, contour_um = scalars["errors/contour_um"]
     colors, times = [], []
     for rb in _chunks(path, "/path/actual"):
+        if "Points2D:colors" not in rb.schema.names:        # the static draw order
+            continue
         colors.extend(row[0] for row in rb.column("Points2D:colors").to_pylist())
         times.append(rb.column("sim_time").cast("int64").to_numpy())
     packed = np.asarray(colors, dtype=np.uint32)            # rerun packs RGBA as 0xRRGGBBAA
@@ -170,3 +172,21 @@ def test_positions_are_recorded_in_mm_and_velocities_in_mm_per_min(square):
     np.testing.assert_allclose(pos[order], rec["position"][:, 1] * 1e3, rtol=1e-14)
     _, vel = scalars["axes/y/velocity/reference"]
     np.testing.assert_allclose(vel[order], rec["ref_velocity"][:, 1] * 60e3, rtol=1e-14)
+
+
+def test_a_simulated_run_shows_the_table_s_true_path_and_its_contour_error(square):
+    """The table's true path (the twin's truth, in mm) is drawn beside the encoder's and
+    named in the path view's title, and its contour error is plotted with the encoder's:
+    its largest value within the recorded distance's sagitta of the summary's (the exact
+    metric)."""
+    path = square.summary["recording"]
+    pts = _rrd_points(path, "path/table")
+    np.testing.assert_allclose(pts, square.record["table_position"] * 1e3, rtol=1e-6,
+                               atol=1e-4)
+    _, table_um = _rrd_scalars(path)["errors/table_contour_um"]
+    assert table_um.max() == pytest.approx(square.summary["table_max_contour_error_um"],
+                                           abs=0.05)
+    (view,) = [v for v in layout_views(path) if v["kind"] == "2D"]
+    assert "/path/table" in view["contents"] and "table's true path a teal halo" in view["name"]
+    (plot,) = [v for v in layout_views(path) if v["name"].startswith("Contour error")]
+    assert "/errors/table_contour_um" in plot["contents"] and "table teal" in plot["name"]

@@ -80,6 +80,7 @@ def test_the_viewer_shows_the_run_tab_a_drive_tab_and_the_spectra(browser_ready,
     assert img.shape[:2] == tuple(int(v) for v in reversed(size.split("x")))
     # the Run tab: the actual path (green at this error), its grid, the feeds, the terms
     assert _has(img, (40, 180, 60)), "the actual path is drawn"
+    assert _has(img, COLOURS["teal"]), "the table's true path is drawn around it"
     assert _has(img, GRID_COLOUR[:3], least=500), "the path view's grid is drawn"
     for colour in ("blue", "orange"):                     # commanded and actual feed, ...
         assert _has(img, COLOURS[colour]), colour

@@ -252,14 +252,17 @@ class PathGrid:
 
 def path_view(extents: Extents | None = None, *, name: str | None = None,
               origin: str = "/", contents: Sequence[str] = (f"/{PROGRAMMED}", "/path/actual",
-                                                            "/path/grid/**"),
+                                                            "/path/table", "/path/grid/**"),
               frame: Sequence[str] = (PROGRAMMED, "path/actual")) -> rrb.Spatial2DView:
     """The path in machine orientation (mm, Y up) on its grid, framed on the points of
     ``frame`` (the whole programmed and actual path). ``origin`` must lie above the
-    entity that carries ``PATH_TRANSFORM`` (a view's origin frame is its own, untransformed)."""
+    entity that carries ``PATH_TRANSFORM`` (a view's origin frame is its own, untransformed).
+    A simulated run adds the table's true path (``path/table``)."""
+    table = extents is not None and extents.point_bounds("path/table") is not None
     return rrb.Spatial2DView(
         name=name or "Path (mm, Y up; grid and scale bar in mm): programmed grey; actual "
-                     "green → yellow at the contour tolerance → red at twice it",
+                     "(encoder) green → yellow at the contour tolerance → red at twice it"
+                     + ("; the table's true path a teal halo" if table else ""),
         origin=origin, contents=list(contents), time_ranges=_WHOLE_RUN,
         visual_bounds=_visual_bounds(frame_bounds(extents, *frame)))
 
@@ -272,7 +275,9 @@ def default_blueprint(extents: Extents | None = None) -> rrb.Blueprint:
         rrb.Horizontal(
             path_view(ext),
             rrb.Vertical(
-                _series("Contour error (µm)", ["/errors/contour_um"], ext),
+                _series("Contour error (µm)", ["/errors/contour_um"] + (
+                    ["/errors/table_contour_um"] if ext is not None and ext.value_range(
+                        "errors/table_contour_um") is not None else []), ext),
                 _series("Feed (mm/min)", ["/feed/programmed", "/feed/commanded",
                                           "/feed/actual"], ext),
                 rrb.TextLogView(name="Events", origin="/events"),

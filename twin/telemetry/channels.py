@@ -58,7 +58,8 @@ SERIES: dict[str, tuple[str, tuple[tuple[str, str], ...]]] = {
     "axes/{a}/drive/motor_speed": ("rpm", (("motor speed", "blue"),)),
     "axes/{a}/drive/conduction": ("1", (("conduction", "green"),)),
     "axes/{a}/screw_deflection_um": ("µm", (("screw deflection", "brown"),)),
-    "errors/contour_um": ("µm", (("contour error", "red"),)),
+    "errors/contour_um": ("µm", (("encoder", "red"),)),
+    "errors/table_contour_um": ("µm", (("table", "teal"),)),
     "feed/programmed": ("mm/min", (("programmed F", "grey"),)),
     "feed/commanded": ("mm/min", (("commanded", "blue"),)),
     "feed/actual": ("mm/min", (("actual", "orange"),)),
@@ -258,7 +259,8 @@ class TelemetryWriter:
         truth = truth_record is not None
         sent = ["feed/commanded", *(["feed/actual"] if truth else []),
                 *(["feed/programmed"] if self.feeds else []),
-                *(["errors/contour_um"] if self.path else [])]
+                *(["errors/contour_um"] if self.path else []),
+                *(["errors/table_contour_um"] if self.path and truth else [])]
         for ax in AXES:
             base = f"axes/{ax}"
             sent += [f"{base}/{q}" for q in ("position/reference", "position/actual",
@@ -333,15 +335,21 @@ class TelemetryWriter:
         cols.update(self._feed_columns(c, tr))
         if self.spectra is not None:
             self.spectra.feed("following_error", c["following_error"])
-        colors = None
+        points = {"path/actual": to_shown("mm", c["position"]),
+                  "path/reference": to_shown("mm", c["ref_position"])}
+        colors = {}
         if self.path:
             contour = self._distance(c["position"])
             cols["errors/contour_um"] = to_shown("µm", contour)
-            colors = error_colors(contour / self.contour_tolerance)
+            colors["path/actual"] = error_colors(contour / self.contour_tolerance)
+            if tr:      # the twin's truth: where the table is (a belt lags its motor)
+                table = tr["table_position"]
+                cols["errors/table_contour_um"] = to_shown("µm", self._distance(table))
+                points["path/table"] = to_shown("mm", table)
+                colors["path/table"] = np.broadcast_to(
+                    np.array(COLOURS["teal"], dtype=np.uint8), (len(table), 3))
         self.sink.scalars(t, cols)
-        self.sink.points(t, {"path/actual": to_shown("mm", c["position"]),
-                             "path/reference": to_shown("mm", c["ref_position"])},
-                         colors={"path/actual": colors} if colors is not None else None)
+        self.sink.points(t, points, colors=colors or None)
         self._events(t, c, status_names or {})
         self._sent = n
         self.wall += time.perf_counter() - t0

@@ -40,6 +40,10 @@ FLUSH_WALL = 1.0
 POINT_RADIUS = -1.5
 """Radius of the path's points: 1.5 UI points (negative: screen, not scene, units), so the
 path stays visible at any zoom."""
+DRAWN = {"path/actual": (POINT_RADIUS, 40.0), "path/table": (-2.5, 20.0)}
+"""Entities with their own radius (UI points) and draw order (higher on top): the table's
+true path (a simulated run) as a wider halo beneath the encoder's, which lies on it within
+micrometres, so that both show."""
 
 GRID_COLOUR = (215, 215, 215)
 """The path view's grid lines: light grey, under the paths."""
@@ -113,6 +117,7 @@ class RerunSink:
             blueprint if callable(blueprint) and not isinstance(blueprint, rrb.Blueprint)
             else None)
         self._frame: str | None = None
+        self._ordered: set[tuple[int, str]] = set()     # (stream, entity) given its order
         try:
             if self._partial is not None:
                 self._partial.parent.mkdir(parents=True, exist_ok=True)
@@ -234,8 +239,13 @@ class RerunSink:
         for entity, values in columns.items():
             rgb = (colors or {}).get(entity)
             cols = rr.Points2D.columns(positions=np.asarray(values).reshape(-1, 2),
-                                       colors=rgb, radii=np.full(len(t), POINT_RADIUS))
+                                       colors=rgb, radii=np.full(
+                                           len(t), DRAWN.get(entity, (POINT_RADIUS,))[0]))
             for rec in self._streams():
+                if entity in DRAWN and (id(rec), entity) not in self._ordered:
+                    rec.log(entity, rr.Points2D.from_fields(draw_order=DRAWN[entity][1]),
+                            static=True)
+                    self._ordered.add((id(rec), entity))
                 rec.send_columns(entity, indexes=index, columns=cols.partition(ones))
 
     def _hold(self, kind: str, t: np.ndarray, columns: Mapping[str, np.ndarray],
