@@ -65,6 +65,8 @@ FIGURES = (
     ("cycle time", "cycle_time_s", "s"),
     ("max contour error", "max_contour_error_um", "µm"),
     ("RMS contour error", "rms_contour_error_um", "µm"),
+    ("max contour error, table", "table_max_contour_error_um", "µm"),
+    ("RMS contour error, table", "table_rms_contour_error_um", "µm"),
     ("max coordinate error X", ("max_coordinate_error_um", "x"), "µm"),
     ("max coordinate error Y", ("max_coordinate_error_um", "y"), "µm"),
     ("max velocity error X", ("max_velocity_error_um_s", "x"), "µm/s"),
