@@ -28,7 +28,7 @@ UNIT = 1
 TRUTH_ONLY = {*(f"/axes/{a}/{n}" for a in "xy" for n in
                 ("drive/armature_current", "drive/converter_voltage", "drive/conduction",
                  "drive/motor_speed", "screw_deflection_um", "velocity/actual")),
-              "/feed/actual",
+              "/feed/actual", "/path/table", "/errors/table_contour_um",
               *("/" + spectrum_entity("screw_deflection", a, mode=m)
                 for a in "xy" for m in (False, True))}
 
