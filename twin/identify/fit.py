@@ -56,16 +56,9 @@ import numpy as np
 from twin.config import AXES, MachineConfig
 from twin.errors import FitError
 from twin.identify.direct import coast_regression, limit_inertia, lost_motion, regress_gains
-from twin.identify.lm import (
-    BOUNDS,
-    COORDS,
-    coordinate,
-    half_intervals,
-    levenberg_marquardt,
-    scan_mains_phase,
-    with_coordinate,
-)
+from twin.identify.joint import TOLERANCE, joint_fit
 from twin.identify.log import IdentLog
+from twin.identify.lsq import BOUNDS, coordinate, scan_mains_phase, solve, with_coordinate
 from twin.identify.plan import FIT_EXPERIMENTS, HELD_OUT
 from twin.identify.replay import (
     NAMES,
@@ -76,13 +69,12 @@ from twin.identify.replay import (
     candidate,
 )
 
-__all__ = ["NOT_EXCITED", "NOT_IDENTIFIABLE", "TOLERANCE", "Estimate", "Identification", "fit"]
+__all__ = ["NOT_EXCITED", "NOT_IDENTIFIABLE", "REPLAYED_PARAMS", "TOLERANCE", "Estimate",
+           "Identification", "fit"]
 
-TOLERANCE = {"inertia": math.log(1.25), "coulomb": math.log(1.25),
-             "viscous": math.log(1.5), "breakaway": 0.5, "backlash": 3e-6,
-             "resistance": math.log(1.25), "inductance": math.log(1.25)}
-"""Largest 95 % half-interval (in the fitted coordinate: log for the multiplicative ones,
-1 for the break-away ratio, m for the lost motion) of a parameter called identifiable."""
+REPLAYED_PARAMS = ("inertia", "coulomb", "viscous", "breakaway", "resistance",
+                   "inductance")
+"""The parameters the last stage fits together on the replayed experiments."""
 
 NOT_IDENTIFIABLE = {
     "transmission.stiffness": "the motor encoder does not see the table move on the screw",
@@ -122,11 +114,13 @@ class Estimate:
     source : str
         The experiment(s) it comes from.
     kept : str
-        Where the value comes from: ``"fit"``, or ``"base"`` when it is not identifiable
-        and BASE's value lies inside its interval (the data cannot tell it from BASE). A
-        loose parameter whose interval excludes BASE keeps the fit's value: BASE's would be
-        a value the data reject, and the parameters fitted around it would absorb the
-        difference.
+        Where the value comes from: ``"fit"``; ``"base"`` when it is not identifiable
+        (BASE's value kept, the others fitted around it); ``"bound"`` when it is not
+        identifiable and the data reject BASE's value: the end of its interval nearest to
+        BASE's.
+    given : tuple of str
+        Not identifiable on its own: identified given these parameters (held), with which
+        it trades off; its value is right relative to them.
     """
 
     value: float
@@ -135,6 +129,7 @@ class Estimate:
     identifiable: bool
     source: str
     kept: str = "fit"
+    given: tuple[str, ...] = ()
 
 
 @dataclass
@@ -173,6 +168,9 @@ class Identification:
     curves: dict[str, np.ndarray] = field(default_factory=dict)
     mains_phase: float | None = None
     """The log's mains phase the replays used (rad; None for PWM drives)."""
+    linear: dict[str, dict[str, float]] = field(default_factory=dict)
+    """Per axis and replayed parameter: the linearised 95 % half-interval at the optimum
+    (in the fitted coordinate), what the Jacobian alone would have said."""
 
     def derived(self) -> dict[str, dict[str, float]]:
         """K_H (m/(s·V)) and the total Coulomb and viscous friction at the motor
@@ -211,54 +209,36 @@ def fit(base: MachineConfig, log: IdentLog, *,
         c, v = ratios[a]
         if math.isfinite(c) and c > 0.0 and math.isfinite(v) and v > 0.0:
             params[a] = params[a].with_(coulomb=c, viscous=v)
-    inertia = limit_inertia(problem, params)
-    for a in axes:
-        if math.isfinite(inertia[a]) and inertia[a] > 0.0:
-            f = inertia[a] / params[a].inertia
-            p = params[a]
-            params[a] = p.with_(inertia=p.inertia * f, coulomb=p.coulomb * f,
-                                viscous=p.viscous * f)
     scan_mains_phase(problem, params)
     steps = log.experiment_mask("steps")
-    params, _, _ = levenberg_marquardt(problem, params, ["scale", "resistance"], steps, start,
-                                       iterations=8)
+    params = _scan_scale(problem, params, start, steps, limit_inertia(problem, params))
+    params = solve(problem, params, ["scale", "resistance"], steps, start, max_nfev=8).params
     scan_mains_phase(problem, params)
     say("inertia: " + ", ".join(f"{a} {params[a].inertia:.4g} kg·m²" for a in axes))
-    # 3. friction: the coast-downs (friction alone), then with the speed loop's data
+    # 3. friction: the coast-downs (friction alone)
     coast = log.experiment_mask("coast")
-    params, _, _ = levenberg_marquardt(problem, params, ["coulomb", "viscous", "breakaway"],
-                                       coast, start, iterations=5)
+    params = solve(problem, params, ["coulomb", "viscous", "breakaway"], coast, start,
+                   max_nfev=5).params
     # 4. lost motion from the home switch
     lost = lost_motion(problem, params)
     for a in axes:
         if math.isfinite(lost[a][0]):
             params[a] = params[a].with_(backlash=lost[a][0])
     say("lost motion: " + ", ".join(f"{a} {1e6 * params[a].backlash:.1f} µm" for a in axes))
-    # 5. everything the replay carries, together
+    # 5. everything the replay carries, together, with the profile intervals
     fit_mask = log.experiment_mask(FIT_EXPERIMENTS)
-    names = ["inertia", "coulomb", "viscous", "breakaway", "resistance", "inductance"]
-    params, jac, res = levenberg_marquardt(problem, params, names, fit_mask, start,
-                                           iterations=3)
-    coords = [c for c in COORDS if c[0] in names]
-    # a parameter whose interval is too wide is not pinned down: if BASE's value lies in
-    # that interval it is kept, and the others are fitted again around it; if the data
-    # reject BASE's value, the fit's stays (flagged loose, not identifiable)
-    halfs = {a: half_intervals(jac[a], res[a]) for a in axes}
-    wide = {a: {c[0] for c, h in zip(coords, halfs[a], strict=True)
-                if not h <= TOLERANCE[c[0]]} for a in axes}
-    loose = {a: {c[0] for c, h in zip(coords, halfs[a], strict=True)
-                 if c[0] in wide[a] and abs(coordinate(params[a], start[a], c[0], c[1])
-                                            - coordinate(start[a], start[a], c[0], c[1]))
-                 <= h} for a in axes}
-    fitted = dict(params)
-    if any(wide.values()):   # fitted again: around BASE's values, or on from the first fit
-        params = {**params, **{a: params[a].with_(**{n: getattr(start[a], n)
-                                                     for n in loose[a]}) for a in axes}}
-        params, jac, res = levenberg_marquardt(problem, params, names, fit_mask, start,
-                                               iterations=3, frozen=loose)
-        for a in axes:
-            on = np.array([c[0] not in loose[a] for c in coords])
-            halfs[a][on] = half_intervals(jac[a][:, on], res[a])
+    names = list(REPLAYED_PARAMS)   # quantities; fitted in profile.own_coordinate
+    joint = joint_fit(problem, params, names, fit_mask, start)
+    params = {**params, **joint.params}
+    for a in axes:
+        for n, how in joint.held[a].items():
+            say(f"warning: axis {a}: {n} is not identifiable from these experiments "
+                f"(amplitude too low, or not excited); "
+                + ("BASE's value kept" if how == "base" else
+                   "the value nearest BASE's the data allow kept"))
+        for n, held in joint.given[a].items():
+            say(f"warning: axis {a}: {n} is identified only given {', '.join(held)} "
+                f"(held): its value is right relative to it, not on its own")
     estimates: dict[str, dict[str, Estimate]] = {}
     final = {}
     for a in AXES:
@@ -267,26 +247,28 @@ def fit(base: MachineConfig, log: IdentLog, *,
                                            False, NOT_EXCITED, "base") for name in NAMES}
             final[a] = start[a]
             continue
-        half = halfs[a]
         est: dict[str, Estimate] = {}
         p = params[a]
         for name in ("tacho_gain", "gain_error", "offset"):
             v, h = getattr(p, name), gain_halfs[a][name]
             est[name] = Estimate(v, v - h, v + h, True, _SOURCE[name])
-        for i, (name, kind, _h) in enumerate(coords):
-            reset = name in loose[a]
-            at = fitted[a] if reset else p  # a reset one's interval is about its fit
-            x = coordinate(at, start[a], name, kind)
-            span = half[i] if math.isfinite(half[i]) else 1e9
-            lo = with_coordinate(at, start[a], name, kind, max(x - span, BOUNDS[name][0]))
-            hi = with_coordinate(at, start[a], name, kind, min(x + span, BOUNDS[name][1]))
-            est[name] = Estimate(getattr(p, name), getattr(lo, name), getattr(hi, name),
-                                 name not in wide[a], _SOURCE[name],
-                                 "base" if reset else "fit")
+        for name in names:
+            lo, hi = joint.intervals[a][name]
+            x = coordinate(p, start[a], name)
+            held = joint.held[a].get(name)
+            if held is None:   # the interval of a re-fitted value: widened to hold it
+                lo = min(lo, x) if math.isfinite(lo) else lo
+                hi = max(hi, x) if math.isfinite(hi) else hi
+            est[name] = Estimate(getattr(p, name), _value(p, start[a], name, lo),
+                                 _value(p, start[a], name, hi),
+                                 held is None and name not in joint.given[a], _SOURCE[name],
+                                 held or "fit", joint.given[a].get(name, ()))
         b, h = lost[a]
         ok = math.isfinite(b) and h <= TOLERANCE["backlash"]
         if not ok:
             p = p.with_(backlash=start[a].backlash)
+            say(f"warning: axis {a}: the lost motion is not identifiable from the home "
+                f"switch's edges; BASE's value kept")
         est["backlash"] = Estimate(p.backlash, max(b - h, 0.0) if ok else math.nan,
                                    b + h if ok else math.nan, ok, _SOURCE["backlash"],
                                    "fit" if ok else "base")
@@ -318,7 +300,44 @@ def fit(base: MachineConfig, log: IdentLog, *,
     result = Identification(final, estimates, calibrated, nrmse, residual, problem.replays,
                             time.perf_counter() - t0, curves)
     result.mains_phase = problem.mains_phase
+    result.linear = joint.linear
     return result
+
+
+SCALE_GRID = tuple(2.0 ** (k / 3.0) for k in range(-3, 4))
+"""Inertia factors (friction in proportion) tried before the local fit: 0.5 … 2."""
+
+
+def _scan_scale(problem: Problem, params: dict[str, AxisParams],
+                start: dict[str, AxisParams], mask: np.ndarray,
+                limit: dict[str, float]) -> dict[str, AxisParams]:
+    """The inertia (friction in proportion) that best replays ``mask`` of ``SCALE_GRID``
+    times the present one and the current-limit estimate (``direct.limit_inertia``), per
+    axis. The local fit starts from it: started from the current-limit estimate alone it
+    stayed, at amplitude 0.3 (the limit never reached), in a valley where the armature
+    resistance made up for an inertia twice the truth."""
+    tries = [{a: p.inertia * f for a, p in params.items()} for f in SCALE_GRID]
+    if any(math.isfinite(v) and v > 0.0 for v in limit.values()):
+        tries.append({a: limit[a] if math.isfinite(limit.get(a, math.nan))
+                      and limit[a] > 0.0 else params[a].inertia for a in params})
+    best = {a: (math.inf, params[a]) for a in problem.axes}
+    for j in tries:
+        trial = {a: with_coordinate(p, start[a], "scale", math.log(j[a] / start[a].inertia))
+                 if a in problem.axes else p for a, p in params.items()}
+        res = problem.residuals(trial, mask)
+        for a in problem.axes:
+            cost = float(res[a] @ res[a])
+            if cost < best[a][0]:
+                best[a] = (cost, trial[a])
+    return {**params, **{a: b[1] for a, b in best.items()}}
+
+
+def _value(p: AxisParams, base: AxisParams, name: str, x: float) -> float:
+    """The parameter value at coordinate ``x`` (NaN stays NaN: an open end)."""
+    if not math.isfinite(x):
+        return math.nan
+    lo, hi = BOUNDS[name]
+    return getattr(with_coordinate(p, base, name, min(max(x, lo), hi)), name)
 
 
 def _nrmse(pred: np.ndarray, meas: np.ndarray) -> float:

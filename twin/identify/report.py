@@ -23,11 +23,11 @@ import numpy as np
 
 from twin.config import AXES, MachineConfig
 from twin.config.writer import machine_to_toml
-from twin.identify.fit import NOT_IDENTIFIABLE, Estimate, Identification
+from twin.identify.fit import NOT_EXCITED, NOT_IDENTIFIABLE, Estimate, Identification
 from twin.identify.log import IdentLog
 from twin.identify.plan import HELD_OUT, REPLAYED
 
-__all__ = ["FIELDS", "calibrated_toml", "plot_report", "record", "summary"]
+__all__ = ["FIELDS", "calibrated_toml", "not_identified", "plot_report", "record", "summary"]
 
 FIELDS = {
     "tacho_gain": ("tacho.gain", "V·s/rad", 1.0),
@@ -51,6 +51,22 @@ def _quote(e: Estimate, scale: float) -> str:
     return f"{scale * e.value:.5g}  [{lo}, {hi}]"
 
 
+def not_identified(e: Estimate) -> str:
+    """Why a value is not identified, and what was kept (one line)."""
+    if e.source == NOT_EXCITED:
+        return "not excited, BASE's value kept"
+    if e.given:
+        return (f"NOT SEPARABLE from {', '.join(e.given)}: identified given "
+                f"{'its' if len(e.given) == 1 else 'their'} held value, right only "
+                f"relative to it")
+    if e.kept == "bound":
+        return ("NOT IDENTIFIABLE at this amplitude: the data reject BASE's value, the "
+                "nearest one they allow kept")
+    if e.kept == "base":
+        return "NOT IDENTIFIABLE at this amplitude: BASE's value kept"
+    return "NOT IDENTIFIABLE"
+
+
 def header_lines(result: Identification, base: MachineConfig, log: IdentLog,
                  log_path: str) -> list[str]:
     """The comment header of the calibrated file."""
@@ -69,9 +85,7 @@ def header_lines(result: Identification, base: MachineConfig, log: IdentLog,
         lines.append(f"axis {a}:")
         for name, (where, unit, scale) in FIELDS.items():
             e = result.estimates[a][name]
-            mark = "" if e.identifiable else (
-                "   NOT IDENTIFIABLE: BASE's value kept" if e.kept == "base" else
-                "   LOOSE: the fit's value kept (the data reject BASE's)")
+            mark = "" if e.identifiable else "   WARNING: " + not_identified(e)
             lines.append(f"  {where} = {_quote(e, scale)} {unit}  <- {e.source}{mark}")
         d = derived[a]
         lines.append(f"  => K_H {1e3 * d['K_H']:.5g} mm/(s·V), Coulomb at the motor "
@@ -82,8 +96,10 @@ def header_lines(result: Identification, base: MachineConfig, log: IdentLog,
     lines.append("Fit quality: held-out " + HELD_OUT + " normalised RMS error " + ", ".join(
         f"{a} position {100 * result.nrmse[a]['position']:.2f} % tacho "
         f"{100 * result.nrmse[a]['tacho']:.2f} %" for a in result.nrmse) + ".")
-    lines.append("Intervals are the fit's own (linearised, widened for correlated "
-                 "residuals); a model error of the twin itself is not in them.")
+    lines.append("Intervals: the profile likelihood of the recorded data (each parameter "
+                 "moved, the others re-fitted, replayed; F threshold on the residuals' "
+                 "effective sample size); '?' is an end the data do not bound. A model "
+                 "error of the twin itself is not in them.")
     return lines
 
 
@@ -104,7 +120,7 @@ def summary(result: Identification, base: MachineConfig, log: IdentLog) -> dict[
         "axes": list(log.axes),
         "estimates": {a: {k: {"value": e.value, "low": e.low, "high": e.high,
                               "identifiable": e.identifiable, "source": e.source,
-                              "kept": e.kept}
+                              "kept": e.kept, "given": list(e.given)}
                           for k, e in result.estimates[a].items()} for a in AXES},
         "derived": result.derived(),
         "nrmse": result.nrmse,

@@ -1,0 +1,163 @@
+"""The fit's last stage: every replayed parameter together, its profile intervals, and the
+decision of what the data cannot separate.
+
+1. Least squares on all the coordinates at once (``lsq.solve``), then each coordinate's
+   profile interval (``profile.profile``). A profile point below the optimum means the
+   optimum was not one: the fit is run again from there (once).
+2. A coordinate whose interval is open or wider than ``TOLERANCE`` is not identifiable
+   from these experiments. They usually come in groups that trade off (below the current
+   limit the inertia, the friction and the speed regulator's gain scale together; the
+   speed steps see only their ratios). The first of the group in ``ANCHORS`` order is held
+   at BASE's value (or, where the data reject BASE's value, at the nearest end of its
+   interval), the others are fitted again around it, and those of the group whose profile
+   then closes are reported as identified *given* the one held: their values are right
+   relative to it, and they are flagged not identifiable on their own. This repeats while
+   a group remains.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Sequence
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from twin.identify.lsq import BOUNDS, coordinate, solve, with_coordinate
+from twin.identify.profile import Profile, own_coordinate, profile
+from twin.identify.replay import AxisParams, Problem
+
+__all__ = ["ANCHORS", "TOLERANCE", "Joint", "joint_fit"]
+
+TOLERANCE = {"inertia": math.log(1.25), "coulomb": math.log(1.25),
+             "viscous": math.log(1.5), "breakaway": 0.5, "backlash": 3e-6,
+             "resistance": math.log(1.25), "inductance": math.log(1.25),
+             "speed_kp": math.log(1.25), "speed_ti": math.log(1.25),
+             "reference_filter": math.log(1.5), "current_kp": math.log(1.5),
+             "current_ti": math.log(1.5), "brush_drop": 1.0}
+"""Largest 95 % half-interval (in the fitted coordinate: log for the multiplicative ones,
+1 for the break-away ratio, m for the lost motion, V for the brush drop) of a parameter
+called identifiable."""
+
+ANCHORS = ("inertia", "resistance", "inductance", "current_kp", "current_ti", "brush_drop",
+           "viscous", "breakaway", "reference_filter", "speed_ti", "coulomb", "speed_kp")
+"""The order in which a group of parameters that trade off gets one held at BASE's value:
+the inertia first (below the current limit it scales with the friction and the speed
+gain, which then stay right relative to it)."""
+
+ROUNDS = 3
+"""Most groups held one at a time; what is left after them is held all at once."""
+
+
+@dataclass
+class Joint:
+    """The outcome of ``joint_fit``, per axis.
+
+    Attributes
+    ----------
+    params : dict of str to AxisParams
+    intervals : dict of str to dict of str to tuple of float
+        (low, high) in the coordinate (NaN: open).
+    held : dict of str to dict of str to str
+        The parameters held, and how: ``"base"`` (BASE's value) or ``"bound"`` (the end of
+        the interval nearest to BASE's value, which the data reject).
+    given : dict of str to dict of str to tuple of str
+        The parameters identified only given the held ones.
+    linear : dict of str to dict of str to float
+        The linearised half-interval at the optimum (what the Jacobian alone says).
+    restarts : int
+        Fits run again from a profile point below the optimum.
+    """
+
+    params: dict[str, AxisParams]
+    intervals: dict[str, dict[str, tuple[float, float]]]
+    held: dict[str, dict[str, str]] = field(default_factory=dict)
+    given: dict[str, dict[str, tuple[str, ...]]] = field(default_factory=dict)
+    linear: dict[str, dict[str, float]] = field(default_factory=dict)
+    restarts: int = 0
+
+
+def _wide(name: str, prof: Profile, x: float) -> bool:
+    if prof.open:
+        return True
+    return max(x - prof.low, prof.high - x) > TOLERANCE[name]
+
+
+def _reach(names: Sequence[str]) -> dict[str, float]:
+    return {n: 2.0 * TOLERANCE[n] for n in names}
+
+
+def joint_fit(problem: Problem, params: dict[str, AxisParams], names: Sequence[str],
+              mask: np.ndarray, start: dict[str, AxisParams], *, max_nfev: int = 4) -> Joint:
+    """Fit the quantities ``names`` together on the ticks of ``mask`` (in the coordinates
+    ``profile.own_coordinate`` gives them), profile them and hold what the data cannot
+    separate (see the module docstring). Intervals are in ``lsq.coordinate`` units."""
+    names = list(names)
+    coords = [own_coordinate(n) for n in names]
+    axes = problem.axes
+    sol = solve(problem, params, coords, mask, start, max_nfev=max_nfev)
+    prof = profile(problem, sol, mask, start, names, _reach(names))
+    restarts = 0
+    better = {a: [p.better for p in prof[a].values() if p.better is not None] for a in axes}
+    if any(better.values()):   # the optimum was not one: fit again from the lowest point
+        moved = dict(sol.params)
+        for a in axes:
+            if better[a]:
+                moved[a] = min(better[a], key=lambda b: b[0])[1]
+        sol = solve(problem, moved, coords, mask, start, max_nfev=max_nfev)
+        prof = profile(problem, sol, mask, start, names, _reach(names))
+        restarts = 1
+    intervals = {a: {n: (prof[a][n].low, prof[a][n].high) for n in names} for a in axes}
+    linear = {a: {n: prof[a][n].half for n in names} for a in axes}
+    loose = {a: [n for n in ANCHORS if n in names and _wide(
+        n, prof[a][n], coordinate(sol.params[a], start[a], n))] for a in axes}
+    held: dict[str, dict[str, str]] = {a: {} for a in axes}
+    kept: dict[str, dict[str, float]] = {a: {} for a in axes}
+    given: dict[str, dict[str, tuple[str, ...]]] = {a: {} for a in axes}
+    current = dict(sol.params)
+    for last in [False] * ROUNDS + [True]:
+        if not any(loose.values()):
+            break
+        for a in axes:   # the first of each axis' group; after the rounds, all that is left
+            for n in (loose[a] if last else loose[a][:1]):
+                kept[a][n], held[a][n] = _hold(start[a], n, intervals[a][n])
+                current[a] = _set(current[a], start[a], n, kept[a][n])
+            loose[a] = [] if last else loose[a][1:]
+        frozen = {a: {own_coordinate(n) for n in held[a]} for a in axes}
+        sol = solve(problem, current, coords, mask, start, max_nfev=max_nfev, frozen=frozen)
+        current = dict(sol.params)
+        rest = sorted({n for a in axes for n in loose[a]})
+        if not rest:
+            break
+        again = profile(problem, sol, mask, start, rest, _reach(rest))
+        for a in axes:
+            for n in list(loose[a]):
+                p = again[a].get(n)
+                if p is not None and not _wide(n, p, coordinate(sol.params[a], start[a], n)):
+                    given[a][n] = tuple(held[a])
+                    intervals[a][n] = (p.low, p.high)
+                    loose[a].remove(n)
+    for a in axes:   # a held quantity whose own coordinate is relative: exactly its value
+        for n, x in kept[a].items():
+            current[a] = _set(current[a], start[a], n, x)
+    return Joint(current, intervals, held, given, linear, restarts)
+
+
+def _hold(base: AxisParams, name: str, interval: tuple[float, float]) -> tuple[float, str]:
+    """The value (coordinate) a quantity the data do not pin down is held at: BASE's, or
+    the end of its interval nearest to it where the data reject BASE's; and which."""
+    lo, hi = interval
+    keep, how = coordinate(base, base, name), "base"
+    if math.isfinite(lo) and keep < lo:
+        keep, how = lo, "bound"
+    elif math.isfinite(hi) and keep > hi:
+        keep, how = hi, "bound"
+    return keep, how
+
+
+def _set(p: AxisParams, base: AxisParams, name: str, x: float) -> AxisParams:
+    """``p`` with quantity ``name`` at ``x`` (the inertia with the friction and gain in
+    proportion: what the data fix are their ratios)."""
+    own = "scale" if name == "inertia" else name
+    lo, hi = BOUNDS[own]
+    return with_coordinate(p, base, own, min(max(x, lo), hi))

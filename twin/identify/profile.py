@@ -1,0 +1,238 @@
+"""Confidence intervals from the data actually recorded: the profile likelihood.
+
+For each fitted coordinate θ_i the fit's cost is profiled: θ_i is moved off the optimum and
+every other free coordinate re-fitted, and the 95 % interval is where the rise of the
+re-fitted cost stays below the F threshold (``threshold``). Each point of the profile is a
+real replay of the twin (the nuisance coordinates re-fitted by two Gauss-Newton steps with
+the optimum's Jacobian, each checked by a replay), so a cost that is flat along a
+parameter — two parameters that trade off, a parameter the experiments do not excite — shows
+as an interval with no end, whatever the Jacobian at the optimum claims; and a profile point
+with a lower cost than the optimum shows that the optimum was not one.
+
+The replay's residuals are correlated in time (the replay floor is smooth), so ``n``
+samples carry about ``n/τ`` independent errors, τ the residuals' integrated autocorrelation
+time: the threshold is scaled by τ (``effective_samples``). As in ``lsq``, one replay moves
+the same coordinate of every axis, each by its own amount.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Sequence
+from dataclasses import dataclass
+
+import numpy as np
+from scipy.stats import f as f_dist
+
+from twin.identify.lsq import BOUNDS, Solution, coordinate, with_coordinates
+from twin.identify.replay import AxisParams, Problem
+
+__all__ = ["QUANTITY", "Profile", "autocorrelation_time", "own_coordinate", "profile",
+           "threshold"]
+
+LEVEL = 0.95
+"""Confidence level of the intervals."""
+
+
+def autocorrelation_time(res: np.ndarray, channels: int = 2) -> float:
+    """The residuals' integrated autocorrelation time (samples, ≥ 1): 1 + 2·Σ ρ(lag) up to
+    the first lag where ρ falls below 0.05, the largest over the ``channels`` series
+    (position, then tacho) ``res`` is the concatenation of."""
+    tau = 1.0
+    for part in np.split(res, channels):
+        x = part - part.mean()
+        var = float(x @ x)
+        if var <= 0.0 or len(x) < 4:
+            continue
+        t = 1.0
+        # FFT autocorrelation: all lags at once
+        n = len(x)
+        spec = np.fft.rfft(x, 2 * n)
+        acf = np.fft.irfft(spec * np.conj(spec))[:n] / var
+        for lag in range(1, n // 4):
+            if acf[lag] <= 0.05:
+                break
+            t += 2.0 * acf[lag]
+        tau = max(tau, t)
+    return tau
+
+
+def threshold(res: np.ndarray, parameters: int, level: float = LEVEL) -> float:
+    """The rise of the cost (sum of squared residuals) that bounds the ``level`` profile
+    interval of one parameter: F(1, n_eff − p)·s²·τ, with s² = SSE/(n − p), τ the
+    autocorrelation time and n_eff = n/τ the effective number of samples."""
+    n = len(res)
+    tau = autocorrelation_time(res)
+    n_eff = max(n / tau, parameters + 2.0)
+    s2 = float(res @ res) / max(n - parameters, 1)
+    return float(f_dist.ppf(level, 1, n_eff - parameters)) * s2 * tau
+
+
+@dataclass
+class Profile:
+    """The profile interval of one coordinate of one axis (in the coordinate).
+
+    Attributes
+    ----------
+    low, high : float
+        Interval ends (NaN: the cost did not rise enough before ``reach``: open).
+    half : float
+        The linearised half-interval at the optimum (what the Jacobian alone says).
+    better : (float, AxisParams) or None
+        The lowest point of the profile whose cost is below the optimum's, if one was met:
+        (the cost's change, the parameters there).
+    """
+
+    low: float
+    high: float
+    half: float
+    better: tuple[float, AxisParams] | None = None
+
+    @property
+    def open(self) -> bool:
+        """The interval has no end on some side within the search."""
+        return not (math.isfinite(self.low) and math.isfinite(self.high))
+
+
+QUANTITY = {"inertia": {"scale": 1.0},
+            "coulomb": {"scale": 1.0, "coulomb_rel": 1.0},
+            "viscous": {"scale": 1.0, "viscous_rel": 1.0},
+            "speed_kp": {"scale": 1.0, "speed_kp_rel": 1.0}}
+"""Reported quantities in the fitted coordinates (their ``lsq.coordinate`` is the weighted
+sum); any other name is its own coordinate."""
+
+
+def own_coordinate(name: str) -> str:
+    """The fitted coordinate that carries quantity ``name`` (the one held to hold it)."""
+    return {"inertia": "scale"}.get(name, f"{name}_rel" if name in QUANTITY else name)
+
+
+def profile(problem: Problem, sol: Solution, mask: np.ndarray, start: dict[str, AxisParams],
+            names: Sequence[str], reach: dict[str, float]) -> dict[str, dict[str, Profile]]:
+    """The profile intervals of the quantities ``names`` (``QUANTITY``; in
+    ``lsq.coordinate`` units) of every axis whose own coordinate is free in ``sol``.
+
+    Parameters
+    ----------
+    problem, sol, mask, start
+        The problem, its solution (with each axis' Jacobian and residuals), the ticks the
+        cost is taken over and BASE's parameters.
+    names : sequence of str
+        The quantities to profile.
+    reach : dict of str to float
+        How far from the optimum (in the quantity's coordinate) the profile is searched:
+        an interval wider than that is reported open.
+
+    Each side takes one point where the linearised profile crosses the threshold, and a
+    second where the first's rise says the crossing is (secant on the square root of the
+    rise, which is linear in the distance for a quadratic cost) unless the first is within
+    15 % of the threshold; each point costs two replays.
+    """
+    axes = list(problem.axes)
+    crit = {a: threshold(sol.res[a], int(sol.free[a].sum())) for a in axes}
+    sse0 = {a: sol.sse(a) for a in axes}
+    out: dict[str, dict[str, Profile]] = {a: {} for a in axes}
+    for name in names:
+        piv = sol.names.index(own_coordinate(name))
+        todo = [a for a in axes if sol.free[a][piv]]
+        if not todo:
+            continue
+        w = np.array([QUANTITY.get(name, {name: 1.0}).get(n, 0.0) for n in sol.names])
+        dirs, fixed, half = {}, {}, {}
+        for a in todo:
+            others = np.flatnonzero(sol.free[a] & (np.arange(len(w)) != piv))
+            move = np.zeros((len(w), len(others)))   # nuisance moves keeping the quantity
+            for c, j in enumerate(others):
+                move[j, c] = 1.0
+                move[piv, c] = -w[j] / w[piv]
+            along = np.zeros(len(w))
+            along[piv] = 1.0 / w[piv]
+            d = sol.jac[a] @ move
+            dirs[a] = (move, np.linalg.pinv(d) if d.size else np.zeros((0, len(sol.res[a]))))
+            fixed[a] = along
+            g = sol.jac[a] @ along
+            resid = g - d @ (dirs[a][1] @ g) if d.size else g
+            curv = float(resid @ resid)
+            half[a] = math.sqrt(crit[a] / curv) if curv > 0.0 else math.inf
+        x0 = {a: coordinate(sol.params[a], start[a], name) for a in todo}
+        lo_b, hi_b = BOUNDS[own_coordinate(name)] if name not in QUANTITY else (-math.inf,
+                                                                                 math.inf)
+        ends = {a: [math.nan, math.nan] for a in todo}
+        better: dict[str, tuple[float, AxisParams] | None] = {a: None for a in todo}
+        for side, sign in enumerate((-1.0, 1.0)):
+            limit = {a: max(0.0, min(reach[name], (hi_b - x0[a]) if sign > 0
+                                     else (x0[a] - lo_b))) for a in todo}
+            for a in todo:
+                if limit[a] <= 0.0:   # at the bound: the interval ends there
+                    ends[a][side] = x0[a]
+            delta = {a: min(half[a], limit[a]) for a in todo if limit[a] > 0.0}
+            first: dict[str, tuple[float, float]] = {}
+            for attempt in range(2):
+                if not delta:
+                    break
+                rise, moved = _point(problem, sol, mask, start, fixed, dirs,
+                                     {a: sign * d for a, d in delta.items()}, sse0)
+                nxt = {}
+                for a, d in delta.items():
+                    r = rise[a]
+                    if r < -1e-3 * crit[a] and (better[a] is None or r < better[a][0]):
+                        better[a] = (r, moved[a])
+                    q, qr = math.sqrt(crit[a]), math.sqrt(max(r, 0.0))
+                    if r >= crit[a]:   # the end lies inside: secant on sqrt(rise)
+                        d0, q0 = first.get(a, (0.0, 0.0))
+                        if d0 >= d:
+                            d0, q0 = 0.0, 0.0
+                        est = d0 + (d - d0) * (q - q0) / (qr - q0) if qr > q0 else d
+                        ends[a][side] = x0[a] + sign * est
+                        if attempt == 0 and r > 1.15 * crit[a]:
+                            first[a] = (d, qr)
+                            nxt[a] = est
+                    elif d >= limit[a] * (1.0 - 1e-9):
+                        ends[a][side] = math.nan   # open within the reach
+                    else:   # below the threshold: on, as far as the square root says
+                        est = d * q / qr if qr > 0.0 else limit[a]
+                        close = r > 0.85 * crit[a] or attempt == 1
+                        ends[a][side] = (x0[a] + sign * est if close and est < limit[a]
+                                         else math.nan)
+                        if attempt == 0 and r <= 0.85 * crit[a]:
+                            first[a] = (d, qr)
+                            nxt[a] = min(est * 1.05, limit[a])
+                delta = nxt
+        for a in todo:
+            out[a][name] = Profile(ends[a][0], ends[a][1], half[a], better[a])
+    return out
+
+
+def _point(problem: Problem, sol: Solution, mask: np.ndarray, start: dict[str, AxisParams],
+           fixed: dict[str, np.ndarray], dirs: dict[str, tuple[np.ndarray, np.ndarray]],
+           delta: dict[str, float], sse0: dict[str, float]
+           ) -> tuple[dict[str, float], dict[str, AxisParams]]:
+    """The cost's rise with the quantity moved by ``delta[axis]`` and the nuisance
+    re-fitted (two Gauss-Newton steps on the optimum's Jacobian, each replayed; the lower
+    cost is kept). Returns the rise and the parameters there, per axis."""
+    x0 = {a: np.array([coordinate(sol.params[a], start[a], n) for n in sol.names])
+          for a in delta}
+    first, t = dict(sol.params), {}
+    for a, d in delta.items():
+        move, pinv = dirs[a]
+        z = -pinv @ (sol.res[a] + sol.jac[a] @ (fixed[a] * d))
+        t[a] = fixed[a] * d + move @ z
+        first[a] = _at(sol, start, a, x0[a] + t[a])
+    r1 = problem.residuals(first, mask)
+    second = dict(first)
+    for a in delta:
+        move, pinv = dirs[a]
+        second[a] = _at(sol, start, a, x0[a] + t[a] + move @ (-pinv @ r1[a]))
+    r2 = problem.residuals(second, mask)
+    rise, moved = {}, {}
+    for a in delta:
+        s1, s2 = float(r1[a] @ r1[a]), float(r2[a] @ r2[a])
+        rise[a], moved[a] = (s1 - sse0[a], first[a]) if s1 <= s2 else (s2 - sse0[a],
+                                                                         second[a])
+    return rise, moved
+
+
+def _at(sol: Solution, start: dict[str, AxisParams], a: str, x: np.ndarray) -> AxisParams:
+    on = sol.free[a]
+    names = [n for n, f in zip(sol.names, on, strict=True) if f]
+    return with_coordinates(sol.params[a], start[a], names, x[on])
