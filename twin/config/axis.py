@@ -1,6 +1,7 @@
 """The sections of one axis in a machine file: mechanics, transmission, switches, encoder,
-motor, converter, tacho, DAC, speed loop and limits (each field with its unit and physical
-range, ``twin.config.fields``), and ``AxisConfig``, which gathers them.
+motor, converter, tacho, DAC, speed loop, the drive's regulator settings and limits (each
+field with its unit and physical range, ``twin.config.fields``), and ``AxisConfig``, which
+gathers them.
 """
 
 from __future__ import annotations
@@ -12,8 +13,8 @@ from twin.config.fields import Validated, choice, flag, num
 from twin.errors import ConfigError
 
 __all__ = ["STIFFNESS_RANGE", "AxisConfig", "ConverterConfig", "DacConfig", "EncoderConfig",
-           "LimitsConfig", "MechanicsConfig", "MotorConfig", "SpeedLoopConfig", "SwitchConfig",
-           "TachoConfig", "TransmissionConfig"]
+           "LimitsConfig", "MechanicsConfig", "MotorConfig", "RegulatorsConfig",
+           "SpeedLoopConfig", "SwitchConfig", "TachoConfig", "TransmissionConfig"]
 
 STIFFNESS_RANGE = (1e3, 1e11)
 """Range of each stiffness component of a transmission (N/m): a soft belt to a stiff
@@ -164,6 +165,9 @@ class MotorConfig(Validated):
                                      doc="armature circuit inductance")
     current_limit_factor: float = num(2.5, "1", ge=0.1, le=10.0,
                                       doc="current limit over rated current")
+    brush_drop: float = num(0.0, "V", ge=0, le=10.0,
+                            doc="brush contact drop, both brushes together, against the "
+                            "current while it flows (1-2 V for carbon brushes); 0 = none")
 
     def _check(self) -> None:
         emf = self.emf_constant * self.rated_speed
@@ -217,9 +221,31 @@ class ConverterConfig(Validated):
     firing unit inverts the discontinuous characteristic; integral control per pulse)."""
     reversal_pause: float = num(2e-3, "s", ge=0, le=0.1,
                                 doc="current-zero pause at bridge reversal")
-    min_firing_angle: float = num(0.0, "rad", ge=0, le=math.pi, doc="smallest firing angle")
+    min_firing_angle: float = num(0.0, "rad", ge=0, le=math.pi,
+                                  doc="smallest firing angle (real drives: 10-30°)")
     max_firing_angle: float = num(math.radians(150.0), "rad", gt=0, le=math.pi,
-                                  doc="largest firing angle (inverter limit)")
+                                  doc="largest firing angle, the inverter limit (about 150°)")
+    thyristor_threshold: float = num(0.0, "V", ge=0, le=5.0,
+                                     doc="on-state threshold voltage of one thyristor "
+                                     "(about 0.8-1.2 V); 0 = none")
+    thyristor_resistance: float = num(0.0, "Ω", ge=0, le=10.0,
+                                      doc="on-state slope resistance of one thyristor; 0 = "
+                                      "none")
+    latching_current: float = num(0.0, "A", ge=0, le=10.0,
+                                  doc="a fired thyristor stays on after its gate pulse only "
+                                  "if its current reached this; 0 = always")
+    holding_current: float = num(0.0, "A", ge=0, le=10.0,
+                                 doc="without gate current a thyristor turns off when its "
+                                 "current falls below this (<= latching_current); 0 = at zero")
+    gate_pulse_width: float = num(0.0, "s", ge=0, le=0.02,
+                                  doc="length of each firing's gate pulse; 0 = long pulses, "
+                                  "on until the next firing")
+    smoothing_inductance: float = num(0.0, "H", ge=0, le=1.0,
+                                      doc="smoothing reactor in series with the armature; 0 "
+                                      "= none")
+    mains_deviation: float = num(0.0, "1", ge=-0.3, le=0.3,
+                                 doc="relative deviation of the actual mains voltage from "
+                                 "line_voltage (the plant's; the regulators do not know it)")
     dc_link_voltage: float = num(0.0, "V", ge=0, le=1e4, doc="pwm: DC link voltage")
     pwm_frequency: float = num(0.0, "Hz", ge=0, le=1e6, doc="pwm: switching frequency")
 
@@ -233,7 +259,14 @@ class ConverterConfig(Validated):
             raise ConfigError("pwm_frequency", f"must lie in [100, 1e+06] Hz for a pwm "
                               f"converter, got {self.pwm_frequency:g}")
         if self.kind == "thyristor" and not self.min_firing_angle < self.max_firing_angle:
-            raise ConfigError("max_firing_angle", "must exceed min_firing_angle")
+            raise ConfigError("min_firing_angle", f"must be below max_firing_angle "
+                              f"({math.degrees(self.max_firing_angle):.4g}°), got "
+                              f"{math.degrees(self.min_firing_angle):.4g}°")
+        if self.holding_current > self.latching_current:
+            raise ConfigError("holding_current", f"must not exceed latching_current "
+                              f"({self.latching_current:g} A): a thyristor's latching "
+                              f"current is at least its holding current, got "
+                              f"{self.holding_current:g} A")
         if self.kind == "thyristor" and self.pulse_number not in (3, 6):
             raise ConfigError("pulse_number", f"must be 6 (bridge) or 3 (midpoint circuit), "
                               f"got {self.pulse_number}")
@@ -262,6 +295,14 @@ class ConverterConfig(Validated):
             p = self.pulse_number
             return p / math.pi * math.sin(math.pi / p) * self.peak_voltage
         return self.dc_link_voltage
+
+    @property
+    def series_devices(self) -> int:
+        """Thyristors in series with the armature while a pair conducts: 2 (bridge), 1
+        (midpoint circuit); a PWM bridge: 0 (its drops are not modelled)."""
+        if self.kind != "thyristor":
+            return 0
+        return 2 if self.pulse_number == 6 else 1
 
     @property
     def series_phases(self) -> int:
@@ -320,15 +361,51 @@ class DacConfig(Validated):
 
 @dataclass(frozen=True, kw_only=True)
 class SpeedLoopConfig(Validated):
-    """Speed loop of the drive. The regulator constants are derived in code from the motor
-    and converter by the tuning rules (modulus optimum for current, symmetric optimum for
-    speed); only the design choices live here."""
+    """Speed loop of the drive: the design choices. The regulator constants are derived in
+    code from the motor and converter by the tuning rules (modulus optimum for current,
+    symmetric optimum for speed) unless the ``regulators`` section sets them."""
 
     reference_filter: float | None = num(
         None, "s", ge=0, le=1.0, doc="T1, filter on the speed reference; None: a²·T_σ (SO "
         "rule)")
     symmetric_optimum_a: float = num(2.0, "1", ge=1.2, le=100.0,
                                      doc="SO spacing factor a (a=2: classic)")
+
+
+IMPLEMENTATIONS = ("digital", "analog")
+"""How the drive's regulators are built (``RegulatorsConfig.implementation``)."""
+
+
+@dataclass(frozen=True, kw_only=True)
+class RegulatorsConfig(Validated):
+    """How the drive on the machine is actually set: its current and speed PI regulators.
+
+    Each gain or integral time left out (None) is the value ``twin.drive.design`` derives
+    (modulus optimum for the current loop, symmetric optimum for the speed loop); a value
+    given replaces that one value only, as a potentiometer set at commissioning does.
+    ``implementation`` says how the regulators are built: ``"digital"`` (sampled at the
+    firing instants, the current measured as the pulse mean) or ``"analog"`` (op-amp PI
+    regulators that integrate continuously, the current measured through a shunt and an RC
+    filter of ``current_filter``; the firing unit takes the control voltage at each firing).
+    """
+
+    current_kp: float | None = num(None, "V/A", gt=0, le=1e4,
+                                   doc="current regulator gain; None: L/(2·T_μ) (modulus "
+                                   "optimum)")
+    current_ti: float | None = num(None, "s", gt=0, le=10.0,
+                                   doc="current regulator integral time; None: L/R")
+    speed_kp: float | None = num(None, "A/V", gt=0, le=1e4,
+                                 doc="speed regulator gain; None: J/(a·T_σ·K_C·k) "
+                                 "(symmetric optimum)")
+    speed_ti: float | None = num(None, "s", gt=0, le=100.0,
+                                 doc="speed regulator integral time; None: a²·T_σ")
+    implementation: str = choice("digital", IMPLEMENTATIONS,
+                                 "digital: sampled at the firing instants, pulse-mean "
+                                 "current; analog: continuous op-amp PI, current through a "
+                                 "shunt and an RC filter")
+    current_filter: float = num(1e-3, "s", ge=0, le=0.1,
+                                doc="analog: RC filter on the shunt's current signal; 0 = "
+                                "none")
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -353,15 +430,34 @@ class AxisConfig(Validated):
     tacho: TachoConfig
     dac: DacConfig = field(default_factory=DacConfig)
     speed_loop: SpeedLoopConfig = field(default_factory=SpeedLoopConfig)
+    regulators: RegulatorsConfig = field(default_factory=RegulatorsConfig)
     limits: LimitsConfig
 
     def _check(self) -> None:
+        self._check_drive()
         lo, hi = self.mechanics.travel
         for name in ("limit_min", "limit_max", "home"):
             pos = getattr(self.switches, name)
             if not lo <= pos <= hi:
                 raise ConfigError(f"switches.{name}", f"must lie within mechanics.travel "
                                   f"[{lo:g}, {hi:g}] m, got {pos:g}")
+
+    def _check_drive(self) -> None:
+        """What the drive model covers: the low-current physics of a thyristor converter,
+        pulse-level where it is about pulses; the analog regulators of the pulse-level one."""
+        conv = self.converter
+        if self.motor.brush_drop > 0.0 and conv.kind != "thyristor":
+            raise ConfigError("motor.brush_drop", "is modelled with a thyristor converter "
+                              "(current of one sign per bridge); set 0 for a pwm converter")
+        if conv.model != "pulse":
+            for name in ("latching_current", "holding_current", "gate_pulse_width"):
+                if getattr(conv, name) > 0.0:
+                    raise ConfigError(f"converter.{name}", "acts on the converter's pulses: "
+                                      "it needs converter.model = 'pulse'")
+            if self.regulators.implementation == "analog":
+                raise ConfigError("regulators.implementation", "'analog' is modelled with "
+                                  "the pulse-level thyristor converter (converter.model = "
+                                  "'pulse')")
 
     @property
     def counts_per_metre(self) -> float:

@@ -19,15 +19,28 @@ Converter small time constant
     models. The pulse-level thyristor model (:mod:`twin.drive.pulse`) measures, as a real
     digital drive does, the *pulse-mean* current (the average over the last firing period:
     the instantaneous current carries the pulse ripple); that moving average delays by
-    another T_p/2, so there **T_μ = T_p** (3.33 ms). The converter gain is 1: the current
+    another T_p/2, so there **T_μ = T_p** (3.33 ms). An analog drive
+    (``regulators.implementation = "analog"``) measures the current through a shunt and an
+    RC filter T_fi (``regulators.current_filter``) and its firing unit takes the control
+    voltage at the firing instants: **T_μ = T_p/2 + T_fi**, the textbook sum of the
+    converter's dead time and the feedback filter. The converter gain is 1: the current
     regulator's output is the mean voltage itself (the arccos firing law makes the bridge
     linear in it in continuous conduction; the discontinuous-conduction compensation
     restores that gain below the boundary current).
 
-Line inductance
-    A commutating inductance L_c per phase lies in series with the armature while a pair
-    conducts (two phases for the bridge, one for the midpoint circuit): the current loop is
-    designed on L_eff = L + n·L_c.
+Armature circuit
+    The current loop is designed on the whole circuit a commissioning engineer measures:
+    R_eff = R + n_d·r_T (the slope resistance r_T of the n_d thyristors in series: 2 for the
+    bridge, 1 for the midpoint circuit) and L_eff = L + L_s + n·L_c (the smoothing reactor
+    L_s and the commutating inductance L_c of the n phases in series with a conducting
+    pair). The constant drops (brushes, thyristor thresholds) and the mains' deviation from
+    its rating are the plant's alone: the design does not know them.
+
+The machine's own settings
+    The ``regulators`` section of the machine file holds what the drive on the machine is
+    set to. Each of ``current_kp``, ``current_ti``, ``speed_kp`` and ``speed_ti`` that it
+    gives replaces the derived value below (and only that one); the others stay derived.
+    ``DriveDesign.regulator_overrides`` names the ones that came from the file.
 
 Current loop: modulus optimum (MO, "technical optimum")
     Plant from mean voltage to current, the back-EMF being compensated (below):
@@ -108,20 +121,26 @@ class DriveDesign:
         Line inductances in series with a conducting pair (2 bridge, 1 midpoint).
     dcm_compensation : bool
         The pulse-level drive's current regulator adapts to discontinuous conduction.
+    implementation : str
+        ``"digital"`` (regulators sampled at the firing instants, pulse-mean current) or
+        ``"analog"`` (continuous PI regulators, current through an RC filter).
+    current_filter : float
+        T_fi, the analog drive's filter on the measured current (s); 0 for a digital drive.
     sampling_period : float
         T_p, time between firing instants = regulator sampling period (s).
     converter_time_constant : float
         T_μ, equivalent lag of the sampled converter and current measurement (s): T_p/2,
-        or T_p for the pulse-level model (pulse-mean current).
+        T_p for the pulse-level model (pulse-mean current), T_p/2 + T_fi for an analog
+        drive.
     max_voltage : float
         U_d0 = 1.35·U_LL for the bridge, the DC link voltage for PWM (V).
     voltage_range : tuple of float
         (lowest, highest) mean voltage of the forward converter (V): U_d0·cos α_max and
         U_d0·cos α_min for the bridge (the reverse bridge mirrors it), ±U_dc for PWM.
     resistance : float
-        Armature resistance R (Ω).
+        Resistance the current loop sees, R_eff = R + n_d·r_T (Ω).
     inductance : float
-        Inductance the current loop sees, L_eff = L + n·L_c (H).
+        Inductance the current loop sees, L_eff = L + L_s + n·L_c (H).
     emf_constant : float
         k, back-EMF k·ω and torque k·i (V·s/rad = N·m/A).
     armature_time_constant : float
@@ -131,9 +150,10 @@ class DriveDesign:
     mechanical_time_constant : float
         T_m = J·R/k² (s).
     current_kp : float
-        K_pi = L_eff/(2·T_μ), proportional gain of the current regulator (V/A).
+        Proportional gain of the current regulator (V/A): ``regulators.current_kp``, or
+        K_pi = L_eff/(2·T_μ).
     current_ti : float
-        T_ii = T_a, integral time of the current regulator (s).
+        Integral time of the current regulator (s): ``regulators.current_ti``, or T_ii = T_a.
     current_loop_time_constant : float
         T_ie = 2·T_μ, equivalent first-order lag of the closed current loop (s).
     current_limit : float
@@ -149,13 +169,17 @@ class DriveDesign:
     symmetric_optimum_a : float
         Spacing factor a of the symmetric optimum (1).
     speed_kp : float
-        K_pω = J/(a·T_σ·K_C·k), proportional gain of the speed regulator (A/V).
+        Proportional gain of the speed regulator (A/V): ``regulators.speed_kp``, or
+        K_pω = J/(a·T_σ·K_C·k).
     speed_ti : float
-        T_iω = a²·T_σ, integral time of the speed regulator (s).
+        Integral time of the speed regulator (s): ``regulators.speed_ti``, or T_iω = a²·T_σ.
     reference_filter : float
         T1, reference filter time constant (s); 0 means no filter.
     bridge_threshold : float
         Current reference magnitude that makes the bridge logic select a bridge (A).
+    regulator_overrides : tuple of str
+        The regulator settings taken from the machine file's ``regulators`` section
+        (``current_kp``, ``current_ti``, ``speed_kp``, ``speed_ti``); the rest are derived.
     """
 
     converter: str
@@ -188,6 +212,9 @@ class DriveDesign:
     speed_ti: float
     reference_filter: float
     bridge_threshold: float
+    implementation: str = "digital"
+    current_filter: float = 0.0
+    regulator_overrides: tuple[str, ...] = ()
 
     def __post_init__(self) -> None:
         if self.converter not in ("thyristor", "pwm"):
@@ -198,6 +225,14 @@ class DriveDesign:
         if not 0.0 < hi <= self.max_voltage * (1.0 + 1e-12):
             raise ConfigError("voltage_range", f"highest voltage {hi} must lie in "
                               f"(0, max_voltage = {self.max_voltage}]")
+        if self.implementation not in ("digital", "analog"):
+            raise ConfigError("implementation", f"must be 'digital' or 'analog', got "
+                              f"{self.implementation!r}")
+
+    @property
+    def current_regulator_designed(self) -> bool:
+        """Both current-regulator settings are the modulus optimum's (none from the file)."""
+        return not {"current_kp", "current_ti"} & set(self.regulator_overrides)
 
     @property
     def crossover(self) -> float:
@@ -250,15 +285,23 @@ def design(axis: AxisConfig, *, moving_mass: float | None = None,
     Returns
     -------
     DriveDesign
-        T_μ = T_p/2 (T_p pulse-level); current PI by the modulus optimum (K_pi =
-        L_eff/(2·T_μ), T_ii = L_eff/R); speed
-        PI by the symmetric optimum (K_pω = J/(a·T_σ·K_C·k), T_iω = a²·T_σ, T_σ = 2·T_μ + T_f);
-        T1 = a²·T_σ unless ``speed_loop.reference_filter`` is set.
+        T_μ = T_p/2 (T_p pulse-level digital, T_p/2 + T_fi analog); current PI by the
+        modulus optimum (K_pi = L_eff/(2·T_μ), T_ii = L_eff/R_eff); speed PI by the
+        symmetric optimum (K_pω = J/(a·T_σ·K_C·k), T_iω = a²·T_σ, T_σ = 2·T_μ + T_f);
+        T1 = a²·T_σ unless ``speed_loop.reference_filter`` is set; each of the four PI
+        settings that the machine file's ``regulators`` section gives replaces its derived
+        value.
     """
     motor, conv, tacho, loop = axis.motor, axis.converter, axis.tacho, axis.speed_loop
+    reg = axis.regulators
     t_p = conv.firing_period
     pulse = conv.kind == "thyristor" and conv.model == "pulse"
-    t_mu = t_p if pulse else 0.5 * t_p
+    analog = reg.implementation == "analog"
+    t_fi = reg.current_filter if analog else 0.0
+    if analog:
+        t_mu = 0.5 * t_p + t_fi
+    else:
+        t_mu = t_p if pulse else 0.5 * t_p
     u_max = conv.max_voltage
     if conv.kind == "thyristor":
         voltage_range = (u_max * math.cos(conv.max_firing_angle),
@@ -269,15 +312,22 @@ def design(axis: AxisConfig, *, moving_mass: float | None = None,
                               f"{math.degrees(conv.min_firing_angle):.1f}°")
     else:
         voltage_range = (-u_max, u_max)
-    r_a, k = motor.armature_resistance, motor.emf_constant
+    k = motor.emf_constant
     thyristor = conv.kind == "thyristor"
     series = conv.series_phases if thyristor else 0
-    l_a = motor.armature_inductance + series * conv.line_inductance
+    r_a = motor.armature_resistance + conv.series_devices * conv.thyristor_resistance
+    l_a = (motor.armature_inductance + conv.smoothing_inductance
+           + series * conv.line_inductance)
     t_a = l_a / r_a
     j = axis_inertia(axis, moving_mass)
     t_sigma = 2.0 * t_mu + tacho.filter_time_constant
     a = loop.symmetric_optimum_a
     t1 = a * a * t_sigma if loop.reference_filter is None else loop.reference_filter
+    derived = {"current_kp": l_a / (2.0 * t_mu), "current_ti": t_a,
+               "speed_kp": j / (a * t_sigma * tacho.gain * k), "speed_ti": a * a * t_sigma}
+    overrides = tuple(name for name in derived if getattr(reg, name) is not None)
+    settings = {name: getattr(reg, name) if name in overrides else value
+                for name, value in derived.items()}
     return DriveDesign(
         converter=conv.kind,
         model=conv.model if thyristor else "mean",
@@ -296,8 +346,8 @@ def design(axis: AxisConfig, *, moving_mass: float | None = None,
         armature_time_constant=t_a,
         inertia=j,
         mechanical_time_constant=j * r_a / (k * k),
-        current_kp=l_a / (2.0 * t_mu),
-        current_ti=t_a,
+        current_kp=settings["current_kp"],
+        current_ti=settings["current_ti"],
         current_loop_time_constant=2.0 * t_mu,
         current_limit=motor.current_limit,
         emf_compensation=bool(emf_compensation),
@@ -305,8 +355,11 @@ def design(axis: AxisConfig, *, moving_mass: float | None = None,
         tacho_filter=tacho.filter_time_constant,
         small_time_constant=t_sigma,
         symmetric_optimum_a=a,
-        speed_kp=j / (a * t_sigma * tacho.gain * k),
-        speed_ti=a * a * t_sigma,
+        speed_kp=settings["speed_kp"],
+        speed_ti=settings["speed_ti"],
         reference_filter=t1,
         bridge_threshold=BRIDGE_THRESHOLD_FRACTION * motor.current_limit,
+        implementation=reg.implementation,
+        current_filter=t_fi,
+        regulator_overrides=overrides,
     )
