@@ -56,6 +56,7 @@ import numpy as np
 from twin.config import AXES, MachineConfig
 from twin.errors import FitError
 from twin.identify.direct import coast_regression, limit_inertia, lost_motion, regress_gains
+from twin.identify.drive_fit import SPEED_LOOP, DcmDecision, fit_speed_loop
 from twin.identify.joint import TOLERANCE, joint_fit
 from twin.identify.log import IdentLog
 from twin.identify.lsq import BOUNDS, coordinate, scan_mains_phase, solve, with_coordinate
@@ -73,7 +74,7 @@ __all__ = ["NOT_EXCITED", "NOT_IDENTIFIABLE", "REPLAYED_PARAMS", "TOLERANCE", "E
            "Identification", "fit"]
 
 REPLAYED_PARAMS = ("inertia", "coulomb", "viscous", "breakaway", "resistance",
-                   "inductance")
+                   "inductance", "speed_kp", "speed_ti", "reference_filter")
 """The parameters the last stage fits together on the replayed experiments."""
 
 NOT_IDENTIFIABLE = {
@@ -85,6 +86,10 @@ NOT_IDENTIFIABLE = {
                                                       "every current-limited motion",
     "tacho.filter_time_constant": "1 ms, far below the speed loop's response",
     "converter (line voltage, mains, firing limits)": "no signal of the converter's own",
+    "regulators.current_kp, regulators.current_ti": "the current loop is ten times faster "
+        "than the speed loop; on the tacho it shows only as the armature's R and L",
+    "motor.brush_drop, converter thyristor drops": "both loops' integrators take them up "
+        "wherever current flows continuously",
 }
 """Fields the encoder, tacho and DAC cannot recover, and why; kept from BASE."""
 
@@ -92,11 +97,16 @@ NOT_EXCITED = "not excited (held in position: --axes left it out); BASE's value 
 """The source of every value of an axis the experiments did not excite."""
 
 _SOURCE = {"tacho_gain": "steps (steady speeds)", "gain_error": "steps (steady speeds)",
-           "offset": "steps (steady speeds)", "inertia": "steps (current limit), prbs",
-           "coulomb": "coast, steps (current limit)", "viscous": "coast, steps, prbs",
+           "offset": "steps (steady speeds)",
+           "inertia": "steps (current-limited reversals: k·I_m/J)",
+           "coulomb": "coast (over J), with the inertia",
+           "viscous": "coast (over J), steps, with the inertia",
            "breakaway": "coast (to rest), steps (starts from rest)",
            "backlash": "crossings (home switch)",
-           "resistance": "prbs", "inductance": "prbs"}
+           "resistance": "steps (current rise), prbs", "inductance": "prbs",
+           "speed_kp": "steps, prbs (below the limit: K_p/J), with the inertia",
+           "speed_ti": "steps, prbs (the speed loop's integral response)",
+           "reference_filter": "steps (the first rise of each step), prbs"}
 
 
 @dataclass(frozen=True)
@@ -168,6 +178,11 @@ class Identification:
     curves: dict[str, np.ndarray] = field(default_factory=dict)
     mains_phase: float | None = None
     """The log's mains phase the replays used (rad; None for PWM drives)."""
+    cpu_time: float = 0.0
+    """CPU time of the fit (s): its wall time on a machine of its own."""
+    dcm: dict[str, DcmDecision] = field(default_factory=dict)
+    """Per excited axis: whether the drive's current regulator adapts to discontinuous
+    conduction, as the model selection decided."""
     linear: dict[str, dict[str, float]] = field(default_factory=dict)
     """Per axis and replayed parameter: the linearised 95 % half-interval at the optimum
     (in the fitted coordinate), what the Jacobian alone would have said."""
@@ -191,7 +206,7 @@ def fit(base: MachineConfig, log: IdentLog, *,
     FitError
         The fit did not converge, or its parameters are not finite.
     """
-    t0 = time.perf_counter()
+    t0, cpu0 = time.perf_counter(), time.process_time()
     say = progress or (lambda _msg: None)
     log.check(base)
     problem = Problem(base, log)
@@ -210,9 +225,21 @@ def fit(base: MachineConfig, log: IdentLog, *,
         if math.isfinite(c) and c > 0.0 and math.isfinite(v) and v > 0.0:
             params[a] = params[a].with_(coulomb=c, viscous=v)
     scan_mains_phase(problem, params)
+    # 3. the speed loop below its current limit (gain over inertia, integral time, reference
+    #    filter), for both models of the current regulator; then the inertia, with the
+    #    friction and the gain in proportion, from the current-limited reversals
+    loop = log.experiment_mask(("steps", "prbs"))
+    params, dcm = fit_speed_loop(problem, params, start, loop)
+    for a in axes:
+        d = dcm[a]
+        say(f"axis {a}: discontinuous-conduction adaptation "
+            + (("present" if d.present else "absent") + f" (BIC difference {d.bic:+.0f})"
+               if d.decided else f"undecided (BIC difference {d.bic:+.1f}); BASE's "
+               f"choice kept: {'present' if d.present else 'absent'}"))
     steps = log.experiment_mask("steps")
     params = _scan_scale(problem, params, start, steps, limit_inertia(problem, params))
-    params = solve(problem, params, ["scale", "resistance"], steps, start, max_nfev=8).params
+    params = solve(problem, params, ["scale", "resistance", *SPEED_LOOP], loop, start,
+                   max_nfev=6).params
     scan_mains_phase(problem, params)
     say("inertia: " + ", ".join(f"{a} {params[a].inertia:.4g} kg·m²" for a in axes))
     # 3. friction: the coast-downs (friction alone)
@@ -301,6 +328,8 @@ def fit(base: MachineConfig, log: IdentLog, *,
                             time.perf_counter() - t0, curves)
     result.mains_phase = problem.mains_phase
     result.linear = joint.linear
+    result.dcm = {a: dcm[a] for a in axes}
+    result.cpu_time = time.process_time() - cpu0
     return result
 
 

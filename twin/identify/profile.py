@@ -123,10 +123,10 @@ def profile(problem: Problem, sol: Solution, mask: np.ndarray, start: dict[str, 
         How far from the optimum (in the quantity's coordinate) the profile is searched:
         an interval wider than that is reported open.
 
-    Each side takes one point where the linearised profile crosses the threshold, and a
-    second where the first's rise says the crossing is (secant on the square root of the
-    rise, which is linear in the distance for a quadratic cost) unless the first is within
-    15 % of the threshold; each point costs two replays.
+    Each side takes one point where the linearised profile crosses the threshold; the end
+    is placed where that point's rise says (the square root of the rise is linear in the
+    distance for a quadratic cost), and checked by a second point where the first rose to
+    less than half or more than twice the threshold; each point costs two replays.
     """
     axes = list(problem.axes)
     crit = {a: threshold(sol.res[a], int(sol.free[a].sum())) for a in axes}
@@ -148,7 +148,9 @@ def profile(problem: Problem, sol: Solution, mask: np.ndarray, start: dict[str, 
             along = np.zeros(len(w))
             along[piv] = 1.0 / w[piv]
             d = sol.jac[a] @ move
-            dirs[a] = (move, np.linalg.pinv(d) if d.size else np.zeros((0, len(sol.res[a]))))
+            # a relative cut-off: columns that trade off exactly must not blow the step up
+            dirs[a] = (move, np.linalg.pinv(d, rcond=1e-7) if d.size
+                       else np.zeros((0, len(sol.res[a]))))
             fixed[a] = along
             g = sol.jac[a] @ along
             resid = g - d @ (dirs[a][1] @ g) if d.size else g
@@ -184,17 +186,17 @@ def profile(problem: Problem, sol: Solution, mask: np.ndarray, start: dict[str, 
                             d0, q0 = 0.0, 0.0
                         est = d0 + (d - d0) * (q - q0) / (qr - q0) if qr > q0 else d
                         ends[a][side] = x0[a] + sign * est
-                        if attempt == 0 and r > 1.15 * crit[a]:
+                        if attempt == 0 and r > 2.0 * crit[a]:
                             first[a] = (d, qr)
                             nxt[a] = est
                     elif d >= limit[a] * (1.0 - 1e-9):
                         ends[a][side] = math.nan   # open within the reach
                     else:   # below the threshold: on, as far as the square root says
                         est = d * q / qr if qr > 0.0 else limit[a]
-                        close = r > 0.85 * crit[a] or attempt == 1
+                        close = r > 0.5 * crit[a] or attempt == 1
                         ends[a][side] = (x0[a] + sign * est if close and est < limit[a]
                                          else math.nan)
-                        if attempt == 0 and r <= 0.85 * crit[a]:
+                        if attempt == 0 and r <= 0.5 * crit[a]:
                             first[a] = (d, qr)
                             nxt[a] = min(est * 1.05, limit[a])
                 delta = nxt

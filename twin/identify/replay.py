@@ -19,6 +19,7 @@ import numpy as np
 from twin.config import AXES, MachineConfig
 from twin.controller.encoder import EncoderUnwrapper
 from twin.controller.io import Inputs
+from twin.drive.design import design
 from twin.identify.log import IdentLog
 from twin.plant import Plant
 
@@ -48,6 +49,15 @@ class AxisParams:
         Lost motion of gear and nut (m).
     resistance, inductance : float
         Armature R (Ω) and L (H).
+    speed_kp, speed_ti : float
+        The drive's speed regulator: gain (A/V) and integral time (s).
+    reference_filter : float
+        The drive's speed-reference filter T1 (s).
+    current_kp, current_ti : float
+        The drive's current regulator: gain (V/A) and integral time (s).
+    dcm_compensation : float
+        1: the current regulator adapts to discontinuous conduction; 0: it does not (a
+        model choice the fit makes by comparing both, never a fitted coordinate).
     """
 
     tacho_gain: float
@@ -60,6 +70,12 @@ class AxisParams:
     backlash: float
     resistance: float
     inductance: float
+    speed_kp: float
+    speed_ti: float
+    reference_filter: float
+    current_kp: float
+    current_ti: float
+    dcm_compensation: float
 
     def to_dict(self) -> dict[str, float]:
         """Plain dict."""
@@ -75,24 +91,36 @@ NAMES = tuple(f.name for f in fields(AxisParams))
 
 
 def base_params(base: MachineConfig) -> dict[str, AxisParams]:
-    """The parameters BASE has (the fit's starting point)."""
+    """The parameters BASE has (the fit's starting point); its drive's settings are what
+    ``design`` gives for it (the file's, or the derived ones where the file has none)."""
     out = {}
+    moved = base.moving_masses()
     for a in AXES:
         ax = base.axes[a]
         m = ax.mechanics
+        d = design(ax, moving_mass=moved[a])
         ratio = m.breakaway("rotor") / m.rotor_coulomb if m.rotor_coulomb > 0 else 1.0
         out[a] = AxisParams(tacho_gain=ax.tacho.gain, gain_error=ax.dac.gain_error,
                             offset=ax.dac.offset, inertia=m.rotor_inertia, coulomb=1.0,
                             viscous=1.0, breakaway=max(ratio, 1.0),
                             backlash=ax.transmission.backlash,
                             resistance=ax.motor.armature_resistance,
-                            inductance=ax.motor.armature_inductance)
+                            inductance=ax.motor.armature_inductance,
+                            speed_kp=d.speed_kp, speed_ti=d.speed_ti,
+                            reference_filter=d.reference_filter, current_kp=d.current_kp,
+                            current_ti=d.current_ti,
+                            dcm_compensation=1.0 if ax.converter.dcm_compensation else 0.0)
     return out
 
 
 def candidate(base: MachineConfig, params: dict[str, AxisParams]) -> MachineConfig:
-    """BASE with every field ``params`` sets replaced (validated as any machine file)."""
-    sets: dict[str, float] = {}
+    """BASE with every field ``params`` sets replaced (validated as any machine file).
+
+    The drive's regulator settings are written out, never derived again from the
+    candidate's inertia, resistance and inductance: the drive on a machine is set once, at
+    commissioning, and does not retune itself to a different motor (a mistuned drive is
+    then one the fit can represent, and the inertia shows in the speed loop's response)."""
+    sets: dict[str, float | bool] = {}
     for a in AXES:
         p, m = params[a], base.axes[a].mechanics
         pre = f"axes.{a}"
@@ -113,7 +141,14 @@ def candidate(base: MachineConfig, params: dict[str, AxisParams]) -> MachineConf
             f"{pre}.transmission.backlash": p.backlash,
             f"{pre}.motor.armature_resistance": p.resistance,
             f"{pre}.motor.armature_inductance": p.inductance,
+            f"{pre}.regulators.speed_kp": p.speed_kp,
+            f"{pre}.regulators.speed_ti": p.speed_ti,
+            f"{pre}.regulators.current_kp": p.current_kp,
+            f"{pre}.regulators.current_ti": p.current_ti,
+            f"{pre}.speed_loop.reference_filter": p.reference_filter,
         })
+        if base.axes[a].converter.kind == "thyristor":
+            sets[f"{pre}.converter.dcm_compensation"] = bool(p.dcm_compensation)
     return base.with_overrides(sets)
 
 

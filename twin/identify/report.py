@@ -40,6 +40,9 @@ FIELDS = {
     "backlash": ("transmission.backlash", "µm", 1e6),
     "resistance": ("motor.armature_resistance", "Ω", 1.0),
     "inductance": ("motor.armature_inductance", "mH", 1e3),
+    "speed_kp": ("regulators.speed_kp", "A/V", 1.0),
+    "speed_ti": ("regulators.speed_ti", "ms", 1e3),
+    "reference_filter": ("speed_loop.reference_filter", "ms", 1e3),
 }
 """Per fitted parameter: the machine-file field(s) it sets, the unit it is quoted in and the
 factor from SI to that unit."""
@@ -87,6 +90,11 @@ def header_lines(result: Identification, base: MachineConfig, log: IdentLog,
             e = result.estimates[a][name]
             mark = "" if e.identifiable else "   WARNING: " + not_identified(e)
             lines.append(f"  {where} = {_quote(e, scale)} {unit}  <- {e.source}{mark}")
+        if a in result.dcm:
+            d = result.dcm[a]
+            lines.append(f"  converter.dcm_compensation = {str(d.present).lower()}  <- steps, "
+                         f"prbs (model selection: BIC without − with {d.bic:+.1f}"
+                         + (")" if d.decided else "; UNDECIDED, BASE's choice kept)"))
         d = derived[a]
         lines.append(f"  => K_H {1e3 * d['K_H']:.5g} mm/(s·V), Coulomb at the motor "
                      f"{d['coulomb_at_motor']:.4g} N·m, viscous at the motor "
@@ -123,6 +131,8 @@ def summary(result: Identification, base: MachineConfig, log: IdentLog) -> dict[
                               "kept": e.kept, "given": list(e.given)}
                           for k, e in result.estimates[a].items()} for a in AXES},
         "derived": result.derived(),
+        "dcm_compensation": {a: {"present": d.present, "bic": d.bic, "decided": d.decided}
+                             for a, d in result.dcm.items()},
         "nrmse": result.nrmse,
         "residual": result.residual,
         "mains_phase_rad": result.mains_phase,
@@ -130,6 +140,7 @@ def summary(result: Identification, base: MachineConfig, log: IdentLog) -> dict[
         "machine_time_s": log.ticks * base.controller.period,
         "experiments_wall_time_s": log.notes.get("wall_time_s"),
         "fit_wall_time_s": result.wall_time,
+        "fit_cpu_time_s": result.cpu_time,
         "replays": result.replays,
     }
 

@@ -1,0 +1,126 @@
+"""The fit's least squares and profile intervals on problems whose answer is known in closed
+form: a linear model in the fitted coordinates, with white noise, stands in for the twin's
+replay. Against it ``lsq.solve`` must find the ordinary least-squares solution, ``profile``
+the classical F interval of linear regression (``scipy.stats``), and a pair of parameters
+that only enter as their sum must come out open (not identifiable), as must one the data do
+not touch at all. Many random problems, no replay of the twin: cheap under CI."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+from scipy.stats import f as f_dist
+
+from twin.config import load_machine
+from twin.identify.joint import joint_fit
+from twin.identify.lsq import coordinate, solve
+from twin.identify.profile import autocorrelation_time, profile
+from twin.identify.replay import base_params
+
+NAMES = ["resistance", "inductance", "speed_ti", "reference_filter"]
+"""Four log coordinates (their meaning does not matter to the fake problem)."""
+
+
+class LinearProblem:
+    """``Problem``'s interface over a linear model: residuals (y − A·θ)/σ per axis, θ the
+    coordinates ``NAMES`` of each axis' parameters; the two axes have their own A and y."""
+
+    def __init__(self, rng: np.random.Generator, n: int, start, *, tie: bool = False,
+                 idle: bool = False):
+        self.axes = ("x", "y")
+        self.start = start
+        self.replays = 0
+        self.truth, self.A, self.y = {}, {}, {}
+        for a in self.axes:
+            A = rng.normal(size=(n, len(NAMES)))
+            if tie:          # the first two enter only as their sum
+                A[:, 1] = A[:, 0]
+            if idle:         # the last one does not enter at all
+                A[:, 3] = 0.0
+            theta = rng.uniform(-0.3, 0.3, len(NAMES))
+            self.truth[a], self.A[a] = theta, A
+            self.y[a] = A @ theta + rng.normal(size=n)
+
+    def theta(self, p, a):
+        return np.array([coordinate(p, self.start[a], n) for n in NAMES])
+
+    def residuals(self, params, mask):
+        self.replays += 1
+        return {a: self.y[a] - self.A[a] @ self.theta(params[a], a) for a in self.axes}
+
+
+@pytest.fixture(scope="module")
+def start():
+    return base_params(load_machine("tomsk_xy"))
+
+
+def _ols_interval(A, y, i):
+    """Classical 95 % interval of coefficient i (F(1, n − p) = t²)."""
+    n, p = A.shape
+    theta, *_ = np.linalg.lstsq(A, y, rcond=None)
+    r = y - A @ theta
+    s2 = float(r @ r) / (n - p)
+    cov = s2 * np.linalg.inv(A.T @ A)
+    half = math.sqrt(f_dist.ppf(0.95, 1, n - p) * cov[i, i])
+    return theta[i] - half, theta[i] + half, theta
+
+
+@pytest.mark.parametrize("seed", range(6))
+def test_the_profile_interval_of_a_linear_model_is_the_classical_one(seed, start):
+    rng = np.random.default_rng(seed)
+    n = 2 * int(rng.integers(100, 400))   # position and tacho halves
+    prob = LinearProblem(rng, n, start)
+    mask = np.ones(n, dtype=bool)
+    sol = solve(prob, dict(start), NAMES, mask, start, max_nfev=20)
+    prof = profile(prob, sol, mask, start, NAMES, {k: 2.0 for k in NAMES})
+    for a in prob.axes:
+        for i, name in enumerate(NAMES):
+            lo, hi, theta = _ols_interval(prob.A[a], prob.y[a], i)
+            x = coordinate(sol.params[a], start[a], name)
+            half = 0.5 * (hi - lo)
+            # the solver stops within its tolerance of the least-squares solution
+            assert x == pytest.approx(theta[i], abs=0.01 * half)
+            # white noise: τ = 1 up to the estimate's own noise (n/τ effective samples)
+            scale = math.sqrt(autocorrelation_time(sol.res[a]))
+            got = prof[a][name]
+            assert got.low == pytest.approx(x - half * scale, abs=0.02 * half * scale)
+            assert got.high == pytest.approx(x + half * scale, abs=0.02 * half * scale)
+
+
+def test_autocorrelated_residuals_widen_the_interval():
+    rng = np.random.default_rng(5)
+    white = rng.normal(size=4000)
+    # an AR(1) with ρ = 0.8: integrated autocorrelation time (1 + ρ)/(1 − ρ) = 9
+    ar = np.empty_like(white)
+    ar[0] = white[0]
+    for k in range(1, len(ar)):
+        ar[k] = 0.8 * ar[k - 1] + white[k]
+    both = np.concatenate([ar[:2000], ar[2000:]])
+    assert autocorrelation_time(np.concatenate([white[:2000], white[2000:]])) < 1.3
+    assert 6.0 < autocorrelation_time(both) < 12.0
+
+
+def test_parameters_the_data_cannot_separate_are_declared(start):
+    rng = np.random.default_rng(11)
+    prob = LinearProblem(rng, 400, start, tie=True, idle=True)
+    mask = np.ones(400, dtype=bool)
+    joint = joint_fit(prob, dict(start), NAMES, mask, start)
+    for a in prob.axes:
+        # the idle one and one of the tied pair are held at BASE (coordinate 0) ...
+        assert joint.held[a].get("reference_filter") == "base"
+        assert coordinate(joint.params[a], start[a], "reference_filter") == 0.0
+        tied = {"resistance", "inductance"}
+        held = tied & set(joint.held[a])
+        assert len(held) == 1
+        # ... and the other of the pair is reported as identified only given it, at the
+        # value that keeps their sum (what the data see)
+        (other,) = tied - held
+        assert set(joint.given[a][other]) == held
+        x = [coordinate(joint.params[a], start[a], n) for n in ("resistance", "inductance")]
+        truth = prob.truth[a]
+        assert sum(x) == pytest.approx(truth[0] + truth[1], abs=0.2)
+        # the separable one keeps a closed interval holding its fitted value
+        lo, hi = joint.intervals[a]["speed_ti"]
+        assert lo < coordinate(joint.params[a], start[a], "speed_ti") < hi
