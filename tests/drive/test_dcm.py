@@ -1,8 +1,11 @@
 """Discontinuous conduction at feed speed, on the whole twin (MuJoCo table, both drives):
 seed 000's Table 2 feed, 0.44 mm/s, is deep in discontinuous conduction; the adapted
-current regulator holds it, the plain one limit-cycles."""
+current regulator holds it, the plain one limit-cycles, and so does a mistuned analog drive
+without adaptation (docs/examples/tomsk_xy_as_built.toml)."""
 
 from __future__ import annotations
+
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -23,9 +26,12 @@ def _column(name: str, axis: int) -> int:
     raise KeyError(name)
 
 
-def _hold_feed(compensation: bool, seconds: float = 2.0):
+AS_BUILT = Path(__file__).resolve().parents[2] / "docs" / "examples" / "tomsk_xy_as_built.toml"
+
+
+def _hold_feed(compensation: bool, seconds: float = 2.0, machine: str = "tomsk_xy"):
     """Both axes' DAC at the reference for FEED; drive-rate samples of the last second."""
-    cfg = load_machine("tomsk_xy").with_overrides(
+    cfg = load_machine(machine).with_overrides(
         {"axes.*.converter.dcm_compensation": compensation})
     plant = Plant(cfg)
     plant.reset()
@@ -77,3 +83,30 @@ def test_the_plain_current_regulator_limit_cycles_at_the_feed():
     assert slow.max() - slow.min() > 0.3 * FEED      # ...but it swings at low frequency
     assert v.min() < 0.1 * FEED                       # down to a standstill
     assert v.max() > 2.0 * FEED
+
+
+def test_the_mistuned_analog_drive_without_adaptation_limit_cycles_at_the_feed():
+    """The as-built drive: analog PI regulators, no adaptation, brush and thyristor drops.
+    The mean speed still follows the reference (the speed integrator sees to it) but the
+    table stops and lurches (braking with the reverse bridge between the lurches)."""
+    cfg, plant, fine = _hold_feed(False, machine=str(AS_BUILT))
+    assert cfg.axes["x"].regulators.implementation == "analog"
+    v = _speed(plant, fine, 0)
+    slow = np.convolve(v, np.ones(20) / 20, mode="valid")
+    assert v.mean() == pytest.approx(FEED, rel=0.15)
+    assert slow.max() - slow.min() > 0.5 * FEED
+    assert v.min() < 0.1 * FEED and v.max() > 2.0 * FEED
+    current = fine[:, _column("armature_current", 0)]
+    assert np.mean(current == 0.0) > 0.3  # most of the time no current flows
+
+
+def test_the_converter_gain_collapses_at_the_feed():
+    """The slope of the mean current against the control voltage U_d0·cos α at the feed's
+    operating point, from open-loop firings of the kernel, against 1/R: tens of times
+    lower (the drop the adaptation exists for)."""
+    from twin.analysis.studies.seed000_dcu_as_built import current_loop_gain
+
+    g = current_loop_gain(str(AS_BUILT), "x", FEED)
+    assert 0.02 < g["load_current"] < 0.2
+    assert g["gain_a_per_v"] > 0.0
+    assert g["drop"] > 20.0

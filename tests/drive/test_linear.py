@@ -20,6 +20,15 @@ from .rig import simulate
 PRESETS = {name: load_machine(name) for name in ("tomsk_xy", "laser_belt")}
 PRESETS["tomsk_mean"] = PRESETS["tomsk_xy"].with_overrides(
     {"axes.*.converter.model": "mean"})
+# the machine's own regulator settings, off their design: plant and model both follow them
+_DESIGNED = design(PRESETS["tomsk_xy"].axes["y"])
+PRESETS["tomsk_speed_set"] = PRESETS["tomsk_xy"].with_overrides({
+    "axes.*.regulators.speed_kp": 0.7 * _DESIGNED.speed_kp,
+    "axes.*.regulators.speed_ti": 1.5 * _DESIGNED.speed_ti})
+PRESETS["tomsk_current_set"] = PRESETS["tomsk_xy"].with_overrides({
+    "axes.*.regulators.current_kp": 0.6 * _DESIGNED.current_kp})
+PRESETS["tomsk_analog"] = PRESETS["tomsk_xy"].with_overrides({
+    "axes.*.regulators.implementation": "analog"})
 
 
 @pytest.mark.parametrize("preset", PRESETS)
@@ -90,6 +99,12 @@ T_P = PRESETS["tomsk_xy"].axes["y"].converter.firing_period
     ("tomsk_mean", 1.0, 1e-3, 0.4, 1, 0.04, 0.12),
     ("tomsk_xy", 1.0, T_P / 10, 1.5, 10, 0.04, 0.15),
     ("laser_belt", 0.02, 5e-5, 0.4, 1, 0.01, 0.03),
+    # the machine file's own settings: a slower current loop is a lumped lag R·T_ii/K_pi
+    # only to first order (speed 8 %, lag area 21 %: the drive still 4 % above its final
+    # speed at the end); both loops mistuned at once the linear model is off by 20 %
+    ("tomsk_speed_set", 1.0, T_P / 10, 1.5, 10, 0.04, 0.15),
+    ("tomsk_current_set", 1.0, T_P / 10, 1.5, 10, 0.10, 0.25),
+    ("tomsk_analog", 1.0, T_P / 10, 1.5, 10, 0.05, 0.15),
 ])
 def test_step_response_matches_the_nonlinear_drive(preset, amplitude, dt, load, window,
                                                    tolerance, lag_tolerance):
@@ -105,7 +120,8 @@ def test_step_response_matches_the_nonlinear_drive(preset, amplitude, dt, load, 
     deviation = np.abs(dw - y).max() / final
     print(f"{preset}: linear vs nonlinear speed step, max deviation {deviation:.2%}")
     assert deviation < tolerance
-    assert dw[-1] == pytest.approx(final, rel=0.01)
+    if not preset.endswith(("_set", "_analog")):  # slower loops: not settled in 0.15 s
+        assert dw[-1] == pytest.approx(final, rel=0.01)
     # position: the table model r·θ; its deviation from the unit-velocity ramp (the lag
     # area) matches the TF's, i.e. what the DCU compensates
     num_x, den_x = axis_transfer_function(ax)

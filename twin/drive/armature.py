@@ -4,7 +4,7 @@ Between firing instants the converter's mean voltage u is constant and the rotor
 taken linear in time (ω(t) = ω0 + ω'·t, extrapolated by the caller), so the back-EMF is
 E(t) = E0 + E1·t and the armature equation
 
-    L·di/dt = u − E0 − E1·t − R·i
+    L·di/dt = u − E0 − E1·t − R·i        (− U_v in the conducting sense: a constant drop)
 
 has the closed-form solution i(t) = A + B·t + (i0 − A)·e^{−t/T_a} with B = −E1/R,
 A = (u − E0 + E1·T_a)/R. A thyristor bridge conducts in one sense only: the first zero of
@@ -71,7 +71,7 @@ def _extinction(j0, a, b, t_a, h):
 
 
 @numba.njit(cache=True)
-def armature_segment(i0, u, emf0, emf_slope, resistance, t_a, h, direction):
+def armature_segment(i0, u, emf0, emf_slope, resistance, t_a, h, direction, drop=0.0):
     """Armature current over [0, h] with constant voltage and linearly varying EMF.
 
     Parameters
@@ -93,6 +93,9 @@ def armature_segment(i0, u, emf0, emf_slope, resistance, t_a, h, direction):
     direction : float
         +1 / −1: the converter conducts only in that sense (thyristor bridge; the current
         stops at zero and restarts when the driving voltage allows); 0: either sense (PWM).
+    drop : float, optional
+        Constant voltage drop against the current while it flows (V; brushes and
+        thyristor thresholds); only with direction ±1.
 
     Returns
     -------
@@ -103,7 +106,7 @@ def armature_segment(i0, u, emf0, emf_slope, resistance, t_a, h, direction):
     """
     s = -1.0 if direction < 0.0 else 1.0
     j0 = s * i0
-    g0 = s * (u - emf0)       # driving voltage in the conducting sense: g0 + g1·t
+    g0 = s * (u - emf0) - drop  # driving voltage in the conducting sense: g0 + g1·t
     g1 = -s * emf_slope
     t_on = 0.0
     if direction != 0.0 and j0 <= 0.0:

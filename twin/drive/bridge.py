@@ -16,6 +16,11 @@ with τ = L/R, B = g1/R, A = (g0 − g1·τ)/R and (p_c, p_s) the sinusoidal ste
 the R-L branch (:func:`current_coeffs`). The charge ∫j dt has a closed form too
 (:func:`charge`).
 
+Device and brush drops enter this form exactly: the constant drop U_v (the brushes and the
+threshold voltages of the thyristors in series) adds −U_v to g0, the thyristors' slope
+resistances add to R (``current_coeffs`` is given the circuit's R_eff = R + n_d·r_T), and
+a smoothing reactor adds to L.
+
 Events are the *first* zero of such a function after the segment start, which a bracketing
 method cannot promise (the current can dip to zero and recover between two samples).
 :func:`first_root` steps with a curvature bound instead: from t with F(t) > 0 and a bound
@@ -24,12 +29,21 @@ zero of the parabola F + F'·s − M·s²/2, so the step to that zero can never 
 of F. Near a simple root the step is Newton's (from the safe side), so it converges
 quadratically; far from one it takes long steps. Three functions are searched:
 
-- ``KIND_CURRENT``: the armature current j(t) (extinction: the thyristors block at zero);
+- ``KIND_CURRENT``: the armature current j(t) less a threshold (extinction: the thyristors
+  block at zero, or below the holding current once their gate pulse has ended; the caller
+  shifts j0 and A by the threshold);
+- ``KIND_RISE``: the negated current −j(t) less a threshold (latching: the first instant the
+  current reaches the latching current);
 - ``KIND_IGNITION``: −g(t), the negated driving voltage of a non-conducting pair whose gate
-  pulse is on (conduction starts where g turns positive: long gate pulses);
+  pulse is on (conduction starts where g turns positive);
 - ``KIND_COMMUTATION``: the end of a commutation overlap through the line inductance L_c,
   where the incoming thyristor has taken the whole current:
-  ∫(u_in − u_out) dt / (2·L_c) = (j(t) + J0)/2, J0 the current when the overlap began.
+  ∫(u_in − u_out) dt / (2·L_c) = (j(t) + J0)/2, J0 the current when the overlap began;
+- ``KIND_COMMUTATION_R``: the same with the thyristors' slope resistance r_T. The two
+  branches of the commutating group share j, and their difference Δ = i_in − i_out obeys
+  L_c·dΔ/dt + r_T·Δ = u_in − u_out, so Δ(t) = q_c·cos(w·t) + q_s·sin(w·t) + (Δ0 − q_c)·
+  e^{−t/τ_c} (τ_c = L_c/r_T, (q_c, q_s) its sinusoidal steady state); the outgoing
+  branch's current (j − Δ)/2 reaches zero at the end.
 """
 
 from __future__ import annotations
@@ -41,8 +55,10 @@ import numpy as np
 
 __all__ = [
     "KIND_COMMUTATION",
+    "KIND_COMMUTATION_R",
     "KIND_CURRENT",
     "KIND_IGNITION",
+    "KIND_RISE",
     "charge",
     "current_at",
     "current_coeffs",
@@ -53,6 +69,8 @@ __all__ = [
 KIND_CURRENT = 0
 KIND_IGNITION = 1
 KIND_COMMUTATION = 2
+KIND_RISE = 3
+KIND_COMMUTATION_R = 4
 
 _MAX_STEPS = 200
 _REL_TOL = 1e-13
@@ -121,6 +139,21 @@ def _evaluate(kind, p, t):
     scale = amp + abs(a) + abs(b * t) + abs(c) + abs(j0)
     if kind == KIND_CURRENT:
         return j, j1, j2, m2, m3, scale
+    if kind == KIND_RISE:
+        return -j, -j1, -j2, m2, m3, scale
+    if kind == KIND_COMMUTATION_R:
+        # F = (j − Δ)/2, Δ = q_c·cos + q_s·sin + (Δ0 − q_c)·e^{−t/τ_c}
+        qc, qs, tc, d0 = p[7], p[8], p[9], p[10]
+        cd = d0 - qc
+        ec = math.exp(-t / tc)
+        qamp = math.sqrt(qc * qc + qs * qs)
+        dd = qc * cw + qs * sw + cd * ec
+        dd1 = w * (qs * cw - qc * sw) - cd / tc * ec
+        dd2 = -w * w * (qc * cw + qs * sw) + cd / (tc * tc) * ec
+        return (0.5 * (j - dd), 0.5 * (j1 - dd1), 0.5 * (j2 - dd2),
+                0.5 * (m2 + w * w * qamp + abs(cd) / (tc * tc) * ec),
+                0.5 * (m3 + w * w * w * qamp + abs(cd) / (tc * tc * tc) * ec),
+                scale + qamp + abs(cd))
     # commutation: F = (j + J0)/2 − (D0 + D)/(2·L_c), D = ∫ (d_c·cos + d_s·sin) over the
     # segment; J0 is the current and D0 the integral when the overlap began
     dc, ds, lc = p[7], p[8], p[9]
@@ -139,8 +172,9 @@ def _evaluate(kind, p, t):
 def first_root(kind, p, h):
     """First t in [0, h] where F ≤ 0 (F of ``kind`` with parameters ``p``), or −1.0.
 
-    ``p`` holds (j0, p_c, p_s, A, B, τ, w) for the current, further (d_c, d_s, L_c, J0, D0)
-    for the commutation, and (v_c, v_s, g0, g1, –, –, w) for the ignition. F(0) ≥ 0 is assumed; an
+    ``p`` holds (j0, p_c, p_s, A, B, τ, w) for the current and the rise, further (d_c, d_s,
+    L_c, J0, D0) for the commutation or (q_c, q_s, τ_c, Δ0) for the commutation with slope
+    resistance, and (v_c, v_s, g0, g1, –, –, w) for the ignition. F(0) ≥ 0 is assumed; an
     F that starts at zero counts only if it does not rise from there.
     """
     f, f1, f2, m2, m3, scale = _evaluate(kind, p, 0.0)

@@ -89,7 +89,8 @@ def _params(d: DriveDesign, axis: AxisConfig, overload_time: float,
     p[L.P_UHAT] = d.peak_voltage
     p[L.P_WM] = 2.0 * math.pi * axis.converter.mains_frequency
     p[L.P_PN] = d.pulse_number
-    p[L.P_L] = axis.motor.armature_inductance
+    conv, motor = axis.converter, axis.motor
+    p[L.P_L] = motor.armature_inductance + conv.smoothing_inductance
     p[L.P_LC] = d.line_inductance
     p[L.P_NSER] = d.series_phases
     p[L.P_DCMC] = 1.0 if d.dcm_compensation else 0.0
@@ -101,6 +102,19 @@ def _params(d: DriveDesign, axis: AxisConfig, overload_time: float,
         t_p = d.sampling_period
         p[L.P_T0] = (axis.converter.mains_phase / (2.0 * math.pi * axis.converter.mains_frequency)
                      ) % t_p
+    # the plant's own: the mains as it is, the drops, the thyristors' currents
+    p[L.P_UREAL] = d.peak_voltage * (1.0 + conv.mains_deviation)
+    p[L.P_MAINS] = 1.0 + conv.mains_deviation if d.converter == "thyristor" else 1.0
+    p[L.P_UDROP] = motor.brush_drop + conv.series_devices * conv.thyristor_threshold
+    p[L.P_RT] = conv.thyristor_resistance
+    p[L.P_IH] = conv.holding_current
+    p[L.P_IL] = conv.latching_current
+    p[L.P_TG] = conv.gate_pulse_width
+    p[L.P_RM] = motor.armature_resistance
+    p[L.P_LM] = motor.armature_inductance
+    p[L.P_UB] = motor.brush_drop
+    p[L.P_ANALOG] = 1.0 if d.implementation == "analog" else 0.0
+    p[L.P_TFI] = d.current_filter
     for k, (harmonic, percent) in enumerate(axis.tacho.ripple):
         p[L.P_RIPPLE + 2 * k] = harmonic
         p[L.P_RIPPLE + 2 * k + 1] = 0.01 * percent

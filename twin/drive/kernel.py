@@ -41,15 +41,19 @@ from twin.drive.layout import (
     P_K,
     P_KC,
     P_KPC,
-    P_L,
+    P_LM,
+    P_MAINS,
     P_MODEL,
     P_NOISE,
     P_PAUSE,
     P_PWM,
     P_R,
+    P_RM,
     P_TA,
     P_TIC,
     P_TP,
+    P_UB,
+    P_UDROP,
     P_UMAX,
     P_VHI,
     P_VLO,
@@ -193,8 +197,9 @@ def _advance_mean(pa, st, t0, t_end, w0, slope, theta0, active, u_in, sigma, noi
         theta_mid = theta0 + w0 * (s + 0.5 * h) + 0.5 * slope * (s + 0.5 * h) ** 2
         advance_filters(pa, st, active, u_in, w_t, slope, theta_mid, h)
         if st[S_BRIDGE] != 0.0 or st[S_I] != 0.0:
-            st[S_I], q = armature_segment(st[S_I], st[S_V], pa[P_K] * w_t, pa[P_K] * slope,
-                                          pa[P_R], pa[P_TA], h, st[S_DIR])
+            st[S_I], q = armature_segment(st[S_I], st[S_V] * pa[P_MAINS], pa[P_K] * w_t,
+                                          pa[P_K] * slope, pa[P_R], pa[P_TA], h, st[S_DIR],
+                                          pa[P_UDROP])
             charge += q
             if q != 0.0:
                 on += h
@@ -288,9 +293,12 @@ def drive_step(params, state, tables, u_ref, omega, theta, noise, log, n_step, d
         for j in range(bins.shape[0]):
             bins[j] *= scale
         # mean motor terminal voltage over the interval: R·i + L·di/dt + E integrated (it is
-        # the EMF while no current flows), exact for both models
-        st[S_VOUT] = ((pa[P_R] * q + pa[P_L] * (st[S_I] - i_start)) / dt
+        # the EMF while no current flows), exact for both models; the motor's own R and L
+        # (a smoothing reactor and the thyristors lie outside its terminals)
+        st[S_VOUT] = ((pa[P_RM] * q + pa[P_LM] * (st[S_I] - i_start)) / dt
                       + pa[P_K] * (w + 0.5 * slope * dt))
+        if pa[P_UB] != 0.0 and q != 0.0:  # the brushes' drop while current flowed
+            st[S_VOUT] += math.copysign(pa[P_UB], q) * st[S_CONDUCT]
         st[S_ADC] = st[S_TACHO] + sigma * noise[a, noise.shape[1] - 1]
         st[S_TORQUE] = pa[P_K] * q / dt
         torque[a] = st[S_TORQUE]

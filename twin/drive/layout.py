@@ -13,8 +13,8 @@ import numpy as np
 __all__ = ["NLOG", "NP", "NRIPPLE", "NS", "empty_state"]
 
 # ----------------------------------------------------------------- parameters (per axis)
-P_R = 0          # armature resistance (Ω)
-P_TA = 1         # armature time constant L_eff/R (s)
+P_R = 0          # armature circuit resistance R_eff = R + n_d·r_T (Ω)
+P_TA = 1         # armature time constant L_eff/R_eff (s)
 P_K = 2          # EMF / torque constant (V·s/rad)
 P_KC = 3         # tacho gain (V·s/rad)
 P_TF = 4         # tacho filter (s)
@@ -39,7 +39,7 @@ P_MODEL = 22     # 0: mean-value converter (PWM, or the averaged bridge); 1: pul
 P_UHAT = 23      # peak of the voltage one conducting pair applies, Û (V)
 P_WM = 24        # mains angular frequency (rad/s)
 P_PN = 25        # pulse number p (3 or 6)
-P_L = 26         # armature inductance (H)
+P_L = 26         # armature circuit inductance without the line's, L + L_s (H)
 P_LC = 27        # line (commutating) inductance per phase (H)
 P_NSER = 28      # line inductances in series with a conducting pair (2 bridge, 1 midpoint)
 P_DCMC = 29      # 1: the current regulator adapts to discontinuous conduction
@@ -50,7 +50,19 @@ P_DCMG = 33      # per-pulse integral gain of the discontinuous-mode current reg
 P_RIPPLE = 34    # NRIPPLE pairs (harmonic per revolution, amplitude as a fraction)
 NRIPPLE = 4
 P_T0 = P_RIPPLE + 2 * NRIPPLE  # time of natural commutation point 0 (s): the mains phase
-NP = P_T0 + 1
+P_UREAL = P_T0 + 1   # Û the circuit applies: the firing unit's Û times (1 + mains deviation)
+P_MAINS = P_T0 + 2   # mean model: 1 + mains deviation (the applied U_d0 over the commanded)
+P_UDROP = P_T0 + 3   # constant drop while current flows: brushes + n_d thresholds (V)
+P_RT = P_T0 + 4      # slope resistance of one thyristor (Ω): the overlap's current split
+P_IH = P_T0 + 5      # holding current (A): conduction without gate current ends below it
+P_IL = P_T0 + 6      # latching current (A): needed by the end of the gate pulse
+P_TG = P_T0 + 7      # gate pulse width (s); 0: on until the next firing
+P_RM = P_T0 + 8      # the motor's own armature resistance (Ω): its terminal voltage
+P_LM = P_T0 + 9      # the motor's own armature inductance (H): its terminal voltage
+P_UB = P_T0 + 10     # brush drop (V): part of the motor's terminal voltage
+P_ANALOG = P_T0 + 11  # 1: continuous (analog) regulators, 0: sampled (digital)
+P_TFI = P_T0 + 12    # analog: RC filter on the measured current (s)
+NP = P_T0 + 13
 
 # ----------------------------------------------------------------- state (per axis)
 S_I = 0          # armature current (A)
@@ -88,7 +100,12 @@ S_CONDUCT = 31   # fraction of the last interval with current flowing (1)
 S_IMEAS = 32     # current the current regulator last measured (A): the pulse mean
 S_ALAST = 33     # last firing angle scheduled (rad): times the next sample
 S_NLOG = 34      # entries written to the firing log
-NS = 35
+S_GATE_END = 35  # pulse model: time the gate pulses of S_PAIR end (s), inf: at the next firing
+S_LATCH = 36     # pulse model: 1 once the flowing current has reached the latching current
+S_IF = 37        # analog: the current through the measurement filter (A)
+S_IFA = 38       # analog: S_IF when the regulators were last advanced (A)
+S_QA = 39        # analog: charge since the regulators were last advanced (A·s)
+NS = 40
 
 NLOG = 4
 """Fields of one firing-log entry: time (s), pair index, bridge (±1; 0: the gate pulses were
@@ -104,4 +121,5 @@ def empty_state(n: int) -> np.ndarray:
     state[:, S_FIRE_AT] = np.inf
     state[:, S_ALAST] = 0.5 * np.pi
     state[:, S_NEXT] = 0.0
+    state[:, S_GATE_END] = np.inf
     return state

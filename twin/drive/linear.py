@@ -12,15 +12,13 @@ settings where it gives them): the speed PI, the closed current loop, the tacho 
 feedback path and r the transmission ratio (m/rad). Its velocity gain is K_H = r/K_C (m/s
 per V), the "K_M/K_C" of seed 000.
 
-The closed current loop is the modulus optimum's equivalent first-order lag T_ie = 2·T_μ
-while the current regulator is the designed one. Where the machine file sets it
-(``regulators.current_kp`` or ``current_ti``), the loop is written out instead: the PI
-K_pi·(T_ii·s + 1)/(T_ii·s) on the converter's dead time 1/(T_v·s + 1) (T_v = T_p/2) and the
-armature 1/R/(T_a·s + 1), with the measurement's lag 1/(T_m·s + 1) in the feedback (T_m =
-T_p/2 for the pulse mean, T_fi for the analog filter, 0 for the mean-value model):
-
-    I/I* = F/(1 + F/(T_m·s + 1)),   F = K_pi·(T_ii·s + 1)/(T_ii·s) · 1/(T_v·s + 1) ·
-           1/(R·(T_a·s + 1))
+The closed current loop is a first-order lag T_ie: 2·T_μ for the modulus optimum, and where
+the machine file sets the current regulator (``regulators.current_kp`` or ``current_ti``)
+the first moment of the loop as set, T_ie = R·T_ii/K_pi (the closed loop of the PI
+K_pi·(T_ii·s + 1)/(T_ii·s) on 1/R/(T_a·s + 1) and small lags is 1 − s·R·T_ii/K_pi + O(s²);
+at the modulus optimum's settings that is 2·T_μ again). A lumped lag follows the sampled
+pulse-level drive better than the loop written out with T_p/2 lags (its firing delay and
+pulse mean are not such lags).
 """
 
 from __future__ import annotations
@@ -30,7 +28,7 @@ import numpy as np
 from twin.config import AxisConfig
 from twin.drive.design import DriveDesign, design
 
-__all__ = ["axis_transfer_function", "current_transfer_function", "speed_transfer_function",
+__all__ = ["axis_transfer_function", "current_loop_lag", "speed_transfer_function",
            "velocity_gain"]
 
 
@@ -39,26 +37,12 @@ def _lag(t: float) -> np.ndarray:
     return np.array([t, 1.0]) if t > 0.0 else np.array([1.0])
 
 
-def current_transfer_function(d: DriveDesign) -> tuple[np.ndarray, np.ndarray]:
-    """Closed current loop from the current reference to the armature current (A/A), the
-    regulator as set (see the module docstring; the EMF compensated).
-
-    Returns
-    -------
-    num, den : ndarray
-        Polynomial coefficients in s, highest power first; DC gain 1.
-    """
-    t_v = 0.5 * d.sampling_period
-    if d.implementation == "analog":
-        t_m = d.current_filter
-    else:
-        t_m = d.converter_time_constant - t_v   # T_p/2 (pulse mean) or 0 (mean model)
-    num_f = d.current_kp * _lag(d.current_ti)
-    den_f = np.polymul(np.polymul([d.current_ti, 0.0], _lag(t_v)),
-                       d.resistance * _lag(d.armature_time_constant))
-    num = np.polymul(num_f, _lag(t_m))
-    den = np.polyadd(np.polymul(den_f, _lag(t_m)), num_f)
-    return num / den[0], den / den[0]
+def current_loop_lag(d: DriveDesign) -> float:
+    """T_ie, the closed current loop's equivalent first-order lag (s): 2·T_μ for the
+    designed regulator, R·T_ii/K_pi for the one the machine file sets."""
+    if d.current_regulator_designed:
+        return d.current_loop_time_constant
+    return d.resistance * d.current_ti / d.current_kp
 
 
 def speed_transfer_function(axis: AxisConfig, *, moving_mass: float | None = None
@@ -81,13 +65,8 @@ def speed_transfer_function(axis: AxisConfig, *, moving_mass: float | None = Non
     d = design(axis, moving_mass=moving_mass)
     # G = num_g/den_g
     num_g = d.speed_kp * d.emf_constant * _lag(d.speed_ti)
-    if d.current_regulator_designed:
-        den_g = np.polymul([d.speed_ti, 0.0], np.polymul(_lag(d.current_loop_time_constant),
-                                                         [d.inertia, 0.0]))
-    else:
-        num_i, den_i = current_transfer_function(d)
-        num_g = np.polymul(num_g, num_i)
-        den_g = np.polymul([d.speed_ti, 0.0], np.polymul(den_i, [d.inertia, 0.0]))
+    den_g = np.polymul([d.speed_ti, 0.0], np.polymul(_lag(current_loop_lag(d)),
+                                                     [d.inertia, 0.0]))
     # G/(1 + G·H) with H = K_C/(T_f s + 1)
     num = np.polymul(num_g, _lag(d.tacho_filter))
     den = np.polyadd(np.polymul(den_g, _lag(d.tacho_filter)), d.tacho_gain * num_g)

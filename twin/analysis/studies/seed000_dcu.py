@@ -33,7 +33,7 @@ from twin.analysis.studies.common import percent, run_items
 from twin.controller.library import spline_line
 from twin.session.run import RunSpec, prepare
 
-__all__ = ["SEED_TABLE", "run_study"]
+__all__ = ["SEED_TABLE", "measure", "move_for", "run_study", "spec_for"]
 
 SEED_TABLE = {
     0: {"velocity_error_accel_um_s": 42.0, "velocity_error_decel_um_s": -41.0,
@@ -72,12 +72,13 @@ MISMATCH = (0.0, 0.1, 0.2, 0.3)
 """Errors of the plant's drive gain K_H against the controller's nominal model (1)."""
 
 
-def _spec(move: dict[str, float], order: int, overrides: dict[str, Any] | None = None,
-          controller_model: str | None = None) -> RunSpec:
+def spec_for(move: dict[str, float], order: int, overrides: dict[str, Any] | None = None,
+             controller_model: str | None = None, machine: str = MACHINE) -> RunSpec:
+    """The run of the seed-sized ``move`` with DCU ``order`` on ``machine`` (the plant)."""
     sets = {"controller.limits.max_velocity": move["speed"],
             "controller.limits.max_acceleration": move["acceleration"],
             "controller.limits.max_jerk": move["jerk"], **(overrides or {})}
-    return RunSpec(machine=MACHINE, controller_model=controller_model, profile="parabolic",
+    return RunSpec(machine=machine, controller_model=controller_model, profile="parabolic",
                    planner="lookahead", dcu_order=order, overrides=sets)
 
 
@@ -134,17 +135,17 @@ def run_study(*, quick: bool = False, errors: tuple[float, ...] | None = None
 
     rows = {}
     for order in range(4):
-        result = run_items(_spec(move, order), build)
+        result = run_items(spec_for(move, order), build)
         rows[order] = measure(result.record, move["speed"])
     _with_percentages(rows)
     mismatch = []
     errors = (() if quick else MISMATCH) if errors is None else errors
     if errors:
-        cfg = _spec(move, 0).machine_config()
+        cfg = spec_for(move, 0).machine_config()
         for error in errors:
             gain = {"axes.*.tacho.gain": cfg.axes["x"].tacho.gain / (1.0 + error)}
             for order in (1, 2, 3):
-                result = run_items(_spec(move, order, gain, controller_model=MACHINE), build)
+                result = run_items(spec_for(move, order, gain, controller_model=MACHINE), build)
                 row = measure(result.record, move["speed"])
                 mismatch.append({"drive_gain_error": error, "order": order, **row,
                                  "pct_coordinate": percent(row["coordinate_error_um"],
