@@ -2,8 +2,10 @@
 
 For each seed an unseen machine is drawn (``twin.identify.perturb``: tacho gain ±20 %, rotor
 inertia ×0.7-1.5, friction ×0.5-3, R and L ±30 %, lost motion 0-20 µm, DAC gain error ±1 %
-and offset ±20 mV; with ``--drive`` also a hand-set analog drive without DCM adaptation:
-speed gain ×0.5-1.5, integral time ×0.5-2, brush drop 1-2 V), identified from BASE =
+and offset ±20 mV; with ``--drive as_built`` also a hand-set analog drive without DCM
+adaptation: speed gain ×0.5-1.5, integral time ×0.5-2, brush drop 1-2 V; ``--drive
+mistuned``: the speed gain and integral time only, digital with the adaptation),
+identified from BASE =
 tomsk_xy at each ``--amplitudes``, lock-step (``--driver sim:FILE``) or, with
 ``--modbus``, over Modbus/TCP from a ``twin hil-server --machine FILE`` on loopback, and
 judged against its own file:
@@ -96,7 +98,7 @@ def identify_cli(args: list[str]) -> dict:
     return json.loads(proc.stdout)
 
 
-def one(seed: int, where: Path, amplitude: float, *, drive: bool, modbus: bool,
+def one(seed: int, where: Path, amplitude: float, *, drive: str | None, modbus: bool,
         with_transfer: bool) -> dict:
     base = load_machine(BASE)
     true = perturbed_machine(base, np.random.default_rng(seed), name=f"unseen_{seed}",
@@ -146,7 +148,7 @@ def one(seed: int, where: Path, amplitude: float, *, drive: bool, modbus: bool,
                   "identifiable": {n: e[n]["identifiable"] for n in
                                    ("inertia", "speed_kp", "speed_ti")},
                   "dcm": res["dcm_compensation"].get(a),
-                  "dcm_true": bool(t.dcm_compensation)}
+                  "dcm_true": bool(t.dcm_compensation), "analog_true": bool(t.analog)}
     if with_transfer:
         row["max_coordinate_error_um"] = transfer(path, out, where / "runs")
     return row
@@ -180,8 +182,10 @@ def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--seeds", type=int, nargs="+", default=[1, 2, 3])
     parser.add_argument("--amplitudes", type=float, nargs="+", default=[1.0])
-    parser.add_argument("--drive", action="store_true",
-                        help="mistuned analog drives without DCM adaptation")
+    parser.add_argument("--drive", choices=("mistuned", "as_built"), default=None,
+                        help="hand-set drives: mistuned speed regulators (digital, DCM "
+                             "adaptation), or as built (also analog, no DCM adaptation, "
+                             "brush drop)")
     parser.add_argument("--modbus", action="store_true",
                         help="identify over Modbus/TCP from a twin hil-server")
     parser.add_argument("--transfer", action="store_true",

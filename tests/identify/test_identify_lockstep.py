@@ -3,7 +3,8 @@ than the Modbus one, one axis at a time, and whether tuning on the calibrated fi
 to the machine (at least half of what tuning on the machine itself gains). Split from
 ``test_identify.py`` so that the two halves can run on different test workers.
 
-Slow parts run a shorter version in CI (CI=true): one machine instead of two.
+Slow parts run a shorter version in CI (CI=true): one machine at amplitude 0.3 instead of
+four at 0.3, 0.5 and 1.
 """
 
 from __future__ import annotations
@@ -13,7 +14,7 @@ import json
 import numpy as np
 import pytest
 
-from tests.identify.unseen import BASE, CI, assert_identified, sim_to_real, unseen
+from tests.identify.unseen import BASE, CI, assert_covered, assert_identified, sim_to_real, unseen
 from twin.config import load_machine
 from twin.errors import ConfigError
 from twin.identify import identify
@@ -25,18 +26,27 @@ def in_lockstep(tmp_path_factory):
     """The same unseen machine as ``over_modbus``, identified in lock-step: no timing of a
     loaded machine in its experiments, so what is tuned on it does not depend on the load."""
     where = tmp_path_factory.mktemp("lockstep")
-    true, path = unseen(11, where)
+    true, path = unseen(11, where, drive=True)
     out = where / "calibrated.toml"
     identify(BASE, out, driver=f"sim:{path}", out_dir=where / "runs")
     return true, path, out
 
 
 @pytest.mark.slow
-@pytest.mark.parametrize("seed", [21] if CI else [21, 37])
-def test_more_unseen_machines_lock_step(seed, tmp_path):
-    true, path = unseen(seed, tmp_path)
+@pytest.mark.parametrize(("seed", "amplitude"),
+                         [(21, 0.3)] if CI else [(21, 0.3), (37, 0.5), (37, 1.0), (21, 1.0)])
+def test_more_unseen_machines_lock_step(seed, amplitude, tmp_path):
+    """Mistuned analog drives without DCM adaptation, identified at reduced amplitude too:
+    the truth inside the intervals or the field declared (``bench/identify.py`` runs the
+    full coverage study: ≥ 20 machines at 0.3, 0.5 and 1)."""
+    true, path = unseen(seed, tmp_path, drive=True)
     out = tmp_path / "calibrated.toml"
-    result = identify(BASE, out, driver=f"sim:{path}", out_dir=tmp_path / "runs")
+    result = identify(BASE, out, driver=f"sim:{path}", out_dir=tmp_path / "runs",
+                      amplitude=amplitude)
+    if amplitude < 1.0:
+        assert_covered(result, true)
+        assert max(max(v.values()) for v in result["nrmse"].values()) <= 0.02
+        return
     assert_identified(result, true)
     if not CI:
         table = sim_to_real(path, out, tmp_path)

@@ -8,75 +8,142 @@ reference a speed error asks for, over the inertia it accelerates), its integral
 the reference filter; the inertia on its own comes from the current-limited reversals
 (``fit._scan_scale``), where the drive gives k·I_m whatever its gain.
 
-The adaptation to discontinuous conduction is a yes-or-no property of the drive, so it is
-chosen, not fitted: the speed-loop stage is run for both models, and the one whose replay
-is better by a margin (a difference in BIC, n_eff·ln(SSE_1/SSE_0) with the effective number
-of samples, above ``DECISIVE``) is taken; the two have the same fitted parameters, so the
-BIC difference is the likelihood ratio. Below the margin BASE's choice is kept and the
-decision is reported as undecided.
+How the current regulator is built — digital with the adaptation to discontinuous
+conduction, digital without it, or analog (continuous PI, no adaptation) — is a property of
+the drive, so it is chosen, not fitted: the speed-loop stage is run for each model
+(``MODELS``), and the one whose replay is better by a margin (a difference in BIC over
+both axes, (SSE_1 − SSE_0)/(s²·τ) with the residuals' variance ``profile.noise_variance``
+and autocorrelation time τ, above ``DECISIVE``) is taken;
+the models have the same fitted parameters, so the BIC difference is the likelihood ratio.
+The adaptation is decided first (the best model with it against the best without); below
+the margin BASE's choice is kept and reported as undecided.
 """
 
 from __future__ import annotations
 
-import math
 from dataclasses import dataclass
 
 import numpy as np
 
-from twin.identify.lsq import solve
-from twin.identify.profile import autocorrelation_time
+from twin.config import MachineConfig
+from twin.drive.design import design
+from twin.identify.lsq import scan_mains_phase, solve
+from twin.identify.profile import autocorrelation_time, noise_variance
 from twin.identify.replay import AxisParams, Problem
 
-__all__ = ["DECISIVE", "SPEED_LOOP", "DcmDecision", "fit_speed_loop"]
+__all__ = ["CURRENT_LOOP", "DECISIVE", "MODELS", "SPEED_LOOP", "DcmDecision", "fit_speed_loop",
+           "model_of"]
 
 SPEED_LOOP = ["speed_kp_rel", "speed_ti", "reference_filter"]
 """The coordinates of the speed-loop stage: the gain over the inertia, the integral time,
 the reference filter."""
 
-DECISIVE = 10.0
-"""BIC difference above which the data decide between the two models of the current
-regulator (``very strong`` evidence on the usual scale)."""
+CURRENT_LOOP = ["current_kp", "current_ti", "brush_drop"]
+"""What a drive without the adaptation to discontinuous conduction also shows at feed
+speeds, where the current flows in pulses: the current regulator's gain and integral
+time and the brush drop (fitted after the choice, where the chosen model has no
+adaptation; with it the current loop is linearised and ten times faster than the speed
+loop, and they are kept from BASE)."""
+
+DECISIVE = 6.0
+"""BIC difference above which the data decide between models of the current regulator
+(``strong`` evidence on the usual scale)."""
+
+
+MODELS = {"digital, DCM adaptation": (0.0, 1.0), "digital, no DCM adaptation": (0.0, 0.0),
+          "analog": (1.0, 0.0)}
+"""The current regulator's models the fit chooses among: name → (analog, dcm_compensation).
+An analog drive's firing unit has no adaptation (arccos firing)."""
+
+
+def model_of(p: AxisParams) -> str:
+    """The name of the current regulator's model ``p`` carries."""
+    if p.analog > 0.5:
+        return "analog"
+    return "digital, DCM adaptation" if p.dcm_compensation > 0.5 else \
+        "digital, no DCM adaptation"
 
 
 @dataclass(frozen=True)
 class DcmDecision:
-    """The model choice for one axis.
+    """The current regulator's model chosen for one axis.
 
     Attributes
     ----------
-    present : bool
-        The chosen model: the adaptation present.
-    bic : float
-        BIC(without) − BIC(with): positive favours the adaptation.
+    model : str
+        The chosen model (``MODELS``).
+    bic : dict of str to float
+        Per model: its BIC less the chosen one's (0 for the chosen; n_eff·ln(SSE/SSE_min)).
     decided : bool
-        False: the difference is below ``DECISIVE`` (BASE's choice kept).
+        Whether the data decide the adaptation (with it, or without): the BIC of the best
+        model of one kind is ``DECISIVE`` below the other kind's. Undecided, BASE's kind
+        is kept. Within the kind, BASE's model is kept unless another is ``DECISIVE``
+        better.
     """
 
-    present: bool
-    bic: float
+    model: str
+    bic: dict[str, float]
     decided: bool
+
+    @property
+    def present(self) -> bool:
+        """The chosen model adapts to discontinuous conduction."""
+        return MODELS[self.model][1] > 0.5
 
 
 def fit_speed_loop(problem: Problem, params: dict[str, AxisParams],
-                   start: dict[str, AxisParams], mask: np.ndarray, *, max_nfev: int = 6
+                   start: dict[str, AxisParams], mask: np.ndarray, *, max_nfev: int = 4
                    ) -> tuple[dict[str, AxisParams], dict[str, DcmDecision]]:
-    """The speed-loop settings for both current-regulator models on the ticks of ``mask``;
-    returns the parameters of the chosen model per axis and the decisions."""
-    fits, costs = {}, {}
-    for present in (True, False):
-        trial = {a: p.with_(dcm_compensation=1.0 if present else 0.0)
-                 for a, p in params.items()}
-        sol = solve(problem, trial, SPEED_LOOP, mask, start, max_nfev=max_nfev)
-        fits[present] = sol
-        costs[present] = {a: sol.sse(a) for a in problem.axes}
-    out, decisions = dict(params), {}
-    for a in problem.axes:
-        res = fits[True].res[a]
-        n_eff = len(res) / autocorrelation_time(res)
-        with_, without = costs[True][a], costs[False][a]
-        bic = n_eff * math.log(max(without, 1e-300) / max(with_, 1e-300))
-        decided = abs(bic) >= DECISIVE
-        present = bic > 0.0 if decided else params[a].dcm_compensation > 0.5
-        decisions[a] = DcmDecision(present, bic, decided)
-        out[a] = fits[present].params[a]
-    return out, decisions
+    """The speed-loop settings for each model of the current regulator (``MODELS``) on the
+    ticks of ``mask``, each with its own mains phase (``lsq.scan_mains_phase``: a drive
+    without the adaptation replays well only near its phase); the model is chosen for the
+    machine (the axes share the mains and, on one machine, the kind of drive) by the summed
+    BIC; a model without the adaptation is fitted with its current-loop settings and brush
+    drop too (``CURRENT_LOOP``), so that it is compared at its best. Returns the
+    parameters per axis and the decisions; the problem's mains phase is the chosen
+    model's."""
+    fits = {}
+    for name, (analog, dcm) in MODELS.items():
+        trial = {a: _as_model(p, problem.base, a, analog, dcm) for a, p in params.items()}
+        scan_mains_phase(problem, trial)
+        coords = SPEED_LOOP if dcm > 0.5 else SPEED_LOOP + CURRENT_LOOP
+        sol = solve(problem, trial, coords, mask, start, max_nfev=max_nfev)
+        fits[name] = (sol, problem.mains_phase)
+    axes = problem.axes
+    total = {m: sum(f[0].sse(a) for a in axes) for m, f in fits.items()}
+    best = min(total, key=total.get)
+    res = np.concatenate([fits[best][0].res[a] for a in axes])
+    scale = noise_variance(res, 0) * autocorrelation_time(res, channels=2 * len(axes))
+    bic = {m: (v - total[best]) / scale for m, v in total.items()}
+    # first the adaptation (present or not), then, without it, how the drive is built
+    base_model = model_of(params[axes[0]])
+    adapted = [m for m in MODELS if MODELS[m][1] > 0.5]
+    bare = [m for m in MODELS if MODELS[m][1] <= 0.5]
+    with_, without = min(bic[m] for m in adapted), min(bic[m] for m in bare)
+    if abs(with_ - without) >= DECISIVE:
+        group = adapted if with_ < without else bare
+        decided = True
+    else:
+        group = adapted if MODELS[base_model][1] > 0.5 else bare
+        decided = False
+    chosen = min(group, key=bic.get)
+    if base_model in group and bic[base_model] - bic[chosen] < DECISIVE:
+        chosen = base_model
+    sol, problem.mains_phase = fits[chosen]
+    decisions = {a: DcmDecision(chosen, bic, decided) for a in axes}
+    return {**params, **sol.params}, decisions
+
+
+def _as_model(p: AxisParams, base: MachineConfig, axis: str, analog: float, dcm: float
+              ) -> AxisParams:
+    """``p`` with the current regulator's model (analog, DCM adaptation) and, where the model
+    changes, the current loop's settings that BASE's drive built that way would have
+    (``design``: an analog drive's converter lag differs), the speed loop's as fitted."""
+    if (p.analog, p.dcm_compensation) == (analog, dcm):
+        return p
+    kind = "analog" if analog > 0.5 else "digital"
+    built = base.with_overrides({f"axes.{axis}.regulators.implementation": kind,
+                                 f"axes.{axis}.converter.dcm_compensation": dcm > 0.5})
+    d = design(built.axes[axis], moving_mass=built.moving_masses()[axis])
+    return p.with_(analog=analog, dcm_compensation=dcm, current_kp=d.current_kp,
+                   current_ti=d.current_ti)

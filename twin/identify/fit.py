@@ -13,35 +13,37 @@ carries its parameters, then all of them together:
    loop holds ω = ((1 + g)·U + o)/K_C exactly (its integrator), and the tacho reads K_C·ω.
    Regressing the encoder's speed on the DAC volts and the tacho on the speed gives the
    tacho gain K_C, the DAC gain error g and offset o, hence K_H = r·(1 + g)/K_C.
-2. **Friction over inertia, then inertia** (``coast``, ``steps``): in the coast-downs the
-   drive is off and J·dω/dt = −(T_c·sign ω + B·ω): a linear regression of the encoder's
-   acceleration on [sign ω, ω] gives T_c/J and B/J. The steepest tacho slopes of the large
-   reversals, where the drive holds its current limit, give k·I_m/J (k, I_m BASE's), hence a
-   first J. Then Levenberg-Marquardt on the replayed steps moves J with the friction in
-   proportion, together with the armature resistance (which shapes how fast the current
-   reaches its limit, and so trades off against J when left out).
-3. **Friction** (``coast``): Coulomb, viscous and break-away on the replayed coast-downs.
-4. **Lost motion** (``crossings``): the motor positions of the home switch's edges, seen
+2. **Friction over inertia** (``coast``): in the coast-downs the drive is off and
+   J·dω/dt = −(T_c·sign ω + B·ω): a linear regression of the encoder's acceleration on
+   [sign ω, ω] gives T_c/J and B/J.
+3. **The drive as it is** (``steps``, ``prbs``; ``drive_fit``): the candidate carries the
+   drive's own regulator settings (never derived again from the candidate's J, R, L), and
+   the speed regulator's gain over the inertia, its integral time and the reference filter
+   are fitted on the replayed steps and PRBS, for both models of the current regulator; the
+   discontinuous-conduction adaptation is the model the BIC prefers.
+4. **Inertia** (``steps``): the inertia, with the friction and the speed gain in
+   proportion (``scale``: what the speed loop below its current limit cannot see), is
+   scanned over 0.5 … 2 times the start and the current-limit estimate (the steepest tacho
+   slopes of the large reversals give k·I_m/J where they reach the limit), then fitted with
+   the armature resistance and the speed loop on the steps and PRBS (``lsq.solve``:
+   ``scipy.optimize.least_squares``).
+5. **Friction** (``coast``): Coulomb, viscous and break-away on the replayed coast-downs.
+6. **Lost motion** (``crossings``): the motor positions of the home switch's edges, seen
    going up and coming down, differ by the lost motion, the screw's friction preload both
    ways (2·F/k, from the fitted friction and BASE's stiffness) and the debounce (2·v·t_d).
-5. **Together**: inertia, friction, armature R and L (which enter only through the current
-   loop the drive's own design compensates) in one last Levenberg-Marquardt on all replayed
-   experiments, whose Jacobian gives the 95 % confidence intervals, widened for the
-   residuals' correlation in time. A parameter whose interval is too wide (``TOLERANCE``)
-   is reported as not identifiable: if BASE's value lies inside the interval it is set
-   back to it and the others are fitted again around it; if the data reject BASE's value,
-   the fit's is kept (forcing BASE's would push its error into the others: a viscous
-   friction twice BASE's, reset, comes back as a Coulomb friction 27 % high).
+7. **Together** (``joint``): everything the replay carries in one last least squares on all
+   replayed experiments, then each parameter's profile-likelihood interval (``profile``).
+   What the data cannot separate is held at BASE's value and said so; what trades off with
+   it is reported as identified only given it.
 
 The axes are uncoupled, so each replay moves both: a finite-difference column of x and the
 same column of y come from one simulation. The held-out experiment (``ramps``, closed loop)
 is then predicted, and its normalised RMS error is the fit quality.
 
-What the signals cannot give is never fitted: the screw's stiffness and damping and the
-carriage masses (a motor encoder does not see the table's motion, and the reflected rotor
-inertia swamps the table's), the split of friction between rotor and slide (only their sum
-acts on the motor), the motor's EMF constant and current limit (they scale with the
-inertia), the tacho filter and the converter's mains data.
+What the signals cannot give is never fitted (``NOT_IDENTIFIABLE``): the screw's stiffness
+and damping and the carriage masses, the split of friction between rotor and slide, the
+motor's EMF constant and current limit (they scale with the inertia), the tacho filter, the
+converter's mains data, the current regulator's settings and the brush and thyristor drops.
 """
 
 from __future__ import annotations
@@ -56,7 +58,7 @@ import numpy as np
 from twin.config import AXES, MachineConfig
 from twin.errors import FitError
 from twin.identify.direct import coast_regression, limit_inertia, lost_motion, regress_gains
-from twin.identify.drive_fit import SPEED_LOOP, DcmDecision, fit_speed_loop
+from twin.identify.drive_fit import CURRENT_LOOP, SPEED_LOOP, DcmDecision, fit_speed_loop
 from twin.identify.joint import TOLERANCE, joint_fit
 from twin.identify.log import IdentLog
 from twin.identify.lsq import BOUNDS, coordinate, scan_mains_phase, solve, with_coordinate
@@ -74,7 +76,8 @@ __all__ = ["NOT_EXCITED", "NOT_IDENTIFIABLE", "REPLAYED_PARAMS", "TOLERANCE", "E
            "Identification", "fit"]
 
 REPLAYED_PARAMS = ("inertia", "coulomb", "viscous", "breakaway", "resistance",
-                   "inductance", "speed_kp", "speed_ti", "reference_filter")
+                   "inductance", "speed_kp", "speed_ti", "reference_filter", "current_kp",
+                   "current_ti", "brush_drop")
 """The parameters the last stage fits together on the replayed experiments."""
 
 NOT_IDENTIFIABLE = {
@@ -86,12 +89,14 @@ NOT_IDENTIFIABLE = {
                                                       "every current-limited motion",
     "tacho.filter_time_constant": "1 ms, far below the speed loop's response",
     "converter (line voltage, mains, firing limits)": "no signal of the converter's own",
-    "regulators.current_kp, regulators.current_ti": "the current loop is ten times faster "
-        "than the speed loop; on the tacho it shows only as the armature's R and L",
-    "motor.brush_drop, converter thyristor drops": "both loops' integrators take them up "
-        "wherever current flows continuously",
+    "converter thyristor drops, latching and holding currents": "they act with the brush "
+        "drop, which stands for them",
 }
 """Fields the encoder, tacho and DAC cannot recover, and why; kept from BASE."""
+
+UNSEEN_CURRENT_LOOP = ("kept from BASE: with the DCM adaptation the current loop is linear "
+                       "and ten times faster than the speed loop")
+"""The source of the current loop's values where the chosen drive model adapts."""
 
 NOT_EXCITED = "not excited (held in position: --axes left it out); BASE's value kept"
 """The source of every value of an axis the experiments did not excite."""
@@ -106,7 +111,10 @@ _SOURCE = {"tacho_gain": "steps (steady speeds)", "gain_error": "steps (steady s
            "resistance": "steps (current rise), prbs", "inductance": "prbs",
            "speed_kp": "steps, prbs (below the limit: K_p/J), with the inertia",
            "speed_ti": "steps, prbs (the speed loop's integral response)",
-           "reference_filter": "steps (the first rise of each step), prbs"}
+           "reference_filter": "steps (the first rise of each step), prbs",
+           "current_kp": "reversals, prbs (feed speeds: the current in pulses)",
+           "current_ti": "reversals, prbs (feed speeds: the current in pulses)",
+           "brush_drop": "reversals, prbs (feed speeds: the current in pulses)"}
 
 
 @dataclass(frozen=True)
@@ -216,45 +224,48 @@ def fit(base: MachineConfig, log: IdentLog, *,
     gains, gain_halfs = regress_gains(problem, base)
     params = {a: start[a].with_(**gains[a]) if a in axes else start[a] for a in AXES}
     say("gains: " + ", ".join(f"{a} K_C {gains[a]['tacho_gain']:.5g}" for a in axes))
-    # 2. friction over inertia from the coast-downs (linear regression), the inertia from
-    #    the current-limited reversals with them; then the inertia (friction in proportion)
-    #    and the armature resistance from the replayed steps, the phase again once near
+    # 2. friction over inertia from the coast-downs (linear regression)
     ratios = coast_regression(problem, params)
     for a in axes:
         c, v = ratios[a]
         if math.isfinite(c) and c > 0.0 and math.isfinite(v) and v > 0.0:
             params[a] = params[a].with_(coulomb=c, viscous=v)
-    scan_mains_phase(problem, params)
-    # 3. the speed loop below its current limit (gain over inertia, integral time, reference
-    #    filter), for both models of the current regulator; then the inertia, with the
-    #    friction and the gain in proportion, from the current-limited reversals
+    # 3. the drive as it is: the speed loop below its current limit (gain over inertia,
+    #    integral time, reference filter) for each model of the current regulator, and the
+    #    model chosen; 4. then the inertia, with the friction and the gain in proportion
+    #    (the current-limited reversals), and the armature resistance
     loop = log.experiment_mask(("steps", "prbs"))
-    params, dcm = fit_speed_loop(problem, params, start, loop)
+    params, dcm = fit_speed_loop(problem, params, start,
+                                 log.experiment_mask(("steps", "prbs", "reversals")))
     for a in axes:
         d = dcm[a]
-        say(f"axis {a}: discontinuous-conduction adaptation "
-            + (("present" if d.present else "absent") + f" (BIC difference {d.bic:+.0f})"
-               if d.decided else f"undecided (BIC difference {d.bic:+.1f}); BASE's "
-               f"choice kept: {'present' if d.present else 'absent'}"))
+        say(f"axis {a}: current regulator {d.model} "
+            + ("" if d.decided else "UNDECIDED, BASE's kept ")
+            + "(BIC over the best: " + ", ".join(f"{m} {b:+.1f}" for m, b in d.bic.items())
+            + ")")
     steps = log.experiment_mask("steps")
     params = _scan_scale(problem, params, start, steps, limit_inertia(problem, params))
     params = solve(problem, params, ["scale", "resistance", *SPEED_LOOP], loop, start,
                    max_nfev=6).params
     scan_mains_phase(problem, params)
-    say("inertia: " + ", ".join(f"{a} {params[a].inertia:.4g} kg·m²" for a in axes))
-    # 3. friction: the coast-downs (friction alone)
+    say("inertia: " + ", ".join(f"{a} {params[a].inertia:.4g} kg·m²" for a in axes)
+        + f" ({problem.replays} replays, {time.process_time() - cpu0:.0f} s CPU)")
+    # 5. friction: the coast-downs (friction alone)
     coast = log.experiment_mask("coast")
     params = solve(problem, params, ["coulomb", "viscous", "breakaway"], coast, start,
-                   max_nfev=5).params
-    # 4. lost motion from the home switch
+                   max_nfev=4).params
+    # 6. lost motion from the home switch
     lost = lost_motion(problem, params)
     for a in axes:
         if math.isfinite(lost[a][0]):
             params[a] = params[a].with_(backlash=lost[a][0])
-    say("lost motion: " + ", ".join(f"{a} {1e6 * params[a].backlash:.1f} µm" for a in axes))
-    # 5. everything the replay carries, together, with the profile intervals
+    say("lost motion: " + ", ".join(f"{a} {1e6 * params[a].backlash:.1f} µm" for a in axes)
+        + f" ({problem.replays} replays, {time.process_time() - cpu0:.0f} s CPU)")
+    # 7. everything the replay carries, together, with the profile intervals
     fit_mask = log.experiment_mask(FIT_EXPERIMENTS)
     names = list(REPLAYED_PARAMS)   # quantities; fitted in profile.own_coordinate
+    if all(dcm[a].present for a in axes):   # the current loop is unseen (drive_fit)
+        names = [n for n in names if n not in CURRENT_LOOP]
     joint = joint_fit(problem, params, names, fit_mask, start)
     params = {**params, **joint.params}
     for a in axes:
@@ -290,6 +301,10 @@ def fit(base: MachineConfig, log: IdentLog, *,
                                  _value(p, start[a], name, hi),
                                  held is None and name not in joint.given[a], _SOURCE[name],
                                  held or "fit", joint.given[a].get(name, ()))
+        for name in REPLAYED_PARAMS:
+            if name not in names:   # not fitted: the chosen drive model does not show it
+                est[name] = Estimate(getattr(p, name), math.nan, math.nan, False,
+                                     UNSEEN_CURRENT_LOOP, "base")
         b, h = lost[a]
         ok = math.isfinite(b) and h <= TOLERANCE["backlash"]
         if not ok:
@@ -321,7 +336,8 @@ def fit(base: MachineConfig, log: IdentLog, *,
     if not math.isfinite(worst) or worst > 0.25:
         raise FitError(f"the fit did not converge: the held-out experiment is predicted "
                        f"with a normalised RMS error of {100 * worst:.1f} %")
-    say(f"held out: NRMSE {100 * worst:.2f} %")
+    say(f"held out: NRMSE {100 * worst:.2f} % ({problem.replays} replays, "
+        f"{time.process_time() - cpu0:.0f} s CPU)")
     curves = {"t": log.data["t"][:n], "pos_meas": problem.pos[:n], "pos_fit": pos,
               "tacho_meas": problem.tacho[:n], "tacho_fit": tacho}
     result = Identification(final, estimates, calibrated, nrmse, residual, problem.replays,

@@ -45,8 +45,9 @@ ANCHORS = ("inertia", "resistance", "inductance", "current_kp", "current_ti", "b
 the inertia first (below the current limit it scales with the friction and the speed
 gain, which then stay right relative to it)."""
 
-ROUNDS = 3
-"""Most groups held one at a time; what is left after them is held all at once."""
+ROUNDS = 1
+"""Groups held one at a time (each round a fit and the remaining profiles); what is left
+after them is held all at once, with one more fit."""
 
 
 @dataclass
@@ -88,7 +89,7 @@ def _reach(names: Sequence[str]) -> dict[str, float]:
 
 
 def joint_fit(problem: Problem, params: dict[str, AxisParams], names: Sequence[str],
-              mask: np.ndarray, start: dict[str, AxisParams], *, max_nfev: int = 4) -> Joint:
+              mask: np.ndarray, start: dict[str, AxisParams], *, max_nfev: int = 2) -> Joint:
     """Fit the quantities ``names`` together on the ticks of ``mask`` (in the coordinates
     ``profile.own_coordinate`` gives them), profile them and hold what the data cannot
     separate (see the module docstring). Intervals are in ``lsq.coordinate`` units."""
@@ -124,7 +125,8 @@ def joint_fit(problem: Problem, params: dict[str, AxisParams], names: Sequence[s
                 current[a] = _set(current[a], start[a], n, kept[a][n])
             loose[a] = [] if last else loose[a][1:]
         frozen = {a: {own_coordinate(n) for n in held[a]} for a in axes}
-        sol = solve(problem, current, coords, mask, start, max_nfev=max_nfev, frozen=frozen)
+        sol = solve(problem, current, coords, mask, start, max_nfev=max_nfev + 1,
+                    frozen=frozen)
         current = dict(sol.params)
         rest = sorted({n for a in axes for n in loose[a]})
         if not rest:

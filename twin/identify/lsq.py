@@ -239,15 +239,17 @@ def solve(problem: Problem, params: dict[str, AxisParams], names: Sequence[str],
     return Solution(out_params, pack.names, jacs, res, free)
 
 
-def scan_mains_phase(problem: Problem, params: dict[str, AxisParams], steps: int = 24) -> None:
-    """Stage 0: the mains phase that best replays the first second of the steps: a scan of
-    one pulse period, then a golden-section search around the best point of the grid."""
+def scan_mains_phase(problem: Problem, params: dict[str, AxisParams], steps: int = 36) -> None:
+    """The mains phase that best replays the speed steps: a scan of one pulse period, then
+    a golden-section search around the best point of the grid. A drive without the
+    adaptation to discontinuous conduction replays well only within a few degrees of the
+    right phase (its current pulses at feed speeds decide how each step starts), hence the
+    fine grid over all the steps."""
     base = problem.base
     if not any(base.axes[a].converter.kind == "thyristor" for a in AXES):
         return
     p = base.axes["x"].converter.pulse_number
     first = problem.log.experiment_mask("steps")
-    first[round(1.2 / base.controller.period):] = False
 
     def sse(phase: float) -> float:
         problem.mains_phase = phase % (2.0 * math.pi)
@@ -262,7 +264,7 @@ def scan_mains_phase(problem: Problem, params: dict[str, AxisParams], steps: int
     golden = 0.5 * (math.sqrt(5.0) - 1.0)
     c, d = hi - golden * (hi - lo), lo + golden * (hi - lo)
     fc, fd = sse(c), sse(d)
-    for _ in range(6):
+    for _ in range(5):
         if fc < fd:
             hi, d, fd = d, c, fc
             c = hi - golden * (hi - lo)

@@ -4,10 +4,12 @@ random within the ranges a real machine of the same design may differ by.
 Per axis, independently (``RANGES``): tacho gain ×(0.8 … 1.2), rotor inertia ×(0.7 … 1.5),
 Coulomb friction (rotor and slide together) ×(0.5 … 3), viscous friction ×(0.5 … 3),
 break-away 1 … 1.5 × Coulomb, armature R and L ×(0.7 … 1.3), lost motion 0 … 20 µm, DAC
-gain error ±1 % and offset ±20 mV. With ``drive=True`` the drive is also one set by hand at
-commissioning (``DRIVE_RANGES``): analog regulators, the speed regulator's gain ×(0.5 … 1.5)
-and integral time ×(0.5 … 2) of what the symmetric optimum gives for the machine's own
-inertia, a brush drop of 1 … 2 V and no adaptation to discontinuous conduction. The I/O,
+gain error ±1 % and offset ±20 mV. With ``drive`` the drive is also one set by hand at
+commissioning (``DRIVE_RANGES``): the speed regulator's gain ×(0.5 … 1.5) and integral time
+×(0.5 … 2) of what the symmetric optimum gives for the machine's own inertia; ``"as_built"``
+(the issue's KEMEK-era drive) also has analog regulators, a brush drop of 1 … 2 V and no
+adaptation to discontinuous conduction; ``"mistuned"`` keeps the digital regulators and
+the adaptation. The I/O,
 the limits and everything the signals cannot see stay BASE's.
 """
 
@@ -20,7 +22,7 @@ import numpy as np
 from twin.config import AXES, MachineConfig
 from twin.drive.design import design
 
-__all__ = ["DRIVE_RANGES", "RANGES", "perturbed_machine", "true_params"]
+__all__ = ["DRIVES", "DRIVE_RANGES", "RANGES", "perturbed_machine", "true_params"]
 
 RANGES = {"tacho_gain": (0.8, 1.2), "inertia": (0.7, 1.5), "coulomb": (0.5, 3.0),
           "viscous": (0.5, 3.0), "breakaway": (1.0, 1.5), "resistance": (0.7, 1.3),
@@ -34,10 +36,16 @@ DRIVE_RANGES = {"speed_kp": (0.5, 1.5), "speed_ti": (0.5, 2.0), "brush_drop": (1
 brush drop (V)."""
 
 
+DRIVES = (None, "mistuned", "as_built")
+"""The kinds of drive ``perturbed_machine`` draws."""
+
+
 def perturbed_machine(base: MachineConfig, rng: np.random.Generator, *,
-                      name: str = "unseen", drive: bool = False) -> MachineConfig:
+                      name: str = "unseen", drive: str | None = None) -> MachineConfig:
     """BASE with every ``RANGES`` parameter of each axis drawn uniformly (and, with
-    ``drive``, a hand-set analog drive without DCM adaptation: ``DRIVE_RANGES``)."""
+    ``drive``, a hand-set drive: ``DRIVE_RANGES``, see the module docstring)."""
+    if drive not in DRIVES:
+        raise ValueError(f"drive must be one of {DRIVES}, got {drive!r}")
     sets: dict[str, float | bool | str] = {}
     for a in AXES:
         ax = base.axes[a]
@@ -71,10 +79,11 @@ def perturbed_machine(base: MachineConfig, rng: np.random.Generator, *,
             g = {k: float(rng.uniform(*r)) for k, r in DRIVE_RANGES.items()}
             pre = f"axes.{a}"
             tuned.update({f"{pre}.regulators.speed_kp": g["speed_kp"] * d.speed_kp,
-                          f"{pre}.regulators.speed_ti": g["speed_ti"] * d.speed_ti,
-                          f"{pre}.regulators.implementation": "analog",
-                          f"{pre}.motor.brush_drop": g["brush_drop"],
-                          f"{pre}.converter.dcm_compensation": False})
+                          f"{pre}.regulators.speed_ti": g["speed_ti"] * d.speed_ti})
+            if drive == "as_built":
+                tuned.update({f"{pre}.regulators.implementation": "analog",
+                              f"{pre}.motor.brush_drop": g["brush_drop"],
+                              f"{pre}.converter.dcm_compensation": False})
         machine = machine.with_overrides(tuned)
     return dataclasses.replace(machine, name=name)
 

@@ -27,8 +27,8 @@ from scipy.stats import f as f_dist
 from twin.identify.lsq import BOUNDS, Solution, coordinate, with_coordinates
 from twin.identify.replay import AxisParams, Problem
 
-__all__ = ["QUANTITY", "Profile", "autocorrelation_time", "own_coordinate", "profile",
-           "threshold"]
+__all__ = ["FLOOR", "QUANTITY", "Profile", "autocorrelation_time", "noise_variance",
+           "own_coordinate", "profile", "threshold"]
 
 LEVEL = 0.95
 """Confidence level of the intervals."""
@@ -57,15 +57,28 @@ def autocorrelation_time(res: np.ndarray, channels: int = 2) -> float:
     return tau
 
 
+FLOOR = 1.0
+"""Least residual variance (in the residuals' scaled units: ``replay.SIGMA_POSITION``,
+``replay.SIGMA_TACHO``, the replay's own floor). A replay that agrees with the machine
+better than its own floor (the mains phase known to a fraction of a degree, the state the
+experiments started from) says nothing more about the parameters: a noiseless machine would
+otherwise get intervals of 0.1 % around a value its floor biases by 0.5 %."""
+
+
+def noise_variance(res: np.ndarray, parameters: int) -> float:
+    """The residuals' variance per sample, s² = SSE/(n − p), but not below ``FLOOR``."""
+    return max(float(res @ res) / max(len(res) - parameters, 1), FLOOR)
+
+
 def threshold(res: np.ndarray, parameters: int, level: float = LEVEL) -> float:
     """The rise of the cost (sum of squared residuals) that bounds the ``level`` profile
-    interval of one parameter: F(1, n_eff − p)·s²·τ, with s² = SSE/(n − p), τ the
+    interval of one parameter: F(1, n_eff − p)·s²·τ, with s² = ``noise_variance``, τ the
     autocorrelation time and n_eff = n/τ the effective number of samples."""
     n = len(res)
     tau = autocorrelation_time(res)
     n_eff = max(n / tau, parameters + 2.0)
-    s2 = float(res @ res) / max(n - parameters, 1)
-    return float(f_dist.ppf(level, 1, n_eff - parameters)) * s2 * tau
+    return float(f_dist.ppf(level, 1, n_eff - parameters)) * noise_variance(
+        res, parameters) * tau
 
 
 @dataclass

@@ -58,6 +58,11 @@ class AxisParams:
     dcm_compensation : float
         1: the current regulator adapts to discontinuous conduction; 0: it does not (a
         model choice the fit makes by comparing both, never a fitted coordinate).
+    analog : float
+        1: analog regulators; 0: digital (a model choice as well).
+    brush_drop : float
+        The brushes' contact drop (V): at feed speeds, in discontinuous conduction, it is
+        of the order of the whole driving margin.
     """
 
     tacho_gain: float
@@ -76,6 +81,8 @@ class AxisParams:
     current_kp: float
     current_ti: float
     dcm_compensation: float
+    analog: float
+    brush_drop: float
 
     def to_dict(self) -> dict[str, float]:
         """Plain dict."""
@@ -109,7 +116,9 @@ def base_params(base: MachineConfig) -> dict[str, AxisParams]:
                             speed_kp=d.speed_kp, speed_ti=d.speed_ti,
                             reference_filter=d.reference_filter, current_kp=d.current_kp,
                             current_ti=d.current_ti,
-                            dcm_compensation=1.0 if ax.converter.dcm_compensation else 0.0)
+                            dcm_compensation=1.0 if ax.converter.dcm_compensation else 0.0,
+                            analog=1.0 if ax.regulators.implementation == "analog" else 0.0,
+                            brush_drop=ax.motor.brush_drop)
     return out
 
 
@@ -149,6 +158,9 @@ def candidate(base: MachineConfig, params: dict[str, AxisParams]) -> MachineConf
         })
         if base.axes[a].converter.kind == "thyristor":
             sets[f"{pre}.converter.dcm_compensation"] = bool(p.dcm_compensation)
+            sets[f"{pre}.regulators.implementation"] = "analog" if p.analog > 0.5 \
+                else "digital"
+            sets[f"{pre}.motor.brush_drop"] = p.brush_drop
     return base.with_overrides(sets)
 
 
@@ -232,6 +244,11 @@ class Problem:
         self.excited = [(k, a) for k, a in enumerate(AXES) if a in self.axes]
         """(column, axis) of each excited axis, in the machine's axis order."""
         self.pos, self.tacho = measured(log, base)
+        pieces = log.data["piece"].astype(int)
+        starts = np.flatnonzero(np.diff(pieces, prepend=pieces[0] - 1))
+        self.piece_start = starts[np.searchsorted(starts, np.arange(len(pieces)),
+                                                  side="right") - 1]
+        """Per tick: the first tick of its piece of the plan."""
         self.replays = 0
         self.mains_phase: float | None = None
 
@@ -244,13 +261,19 @@ class Problem:
     def residuals(self, params: dict[str, AxisParams], mask: np.ndarray
                   ) -> dict[str, np.ndarray]:
         """Per excited axis: scaled position and tacho residuals over the ticks of
-        ``mask``."""
+        ``mask``. Positions are compared as the travel since the start of each piece of
+        the plan: a replay that parts from the machine in one piece (a drive that
+        limit-cycles at feed speed does so wherever its current pulses fall) is not charged
+        for it again in every later one."""
         until = int(np.flatnonzero(mask)[-1]) + 1
         pos, tacho = self.simulate(params, until)
         m = mask[:until]
+        first = self.piece_start[:until]
         out = {}
         for k, a in self.excited:
-            dp = (pos[m, k] - self.pos[:until][m, k]) / SIGMA_POSITION
+            travel = pos[:, k] - pos[first, k]
+            seen = self.pos[:until, k] - self.pos[first, k]
+            dp = (travel[m] - seen[m]) / SIGMA_POSITION
             dt = (tacho[m, k] - self.tacho[:until][m, k]) / SIGMA_TACHO
             out[a] = np.concatenate([dp, dt])
         return out

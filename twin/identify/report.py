@@ -23,7 +23,13 @@ import numpy as np
 
 from twin.config import AXES, MachineConfig
 from twin.config.writer import machine_to_toml
-from twin.identify.fit import NOT_EXCITED, NOT_IDENTIFIABLE, Estimate, Identification
+from twin.identify.fit import (
+    NOT_EXCITED,
+    NOT_IDENTIFIABLE,
+    UNSEEN_CURRENT_LOOP,
+    Estimate,
+    Identification,
+)
 from twin.identify.log import IdentLog
 from twin.identify.plan import HELD_OUT, REPLAYED
 
@@ -43,6 +49,9 @@ FIELDS = {
     "speed_kp": ("regulators.speed_kp", "A/V", 1.0),
     "speed_ti": ("regulators.speed_ti", "ms", 1e3),
     "reference_filter": ("speed_loop.reference_filter", "ms", 1e3),
+    "current_kp": ("regulators.current_kp", "V/A", 1.0),
+    "current_ti": ("regulators.current_ti", "ms", 1e3),
+    "brush_drop": ("motor.brush_drop", "V", 1.0),
 }
 """Per fitted parameter: the machine-file field(s) it sets, the unit it is quoted in and the
 factor from SI to that unit."""
@@ -56,8 +65,8 @@ def _quote(e: Estimate, scale: float) -> str:
 
 def not_identified(e: Estimate) -> str:
     """Why a value is not identified, and what was kept (one line)."""
-    if e.source == NOT_EXCITED:
-        return "not excited, BASE's value kept"
+    if e.source in (NOT_EXCITED, UNSEEN_CURRENT_LOOP):
+        return e.source
     if e.given:
         return (f"NOT SEPARABLE from {', '.join(e.given)}: identified given "
                 f"{'its' if len(e.given) == 1 else 'their'} held value, right only "
@@ -92,9 +101,10 @@ def header_lines(result: Identification, base: MachineConfig, log: IdentLog,
             lines.append(f"  {where} = {_quote(e, scale)} {unit}  <- {e.source}{mark}")
         if a in result.dcm:
             d = result.dcm[a]
-            lines.append(f"  converter.dcm_compensation = {str(d.present).lower()}  <- steps, "
-                         f"prbs (model selection: BIC without − with {d.bic:+.1f}"
-                         + (")" if d.decided else "; UNDECIDED, BASE's choice kept)"))
+            lines.append(f"  regulators.implementation, converter.dcm_compensation = {d.model}"
+                         f"  <- steps, prbs (model selection, BIC over the best: "
+                         + ", ".join(f"{m} {b:+.1f}" for m, b in d.bic.items())
+                         + (")" if d.decided else "; UNDECIDED, BASE's model kept)"))
         d = derived[a]
         lines.append(f"  => K_H {1e3 * d['K_H']:.5g} mm/(s·V), Coulomb at the motor "
                      f"{d['coulomb_at_motor']:.4g} N·m, viscous at the motor "
@@ -131,8 +141,8 @@ def summary(result: Identification, base: MachineConfig, log: IdentLog) -> dict[
                               "kept": e.kept, "given": list(e.given)}
                           for k, e in result.estimates[a].items()} for a in AXES},
         "derived": result.derived(),
-        "dcm_compensation": {a: {"present": d.present, "bic": d.bic, "decided": d.decided}
-                             for a, d in result.dcm.items()},
+        "dcm_compensation": {a: {"present": d.present, "model": d.model, "bic": d.bic,
+                                 "decided": d.decided} for a, d in result.dcm.items()},
         "nrmse": result.nrmse,
         "residual": result.residual,
         "mains_phase_rad": result.mains_phase,
