@@ -26,7 +26,7 @@ def in_lockstep(tmp_path_factory):
     """The same unseen machine as ``over_modbus``, identified in lock-step: no timing of a
     loaded machine in its experiments, so what is tuned on it does not depend on the load."""
     where = tmp_path_factory.mktemp("lockstep")
-    true, path = unseen(11, where, drive=True)
+    true, path = unseen(11, where, drive="mistuned")
     out = where / "calibrated.toml"
     identify(BASE, out, driver=f"sim:{path}", out_dir=where / "runs")
     return true, path, out
@@ -36,10 +36,10 @@ def in_lockstep(tmp_path_factory):
 @pytest.mark.parametrize(("seed", "amplitude"),
                          [(21, 0.3)] if CI else [(21, 0.3), (37, 0.5), (37, 1.0), (21, 1.0)])
 def test_more_unseen_machines_lock_step(seed, amplitude, tmp_path):
-    """Mistuned analog drives without DCM adaptation, identified at reduced amplitude too:
-    the truth inside the intervals or the field declared (``bench/identify.py`` runs the
-    full coverage study: ≥ 20 machines at 0.3, 0.5 and 1)."""
-    true, path = unseen(seed, tmp_path, drive=True)
+    """Hand-set speed regulators, identified at reduced amplitude too: the truth inside the
+    intervals or the field declared (``bench/identify.py`` runs the coverage study on
+    many machines at 0.3, 0.5 and 1)."""
+    true, path = unseen(seed, tmp_path, drive="mistuned")
     out = tmp_path / "calibrated.toml"
     result = identify(BASE, out, driver=f"sim:{path}", out_dir=tmp_path / "runs",
                       amplitude=amplitude)

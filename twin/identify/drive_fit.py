@@ -146,4 +146,4 @@ def _as_model(p: AxisParams, base: MachineConfig, axis: str, analog: float, dcm:
                                  f"axes.{axis}.converter.dcm_compensation": dcm > 0.5})
     d = design(built.axes[axis], moving_mass=built.moving_masses()[axis])
     return p.with_(analog=analog, dcm_compensation=dcm, current_kp=d.current_kp,
-                   current_ti=d.current_ti)
+                   current_ti=d.current_ti, current_designed=1.0 if dcm > 0.5 else 0.0)

@@ -48,6 +48,7 @@ converter's mains data, the current regulator's settings and the brush and thyri
 
 from __future__ import annotations
 
+import dataclasses
 import math
 import time
 from collections.abc import Callable
@@ -74,6 +75,12 @@ from twin.identify.replay import (
 
 __all__ = ["NOT_EXCITED", "NOT_IDENTIFIABLE", "REPLAYED_PARAMS", "TOLERANCE", "Estimate",
            "Identification", "fit"]
+
+QUALITY = 0.05
+"""Largest held-out normalised RMS error of a fit whose replayed parameters are reported:
+above it (a drive whose limit cycle the twin cannot follow tick by tick, a model the twin
+lacks) the profile intervals describe a cost that is not the machine's, and every replayed
+parameter keeps BASE's value, flagged."""
 
 REPLAYED_PARAMS = ("inertia", "coulomb", "viscous", "breakaway", "resistance",
                    "inductance", "speed_kp", "speed_ti", "reference_filter", "current_kp",
@@ -338,6 +345,18 @@ def fit(base: MachineConfig, log: IdentLog, *,
                        f"with a normalised RMS error of {100 * worst:.1f} %")
     say(f"held out: NRMSE {100 * worst:.2f} % ({problem.replays} replays, "
         f"{time.process_time() - cpu0:.0f} s CPU)")
+    if worst > QUALITY:   # the twin does not replay this machine: no value to trust
+        why = (f"the fitted twin predicts the held-out {HELD_OUT} with a normalised RMS "
+               f"error of {100 * worst:.1f} % (above {100 * QUALITY:.0f} %): it does not "
+               f"replay this machine; BASE's value kept")
+        say(f"warning: {why}, for every replayed parameter")
+        for a in axes:
+            for name in names:
+                estimates[a][name] = dataclasses.replace(
+                    estimates[a][name], value=getattr(start[a], name), identifiable=False,
+                    source=why, kept="base", given=())
+            final[a] = final[a].with_(**{n: getattr(start[a], n) for n in REPLAYED_PARAMS})
+        calibrated = candidate(base, final)
     curves = {"t": log.data["t"][:n], "pos_meas": problem.pos[:n], "pos_fit": pos,
               "tacho_meas": problem.tacho[:n], "tacho_fit": tacho}
     result = Identification(final, estimates, calibrated, nrmse, residual, problem.replays,

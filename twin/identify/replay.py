@@ -63,6 +63,11 @@ class AxisParams:
     brush_drop : float
         The brushes' contact drop (V): at feed speeds, in discontinuous conduction, it is
         of the order of the whole driving margin.
+    current_designed : float
+        1: the current regulator is the modulus optimum for the candidate's own R and L
+        (as a drive's current loop is set for its motor at commissioning), while the fit
+        does not fit it (a drive with the adaptation, whose current loop does not show);
+        0: ``current_kp`` and ``current_ti`` are written as they are.
     """
 
     tacho_gain: float
@@ -83,6 +88,7 @@ class AxisParams:
     dcm_compensation: float
     analog: float
     brush_drop: float
+    current_designed: float
 
     def to_dict(self) -> dict[str, float]:
         """Plain dict."""
@@ -118,17 +124,20 @@ def base_params(base: MachineConfig) -> dict[str, AxisParams]:
                             current_ti=d.current_ti,
                             dcm_compensation=1.0 if ax.converter.dcm_compensation else 0.0,
                             analog=1.0 if ax.regulators.implementation == "analog" else 0.0,
-                            brush_drop=ax.motor.brush_drop)
+                            brush_drop=ax.motor.brush_drop,
+                            current_designed=1.0 if d.current_regulator_designed else 0.0)
     return out
 
 
 def candidate(base: MachineConfig, params: dict[str, AxisParams]) -> MachineConfig:
     """BASE with every field ``params`` sets replaced (validated as any machine file).
 
-    The drive's regulator settings are written out, never derived again from the
-    candidate's inertia, resistance and inductance: the drive on a machine is set once, at
-    commissioning, and does not retune itself to a different motor (a mistuned drive is
-    then one the fit can represent, and the inertia shows in the speed loop's response)."""
+    The drive's speed regulator and reference filter are written out, never derived again
+    from the candidate's inertia: the drive on a machine is set once, at commissioning, and
+    does not retune itself to a different motor (a mistuned drive is then one the fit can
+    represent, and the inertia shows in the speed loop's response). The current regulator
+    is written out too, unless ``current_designed``: then it is the modulus optimum for the
+    candidate's R and L, as BASE's is for its own."""
     sets: dict[str, float | bool] = {}
     for a in AXES:
         p, m = params[a], base.axes[a].mechanics
@@ -152,10 +161,11 @@ def candidate(base: MachineConfig, params: dict[str, AxisParams]) -> MachineConf
             f"{pre}.motor.armature_inductance": p.inductance,
             f"{pre}.regulators.speed_kp": p.speed_kp,
             f"{pre}.regulators.speed_ti": p.speed_ti,
-            f"{pre}.regulators.current_kp": p.current_kp,
-            f"{pre}.regulators.current_ti": p.current_ti,
             f"{pre}.speed_loop.reference_filter": p.reference_filter,
         })
+        if not p.current_designed:
+            sets[f"{pre}.regulators.current_kp"] = p.current_kp
+            sets[f"{pre}.regulators.current_ti"] = p.current_ti
         if base.axes[a].converter.kind == "thyristor":
             sets[f"{pre}.converter.dcm_compensation"] = bool(p.dcm_compensation)
             sets[f"{pre}.regulators.implementation"] = "analog" if p.analog > 0.5 \

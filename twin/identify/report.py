@@ -65,7 +65,7 @@ def _quote(e: Estimate, scale: float) -> str:
 
 def not_identified(e: Estimate) -> str:
     """Why a value is not identified, and what was kept (one line)."""
-    if e.source in (NOT_EXCITED, UNSEEN_CURRENT_LOOP):
+    if e.source in (NOT_EXCITED, UNSEEN_CURRENT_LOOP) or "does not replay" in e.source:
         return e.source
     if e.given:
         return (f"NOT SEPARABLE from {', '.join(e.given)}: identified given "
