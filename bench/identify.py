@@ -112,7 +112,7 @@ def one(seed: int, where: Path, amplitude: float, *, drive: str | None, modbus: 
     if modbus:
         from twin.hardware.hil_process import spawn_hil_server
 
-        with spawn_hil_server("--machine", str(path)) as server:
+        with spawn_hil_server("--machine", str(path), ready_timeout=600.0) as server:
             res = identify_cli([*common, "--driver",
                                 f"modbus://127.0.0.1:{server.info['port']}?retries=1"])
     else:

@@ -39,7 +39,9 @@ def over_modbus(tmp_path_factory):
     out = where / "calibrated.toml"
     # both ends under SCHED_FIFO where the OS grants it, as on a real-time controller
     for attempt in range(2):
-        with spawn_hil_server("--machine", str(path), "--rt-priority", "10") as server:
+        # a loaded machine may compile the kernel first: a generous start-up time
+        with spawn_hil_server("--machine", str(path), "--rt-priority", "10",
+                              ready_timeout=300.0) as server:
             # one re-send of a request unanswered within its 20 ms: a 2-core CI machine
             # running the suite's other worker beside both ends once left the server silent
             # that long
