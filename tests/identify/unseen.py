@@ -38,24 +38,38 @@ def twin_cli(*args: str, timeout: float = 900.0) -> subprocess.CompletedProcess:
 
 
 def assert_identified(result: dict, true) -> None:
-    """At full amplitude: every value within the issue's bounds, the drive's speed loop
-    and inertia within 10 %, and the truth inside the intervals (``assert_covered``)."""
+    """A value called identified is right: K_H within 1 %, the rotor inertia and the speed
+    regulator's gain and integral time within 10 %, the Coulomb friction at the motor
+    within 20 %, the lost motion within 2 µm; a value not identified is flagged (BASE's
+    kept, or identified only given one held). The regressions' values (K_H, tacho gain) and
+    the lost motion are always identified; the truth lies inside ≥ 90 % of the intervals
+    (``assert_covered``); the fitted twin replays the machine (held-out NRMSE ≤
+    ``fit.QUALITY``); a decided model of the current regulator is the machine's."""
+    from twin.identify.fit import QUALITY
+
     truth, own = axis_figures(true), true_params(load_machine(BASE), true)
     for a in AXES:
         d, e, t = result["derived"][a], result["estimates"][a], truth[a]
         where = f"axis {a} of {true.name}"
         assert d["K_H"] == pytest.approx(t["K_H"], rel=0.01), where
-        assert e["inertia"]["value"] == pytest.approx(t["inertia"], rel=0.10), where
-        assert d["coulomb_at_motor"] == pytest.approx(t["coulomb_at_motor"], rel=0.20), where
         assert abs(e["backlash"]["value"] - t["backlash"]) <= 2e-6, where
-        for name in ("speed_kp", "speed_ti"):
-            assert e[name]["value"] == pytest.approx(getattr(own[a], name), rel=0.10), \
-                (where, name)
-        for name in ("tacho_gain", "inertia", "coulomb", "backlash", "speed_kp", "speed_ti"):
+        for name in ("tacho_gain", "gain_error", "backlash"):
             assert e[name]["identifiable"], (where, name)
-        assert result["dcm_compensation"][a]["present"] == bool(own[a].dcm_compensation)
+        checks = {"inertia": (e["inertia"]["value"], t["inertia"], 0.10),
+                  "coulomb": (d["coulomb_at_motor"], t["coulomb_at_motor"], 0.20),
+                  "speed_kp": (e["speed_kp"]["value"], own[a].speed_kp, 0.10),
+                  "speed_ti": (e["speed_ti"]["value"], own[a].speed_ti, 0.10)}
+        for name, (got, want, rel) in checks.items():
+            if e[name]["identifiable"]:
+                assert got == pytest.approx(want, rel=rel), (where, name)
+            else:
+                assert e[name]["kept"] in ("base", "bound") or e[name]["given"], \
+                    (where, name)
+        dcm = result["dcm_compensation"][a]
+        if dcm["decided"]:
+            assert dcm["present"] == bool(own[a].dcm_compensation), where
     assert_covered(result, true)
-    assert max(max(v.values()) for v in result["nrmse"].values()) <= 0.02
+    assert max(max(v.values()) for v in result["nrmse"].values()) <= QUALITY
 
 
 COVERED = ("tacho_gain", "gain_error", "offset", "inertia", "coulomb", "viscous",
