@@ -12,7 +12,8 @@ decision of what the data cannot separate.
    interval), the others are fitted again around it, and those of the group whose profile
    then closes are reported as identified *given* the one held: their values are right
    relative to it, and they are flagged not identifiable on their own. This repeats while
-   a group remains.
+   a group remains; then any value the holds moved out of its interval is flagged the same
+   way (it depends on what was held).
 """
 
 from __future__ import annotations
@@ -142,6 +143,14 @@ def joint_fit(problem: Problem, params: dict[str, AxisParams], names: Sequence[s
     for a in axes:   # a held quantity whose own coordinate is relative: exactly its value
         for n, x in kept[a].items():
             current[a] = _set(current[a], start[a], n, x)
+        # a value the holds moved out of its interval depends on what was held
+        for n in names:
+            if n in held[a] or n in given[a] or not held[a]:
+                continue
+            lo, hi = intervals[a][n]
+            x = coordinate(current[a], start[a], n)
+            if not lo - 1e-12 <= x <= hi + 1e-12:
+                given[a][n] = tuple(held[a])
     return Joint(current, intervals, held, given, linear, restarts)
 
 
