@@ -57,6 +57,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from twin.config import AXES, MachineConfig
+from twin.drive.design import design
 from twin.errors import FitError
 from twin.identify.direct import coast_regression, limit_inertia, lost_motion, regress_gains
 from twin.identify.drive_fit import CURRENT_LOOP, SPEED_LOOP, DcmDecision, fit_speed_loop
@@ -101,8 +102,9 @@ NOT_IDENTIFIABLE = {
 }
 """Fields the encoder, tacho and DAC cannot recover, and why; kept from BASE."""
 
-UNSEEN_CURRENT_LOOP = ("kept from BASE: with the DCM adaptation the current loop is linear "
-                       "and ten times faster than the speed loop")
+UNSEEN_CURRENT_LOOP = ("not fitted: with the DCM adaptation the current loop is linear and "
+                       "ten times faster than the speed loop; the current regulator is the "
+                       "modulus optimum of the fitted R and L, the brush drop BASE's")
 """The source of the current loop's values where the chosen drive model adapts."""
 
 NOT_EXCITED = "not excited (held in position: --axes left it out); BASE's value kept"
@@ -326,6 +328,13 @@ def fit(base: MachineConfig, log: IdentLog, *,
     if not all(math.isfinite(v) for p in final.values() for v in p.to_dict().values()):
         raise FitError("the fit ran away: a parameter is not finite")
     calibrated = candidate(base, final)
+    masses = calibrated.moving_masses()
+    for a in axes:   # the current regulator not fitted: what the calibrated drive has
+        d = design(calibrated.axes[a], moving_mass=masses[a])
+        for name in ("current_kp", "current_ti"):
+            if estimates[a][name].source == UNSEEN_CURRENT_LOOP:
+                estimates[a][name] = dataclasses.replace(estimates[a][name],
+                                                         value=getattr(d, name))
     # fit quality: the fit experiments' residual, and the held-out prediction
     held = log.experiment_mask(HELD_OUT)
     pos, tacho = problem.simulate(final, int(np.flatnonzero(held)[-1]) + 1)

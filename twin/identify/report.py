@@ -65,17 +65,19 @@ def _quote(e: Estimate, scale: float) -> str:
 
 def not_identified(e: Estimate) -> str:
     """Why a value is not identified, and what was kept (one line)."""
-    if e.source in (NOT_EXCITED, UNSEEN_CURRENT_LOOP) or "does not replay" in e.source:
+    if e.source == UNSEEN_CURRENT_LOOP:
+        return "not fitted"
+    if e.source == NOT_EXCITED or "does not replay" in e.source:
         return e.source
     if e.given:
         return (f"NOT SEPARABLE from {', '.join(e.given)}: identified given "
                 f"{'its' if len(e.given) == 1 else 'their'} held value, right only "
                 f"relative to it")
     if e.kept == "bound":
-        return ("NOT IDENTIFIABLE at this amplitude: the data reject BASE's value, the "
-                "nearest one they allow kept")
+        return ("NOT IDENTIFIABLE from these experiments: the data reject BASE's value, "
+                "the nearest one they allow kept")
     if e.kept == "base":
-        return "NOT IDENTIFIABLE at this amplitude: BASE's value kept"
+        return "NOT IDENTIFIABLE from these experiments: BASE's value kept"
     return "NOT IDENTIFIABLE"
 
 
