@@ -41,8 +41,8 @@ def assert_identified(result: dict, true) -> None:
     """A value called identified is right: K_H within 1 %, the rotor inertia and the speed
     regulator's gain and integral time within 10 %, the Coulomb friction at the motor
     within 20 %, the lost motion within 2 µm; a value not identified is flagged (BASE's
-    kept, or identified only given one held). The regressions' values (K_H, tacho gain) and
-    the lost motion are always identified; the truth lies inside ≥ 90 % of the intervals
+    kept, or identified only given one held). The regressions' values (K_H, tacho gain) are
+    always identified; the truth lies inside ≥ 90 % of the intervals
     (``assert_covered``); the fitted twin replays the machine (held-out NRMSE ≤
     ``fit.QUALITY``); a decided model of the current regulator is the machine's."""
     from twin.identify.fit import QUALITY
@@ -52,9 +52,10 @@ def assert_identified(result: dict, true) -> None:
         d, e, t = result["derived"][a], result["estimates"][a], truth[a]
         where = f"axis {a} of {true.name}"
         assert d["K_H"] == pytest.approx(t["K_H"], rel=0.01), where
-        assert abs(e["backlash"]["value"] - t["backlash"]) <= 2e-6, where
-        for name in ("tacho_gain", "gain_error", "backlash"):
+        for name in ("tacho_gain", "gain_error"):
             assert e[name]["identifiable"], (where, name)
+        if e["backlash"]["identifiable"]:   # its preload is uncertain with the friction
+            assert abs(e["backlash"]["value"] - t["backlash"]) <= 2e-6, where
         checks = {"inertia": (e["inertia"]["value"], t["inertia"], 0.10),
                   "coulomb": (d["coulomb_at_motor"], t["coulomb_at_motor"], 0.20),
                   "speed_kp": (e["speed_kp"]["value"], own[a].speed_kp, 0.10),

@@ -159,10 +159,13 @@ def limit_inertia(problem: Problem, params: dict[str, AxisParams]) -> dict[str, 
     return out
 
 
-def lost_motion(problem: Problem, params: dict[str, AxisParams]
-                 ) -> dict[str, tuple[float, float]]:
+def lost_motion(problem: Problem, params: dict[str, AxisParams],
+                friction_known: dict[str, bool] | None = None
+                ) -> dict[str, tuple[float, float]]:
     """Stage 4: the lost motion from the home switch's edges (value, 95 % half-interval),
-    per axis; NaN where the crossings do not show both edges both ways."""
+    per axis; NaN where the crossings do not show both edges both ways. Where
+    ``friction_known[axis]`` is False (the fit could not pin the friction down) the
+    friction's preload is uncertain as a whole, not only its rotor/slide split."""
     log, base = problem.log, problem.base
     period = base.controller.period
     pieces = log.data["piece"].astype(int)
@@ -202,7 +205,8 @@ def lost_motion(problem: Problem, params: dict[str, AxisParams]
         b = seen - preload - debounce
         # each edge is known to within a tick of travel (uniform): four edges averaged
         # in pairs; the preload's share of the rotor/slide split is not known (±50 %)
+        share = 0.5 if (friction_known or {}).get(a, True) else 1.0
         half = 1.96 * math.sqrt(speed * period * speed * period / 12.0
-                                + (0.5 * preload / 1.96) ** 2)
+                                + (share * preload / 1.96) ** 2)
         out[a] = (max(b, 0.0) if math.isfinite(b) else math.nan, half)
     return out

@@ -314,7 +314,11 @@ def fit(base: MachineConfig, log: IdentLog, *,
             if name not in names:   # not fitted: the chosen drive model does not show it
                 est[name] = Estimate(getattr(p, name), math.nan, math.nan, False,
                                      UNSEEN_CURRENT_LOOP, "base")
-        b, h = lost[a]
+        if not est["coulomb"].identifiable:   # the preload is then uncertain as a whole
+            again = lost_motion(problem, {**params, a: p}, {a: False})
+            b, h = lost[a][0], again[a][1]
+        else:
+            b, h = lost[a]
         ok = math.isfinite(b) and h <= TOLERANCE["backlash"]
         if not ok:
             p = p.with_(backlash=start[a].backlash)
