@@ -139,8 +139,11 @@ def candidate(base: MachineConfig, params: dict[str, AxisParams]) -> MachineConf
     is written out too, unless ``current_designed``: then it is the modulus optimum for the
     candidate's R and L, as BASE's is for its own."""
     sets: dict[str, float | bool] = {}
+    own = base_params(base)
     for a in AXES:
         p, m = params[a], base.axes[a].mechanics
+        if p == own[a]:   # BASE's own values (an axis not excited): BASE's axis as it is
+            continue
         pre = f"axes.{a}"
         rotor_c, slide_c = p.coulomb * m.rotor_coulomb, p.coulomb * m.slide_coulomb
         sets.update({
