@@ -8,7 +8,7 @@ export RERUN_DISABLE_ANALYTICS=1
 export MPLBACKEND=Agg
 export NUMBA_CACHE_DIR ?= $(CURDIR)/.cache/numba
 
-.PHONY: demo test test-linuxcnc lint bench clean
+.PHONY: demo test test-linuxcnc test-screenshot lint bench clean
 
 $(STAMP): pyproject.toml constraints.txt
 	test -x $(BIN)/python || $(PYTHON) -m venv $(VENV)
@@ -31,6 +31,14 @@ test-linuxcnc: $(STAMP)
 	command -v rs274 >/dev/null || { apt-get update -q && \
 	  apt-get install -y -q --no-install-recommends linuxcnc-uspace; }
 	$(BIN)/python -m pytest -s tests/controller/test_linuxcnc.py
+
+# The viewer as an engineer sees it: headless Chromium (Debian's chromium) and Playwright
+# shoot a run's recording in rerun's web viewer (tools/viewer_screenshot.py).
+test-screenshot: $(STAMP)
+	command -v chromium >/dev/null || { apt-get update -q && \
+	  apt-get install -y -q --no-install-recommends chromium; }
+	$(BIN)/pip install -q -c constraints.txt -e '.[screenshot]'
+	XY_TWIN_SCREENSHOT=1 $(BIN)/python -m pytest -s tests/telemetry/test_screenshot.py
 
 bench: $(STAMP)
 	$(BIN)/pip install -q -c constraints.txt -e '.[dev,bench]'

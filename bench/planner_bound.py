@@ -1,40 +1,56 @@
-"""The look-ahead planner against the time-optimal bound, on CAM-like programs (issue 12).
+"""Each acceleration law against its own yardstick, on CAM-like programs (issues 12, 30).
 
-For each program of ``twin.analysis.studies.cam`` (a chorded nest of 32.6 m, lettering outlines, a
-pocket zig-zag) on a machine (default ``laser_belt``, seed 001's laser table), and each
-acceleration law:
+For each program — three fixed ones of ``twin.analysis.studies.cam`` (a chorded nest of
+32.6 m, large lettering, a pocket zig-zag) and ``--instances`` random instances of each
+class of ``twin.analysis.studies.cam_classes`` (small text, densely chorded small radii, a
+3-axis raster flattened to XY), drawn from ``--seed`` — on a machine (default
+``laser_belt``, seed 001's laser table), and each acceleration law:
 
-* ``lookahead_s`` / ``stop_s``: the planned cycle time (the sum of the blocks' profile
-  durations and the dwells) with look-ahead, and with a stop at every node;
-* ``bound_s``: the time-optimal traversal of the same path (the look-ahead's, its corners
-  rounded within the contour tolerance) under the same limits — per-axis velocity and
-  acceleration, the contour feed and acceleration, stops where the program stops — computed
-  by TOPP-RA (``toppra``, a bench-only dependency: ``pip install -e '.[bench]'``) with the
-  constraints evaluated at grid points every ``--grid`` mm and at every segment end; the
-  contour acceleration |a| ≤ A is its circumscribed 16-gon (a relaxation, so the bound stays
-  a bound). No jerk limit: it bounds every law;
-* ``ratio`` = lookahead / bound, ``stop_ratio`` = stop / bound;
-* ``bound_share_changing_speed``: the share φ of the bound's time spent accelerating or
-  braking: a law whose speed changes take k_a times as long at the same peak acceleration
-  (parabolic 1.5, cosine π/2, cubic 1.875) is held to about ``1 + φ·(k_a − 1)`` of the bound
-  on such a program, whatever its planner;
-* ``mean_bound_s`` / ``ratio_to_mean_bound`` (parabolic, cosine, cubic): the same bound
-  with the path acceleration also held to the law's mean over a speed change, A/k_a (the
-  peak still within the limits above): what the law's fixed shape allows at best for its
-  speed changes. Not a strict bound (a curve's speed limit may cut a change short), a
-  like-for-like yardstick for the smooth laws;
-* ``axis_acceleration``: the largest |second difference| of the position reference over one
-  controller period, as the interpolator produces it, relative to each axis' limit (velocity
-  steps at nodes count as Δv/T there);
-* ``blocks_per_s``: planning throughput in memory (the speeds at the nodes; a block's
-  speed profile is made when it is used, ``PlannedBlock.profile``).
+* ``lookahead_s``: the planned cycle time (the blocks' profile durations and the dwells);
+* ``yardstick_s``: the law's own yardstick. The time-optimal traversal of the same path
+  (the look-ahead's, corners rounded within the contour tolerance) under the same limits —
+  per-axis velocity and acceleration, the contour feed and acceleration (its circumscribed
+  16-gon: a relaxation, so the bound stays a bound), stops where the program stops —
+  computed by TOPP-RA (``toppra``, a bench-only dependency: ``pip install -e '.[bench]'``)
+  on grid points every ``GRID`` (at least ``MIN_STEPS`` per block) and at every segment
+  end, with the path acceleration also
+  held to |s̈| ≤ A/k_a, the law's mean acceleration over one speed change at peak A:
 
-Then the chord-independence table (circles of r = 2 and 20 mm as G3 and as chords of 0.001 …
-0.5 mm: the planned speed at mid-circle), and the planner's throughput on a 100 000-block
-chord program in memory (also with every block's profile made, as the interpolator makes it)
-and streamed from a file through the G-code reader (peak RSS).
+  ========================  ==================================================
+  trapezoid                 k_a = 1: the plain time-optimal bound (no jerk limit)
+  parabolic, cosine, cubic  k_a = 1.5, π/2, 1.875 (``K_A``)
+  jerk-limited              A_eff = A / (1 + A²/(J·v)), v the piece's top feed
+  ========================  ==================================================
 
-Prints one JSON object. ``--quick``: one law set on smaller programs (a sanity run).
+  For the fixed-shape laws the yardstick is a like-for-like reference, not a strict
+  bound: their own jerk limit may make a short speed change slower than A/k_a (the
+  planner must keep it), and a curve's speed limit may cut a change short. For the
+  jerk-limited law it is an **estimate**: A_eff is the mean acceleration of the S-curve
+  from rest to the feed (|Δv|/A + A/J per change); a smaller change has a lower mean, a
+  change that does not start at rest may save the ramps. Hence its target is 1.10×;
+* ``ratio`` = lookahead / yardstick; ``ratio_to_bound``: lookahead / the plain bound;
+  ``ratio_to_capped``: lookahead / the yardstick with the speed also held to the planner's
+  own caps of blocks and nodes (the curves' acceleration and jerk caps, the corner model,
+  the velocity and curvature steps): what the speed profiles lose, apart from the caps;
+* ``axis_acceleration``, ``axis_jerk``: the largest |Δ²p|/T² and |Δ³p|/T³ of the sampled
+  position reference per axis (every controller period T, as the interpolator produces
+  it) over the axis' max_acceleration and max_jerk. A velocity step at a node counts as
+  Δv/T, an acceleration step as Δa/T (the trapezoid's jerk is impulsive: reported, not
+  held). ``limits_ok``: acceleration ≤ 1.05 for every law, jerk ≤ 1.05 for the
+  jerk-limited law;
+* per program: blocks, median chord, the blends' radius percentiles p10/p50/p90 (mm).
+
+Then the chord-independence table: full circles of r = 0.5 … 20 mm as a G3 arc, as chords
+of 0.001 … 0.5 mm (written exactly) and as chords within a chordal tolerance of 0.001 …
+0.02 mm (written with 3 decimals, as CAM posts do); a polygon whose sagitta exceeds the
+blend tolerance is not that circle within tolerance and is left out; the feed moves'
+cycle time per law and its spread over the representations; and the planner's
+throughput on a 100 000-block chord program in memory (also with every block's profile
+made, as the interpolator makes it) and streamed from a file through the G-code reader
+(peak RSS).
+
+Prints one JSON object; ``--markdown`` also prints the summary tables to stderr.
+``--quick``: smaller programs, one instance per class, two laws (a sanity run).
 """
 
 from __future__ import annotations
@@ -53,15 +69,18 @@ from pathlib import Path
 import numpy as np
 
 from twin.analysis.studies import cam
+from twin.analysis.studies.cam_classes import CLASSES
+from twin.analysis.studies.nest import chord_length
 from twin.config import load_machine
 from twin.controller.gcode import parse
-from twin.controller.geometry import Arc
+from twin.controller.geometry import Arc, Line
 from twin.controller.planner import PlannedBlock, Planner
 from twin.controller.profiles import LAWS
 
 GRID = 0.25e-3                 # m: the bound's largest grid step
 ARC_STEP = 0.05                # rad: the bound's largest grid step on arcs
 POLYGON = 16                   # sides of the contour-acceleration polygon
+MIN_STEPS = 8                  # grid steps per block at least (short chords, small text)
 
 
 # ----------------------------------------------------------------------------- planning
@@ -75,15 +94,9 @@ def plan(cfg, text: str, law: str, mode: str = "lookahead") -> tuple[list, float
     return out, time.perf_counter() - t0
 
 
-def cycle_time(items: list) -> float:
-    """Sum of the blocks' profile durations and the dwells (s)."""
-    total = 0.0
-    for it in items:
-        if isinstance(it, PlannedBlock):
-            total += it.profile().duration
-        elif hasattr(it, "duration"):
-            total += it.duration
-    return total
+def cycle_time(items: list, feed_only: bool = False) -> float:
+    """Sum of the blocks' profile durations and the dwells (s) (`cam.planned_time`)."""
+    return cam.planned_time(items, feed_only)
 
 
 def pieces(items: list) -> tuple[list[list[PlannedBlock]], float]:
@@ -108,6 +121,30 @@ def pieces(items: list) -> tuple[list[list[PlannedBlock]], float]:
     return out, dwell
 
 
+def _max_curvature(seg) -> float:
+    """Largest |κ| of a segment (1/m): exact on lines and arcs, sampled on other curves."""
+    if isinstance(seg, Line):
+        return 0.0
+    if isinstance(seg, Arc):
+        return 1.0 / seg.radius
+    return float(np.abs(seg.curvature(np.linspace(0.0, seg.length, 33))).max())
+
+
+def path_figures(items: list) -> dict:
+    """Blocks, median chord and the blends' radius percentiles of a plan (mm)."""
+    feed = [b for b in items if isinstance(b, PlannedBlock) and not b.rapid]
+    chords = [b.segment.length for b in feed if isinstance(b.segment, Line)]
+    radii = [1.0 / k for k in (_max_curvature(b.segment) for b in feed if b.blend) if k > 0]
+    out = {"feed_blocks": len(feed), "feed_length_mm": round(
+        sum(b.segment.length for b in feed) * 1e3, 1)}
+    if chords:
+        out["median_line_mm"] = round(float(np.median(chords)) * 1e3, 4)
+    if radii:
+        out["blend_radius_p10_p50_p90_mm"] = [round(float(x) * 1e3, 3)
+                                             for x in np.percentile(radii, [10, 50, 90])]
+    return out
+
+
 # ----------------------------------------------------------------------------- the bound
 def _grid(blocks: list[PlannedBlock]) -> tuple[np.ndarray, list[tuple[int, float]]]:
     """Grid points along the blocks (m, from 0) and per point (block index, local s).
@@ -121,9 +158,10 @@ def _grid(blocks: list[PlannedBlock]) -> tuple[np.ndarray, list[tuple[int, float
     for k, b in enumerate(blocks):
         seg = b.segment
         step = GRID
-        if isinstance(seg, Arc):
-            step = min(step, ARC_STEP * seg.radius)
-        n = max(1, math.ceil(seg.length / step))
+        kappa = _max_curvature(seg)
+        if kappa > 0.0:
+            step = min(step, ARC_STEP / kappa)
+        n = max(MIN_STEPS, math.ceil(seg.length / step))
         local = np.linspace(0.0, seg.length, n + 1)
         if k < len(blocks) - 1:
             local = local[:-1]
@@ -134,11 +172,35 @@ def _grid(blocks: list[PlannedBlock]) -> tuple[np.ndarray, list[tuple[int, float
     return np.array(s_all), where
 
 
-def bound_time(blocks: list[PlannedBlock], cfg, k_a: float = 1.0) -> tuple[float, float]:
-    """TOPP-RA's time for one piece that starts and ends at rest (s), and the part of it
-    spent changing speed (path acceleration above 1 % of the contour limit) (s). With
-    ``k_a`` > 1 the path acceleration is also held to |s̈| ≤ A/k_a: a smooth law's mean
-    acceleration over a speed change (its peak stays within the same limits as above)."""
+def _feed_cap(cfg, b: PlannedBlock) -> float:
+    """A block's speed before any geometric cap (m/s)."""
+    contour = cfg.controller.limits
+    return cfg.controller.rapid_velocity if b.rapid else min(b.feed, contour.max_velocity)
+
+
+def rule_caps(cfg, law: str, blocks: list[PlannedBlock]) -> list[tuple[float, float]]:
+    """Per block of a piece, the planner's own caps for ``law`` (m/s): the block's speed cap
+    (`BlockRules.block`: feed, axes, a curve's acceleration and jerk) and its start node's
+    (`BlockRules.node_cap`: corner model, velocity and curvature steps)."""
+    rules = Planner.from_settings(cfg.controller, cfg.axes, law=law, work_zone=None)._rules
+    out, prev = [], None
+    for b in blocks:
+        wb = rules.block(b.segment, b.feed, b.line, b.blend)
+        node = 0.0
+        if prev is not None:
+            rules.follow(prev, wb)
+            node = rules.node_cap(prev, wb)
+        out.append((wb.v_nom, node))
+        prev = wb
+    return out
+
+
+def bound_time(blocks: list[PlannedBlock], cfg, mean: float | None = None,
+               caps: list[tuple[float, float]] | None = None) -> float:
+    """TOPP-RA's time for one piece that starts and ends at rest (s). With ``mean`` the
+    path acceleration is also held to |s̈| ≤ mean (m/s²): a law's mean acceleration over a
+    speed change (its peak stays within the same limits as above). With ``caps``
+    (`rule_caps`) the speed is also held to the planner's caps of blocks and nodes."""
     import toppra
     import toppra.algorithm as algo
     from toppra.constraint import DiscretizationType, LinearConstraint
@@ -153,10 +215,14 @@ def bound_time(blocks: list[PlannedBlock], cfg, k_a: float = 1.0) -> tuple[float
         _, _, t0, t1, kappa, _ = b.segment.frame(u)
         tx[i], ty[i] = t0, t1
         nx[i], ny[i] = -t1 * kappa, t0 * kappa           # κ·n̂ (n̂ = t̂ turned +90°)
-        v = cfg.controller.rapid_velocity if b.rapid else min(b.feed, contour.max_velocity)
+        v = _feed_cap(cfg, b)
         for comp, lim in ((abs(t0), axes[0]), (abs(t1), axes[1])):
             if comp * v > lim.max_velocity:
                 v = lim.max_velocity / comp
+        if caps is not None:
+            v = min(v, caps[k][0])
+            if u == 0.0 and k > 0:
+                v = min(v, caps[k][1])
         cap[i] = v
     # at a block boundary both blocks' speed caps hold (the speed is continuous there)
     for i in range(1, n):
@@ -200,79 +266,136 @@ def bound_time(blocks: list[PlannedBlock], cfg, k_a: float = 1.0) -> tuple[float
             self.discretization_type = DiscretizationType.Collocation
 
         def compute_constraint_params(self, path, gridpoints, *args, **kwargs):
-            mean = limit_c / k_a
             return (np.ones((n, 1)), np.zeros((n, 1)), np.zeros((n, 1)),
                     np.array([[1.0], [-1.0]]), np.array([mean, mean]), None, None)
 
-    constraints = [Limits()] if k_a == 1.0 else [Limits(), Mean()]
+    constraints = [Limits()] if mean is None else [Limits(), Mean()]
     inst = algo.TOPPRA(constraints, Path(), gridpoints=grid, solver_wrapper="seidel")
     inst.compute_parameterization(0.0, 0.0)
     sd = inst.problem_data.sd_vec
     if sd is None:
         raise RuntimeError(f"TOPP-RA found no parameterisation: {inst.problem_data}")
     ds = np.diff(grid)
-    dt = 2.0 * ds / (sd[:-1] + sd[1:])
-    sdd = (sd[1:] ** 2 - sd[:-1] ** 2) / (2.0 * ds)
-    changing = np.abs(sdd) > 0.01 * contour.max_acceleration
-    return float(np.sum(dt)), float(np.sum(dt[changing]))
+    return float(np.sum(2.0 * ds / (sd[:-1] + sd[1:])))
 
 
-K_A = {"parabolic": 1.5, "cosine": math.pi / 2, "cubic": 1.875}
-"""Peak over mean acceleration of a speed change of each smooth law with a fixed shape
-(φ'(u) at its peak: 6u(1 − u), (π/2)·sin πu, 30u²(1 − u)²); the jerk-limited law's depends
-on the change."""
+K_A = {"trapezoid": 1.0, "parabolic": 1.5, "cosine": math.pi / 2, "cubic": 1.875}
+"""Peak over mean acceleration of a speed change of each law with a fixed shape (φ'(u) at
+its peak: 1, 6u(1 − u), (π/2)·sin πu, 30u²(1 − u)²); the jerk-limited law's depends on the
+change (``yardstick_acceleration``)."""
+
+
+def yardstick_acceleration(cfg, law: str, blocks: list[PlannedBlock]) -> float | None:
+    """The path acceleration a law's yardstick allows on a piece (m/s²); None: no hold
+    beyond the limits (the trapezoid)."""
+    lim = cfg.controller.limits
+    if law == "trapezoid":
+        return None
+    if law in K_A:
+        return lim.max_acceleration / K_A[law]
+    v = max(_feed_cap(cfg, b) for b in blocks)        # the S-curve from rest to the feed
+    a, j = lim.max_acceleration, lim.max_jerk
+    return a / (1.0 + a * a / (j * v))
+
+
+def yardstick(cfg, law: str, parts: list, dwell: float, capped: bool = False) -> float:
+    """A law's yardstick for a whole plan (s): its pieces' bounds and the dwells; ``capped``:
+    also under the planner's caps of blocks and nodes (`rule_caps`)."""
+    return sum(bound_time(p, cfg, yardstick_acceleration(cfg, law, p),
+                          rule_caps(cfg, law, p) if capped else None)
+               for p in parts) + dwell
 
 
 # ----------------------------------------------------------------------------- limits
-def axis_acceleration(items: list, cfg) -> list[float]:
-    """Largest |Δ²p|/T² of the sampled position reference per axis over its limit."""
-    acc = cam.sampled_acceleration(items, cfg.controller.period)
-    return [float(acc[k] / cfg.axes[a].limits.max_acceleration) for k, a in enumerate("xy")]
+LIMIT_SLACK = 1.05
+"""The sampled reference may show this much over an axis' limits (issue 30)."""
+
+
+def sampled_limits(items: list, cfg) -> tuple[list[float], list[float]]:
+    """Largest |Δ²p|/T² and |Δ³p|/T³ of the sampled position reference per axis over the
+    axis' max_acceleration and max_jerk."""
+    acc, jerk = cam.sampled_extremes(cam.sampled_reference(items, cfg.controller.period),
+                                     cfg.controller.period)
+    return ([float(acc[k] / cfg.axes[a].limits.max_acceleration) for k, a in enumerate("xy")],
+            [float(jerk[k] / cfg.axes[a].limits.max_jerk) for k, a in enumerate("xy")])
 
 
 # ----------------------------------------------------------------------------- figures
-def program_figures(cfg, name: str, text: str, laws, check_limits: bool) -> dict:
+def program_figures(cfg, text: str, laws, check_limits: bool) -> dict:
     out: dict = {}
-    bound = None
+    parts = dwell = bound = None
     for law in laws:
         items, seconds = plan(cfg, text, law)
-        stop_items, _ = plan(cfg, text, law, "stop")
-        if bound is None:            # the path is the same for every law: its blends
+        if parts is None:            # the path is the same for every law: its blends
             parts, dwell = pieces(items)
-            times = [bound_time(p, cfg) for p in parts]
-            bound = sum(t for t, _ in times) + dwell
-            changing = sum(c for _, c in times) / bound
+            bound = yardstick(cfg, "trapezoid", parts, dwell)
+            figures = path_figures(items)
+        stick = bound if law == "trapezoid" else yardstick(cfg, law, parts, dwell)
         blocks = sum(isinstance(i, PlannedBlock) for i in items)
-        la, st = cycle_time(items), cycle_time(stop_items)
-        row = {"lookahead_s": round(la, 3), "stop_s": round(st, 3),
-               "ratio": round(la / bound, 4), "stop_ratio": round(st / bound, 4),
-               "blocks": blocks, "blocks_per_s": round(blocks / seconds)}
-        if law in K_A:
-            mean = sum(bound_time(p, cfg, K_A[law])[0] for p in parts) + dwell
-            row["mean_bound_s"] = round(mean, 3)
-            row["ratio_to_mean_bound"] = round(la / mean, 4)
+        la = cycle_time(items)
+        capped = yardstick(cfg, law, parts, dwell, capped=True)
+        row = {"lookahead_s": round(la, 3), "yardstick_s": round(stick, 3),
+               "ratio": round(la / stick, 4), "ratio_to_bound": round(la / bound, 4),
+               "ratio_to_capped": round(la / capped, 4), "blocks_per_s": round(blocks / seconds)}
         if check_limits:
-            row["axis_acceleration"] = [round(r, 3) for r in axis_acceleration(items, cfg)]
+            acc, jerk = sampled_limits(items, cfg)
+            row["axis_acceleration"] = [round(r, 3) for r in acc]
+            row["axis_jerk"] = [round(r, 3) for r in jerk]
+            row["limits_ok"] = max(acc) <= LIMIT_SLACK and (
+                law != "jerk-limited" or max(jerk) <= LIMIT_SLACK)
         out[law] = row
-    return {"bound_s": round(bound, 3), "bound_share_changing_speed": round(changing, 4),
-            "laws": out}
+    return {**figures, "bound_s": round(bound, 3), "laws": out}
 
 
-def mid_circle_speed(cfg, text: str, law: str) -> float:
-    """The planned path speed at the middle of a circle program's circle (m/s)."""
-    return cam.middle_speed(plan(cfg, text, law)[0])
+def programs(args) -> dict[str, str]:
+    """The bench's programs by name: the fixed ones and the random instances."""
+    out = {
+        "chorded_nest": cam.chorded_nest(*((2, 2) if args.quick else (6, 4))),
+        "lettering": cam.lettering("XY 26" if args.quick else "XY-twin 2026"),
+        "pocket": cam.pocket(),
+    }
+    rng = np.random.default_rng(args.seed)
+    for name, make in CLASSES.items():
+        for k in range(args.instances):
+            out[f"{name}_{k}"] = make(rng)[0]
+    return out
 
 
-def chord_independence(cfg, laws) -> dict:
+def circle_time(cfg, text: str, law: str) -> float:
+    """The feed moves' cycle time of a circle program (s)."""
+    return cycle_time(plan(cfg, text, law)[0], feed_only=True)
+
+
+RADII = (0.5, 1.0, 2.0, 5.0, 10.0, 20.0)
+CHORDS = (0.001, 0.01, 0.1, 0.5)
+"""Chord lengths (mm), written with 9 decimals: the geometry of chording alone."""
+TOLERANCES = (0.001, 0.005, 0.01, 0.02)
+"""Chordal tolerances (mm), written with 3 decimals as CAM posts write them: the rounding
+tilts every chord a little, so the blends' radii scatter (issue 30's +53 %)."""
+
+
+def chord_independence(cfg, laws, radii=RADII) -> dict:
+    """Per law and radius, the circle's cycle time as G3 and as chords (s), and the spread
+    (max/min − 1). ``c…``: chords of that length (mm); ``t…``: chords within that chordal
+    tolerance (mm). A polygon whose sagitta exceeds the blend tolerance is not that circle
+    within tolerance and is left out."""
+    blend_tol = cfg.controller.contour_tolerance * cfg.controller.corner_blend * 1e3   # mm
     out = {}
-    for r in (2.0, 20.0):
-        for law in laws:
-            speeds = {"G3": mid_circle_speed(cfg, cam.circle(r), law)}
-            for chord in (0.001, 0.01, 0.1, 0.5):
-                speeds[f"{chord:g}"] = mid_circle_speed(cfg, cam.circle(r, chord=chord), law)
-            v = list(speeds.values())
-            out[f"r{r:g}_{law}"] = {"mm_per_s": {k: round(x * 1e3, 3) for k, x in speeds.items()},
-                                    "spread": round(max(v) / min(v) - 1.0, 4)}
+    for law in laws:
+        rows = {}
+        for r in radii:
+            times = {"G3": circle_time(cfg, cam.circle(r), law)}
+            for chord in CHORDS:
+                if chord * chord / (8.0 * r) <= blend_tol:
+                    times[f"c{chord:g}"] = circle_time(cfg, cam.circle(r, chord=chord), law)
+            for tol in TOLERANCES:
+                if tol <= blend_tol:
+                    times[f"t{tol:g}"] = circle_time(cfg, cam.circle(
+                        r, chord=chord_length(r, tol), decimals=3), law)
+            v = list(times.values())
+            rows[f"r{r:g}"] = {"s": {k: round(x, 4) for k, x in times.items()},
+                               "spread": round(max(v) / min(v) - 1.0, 4)}
+        out[law] = {"radii": rows, "worst_spread": max(x["spread"] for x in rows.values())}
     return out
 
 
@@ -324,32 +447,83 @@ def throughput(cfg, machine: str, laws, blocks: int) -> dict:
     return out
 
 
+def markdown(result: dict) -> str:
+    """The summary tables of a result (markdown)."""
+    lines: list[str] = []
+    if result["programs"]:
+        laws = list(next(iter(result["programs"].values()))["laws"])
+        lines += ["Ratio to the law's yardstick (a, j: the sampled reference's largest "
+                  "acceleration and jerk over the axis limits; ✗: beyond 1.05)", "",
+                  "| program | blends p10/p50/p90 mm | " + " | ".join(laws) + " |",
+                  "|---|---|" + "---|" * len(laws)]
+        for name, p in result["programs"].items():
+            radii = "/".join(f"{r:g}" for r in p.get("blend_radius_p10_p50_p90_mm", []))
+            cells = []
+            for law in laws:
+                row = p["laws"][law]
+                cell = f"{row['ratio']:.3f}"
+                if "axis_acceleration" in row:
+                    cell += (f" (a {max(row['axis_acceleration']):.2f}, "
+                             f"j {max(row['axis_jerk']):.2f})")
+                    if not row["limits_ok"]:
+                        cell += " ✗"
+                cells.append(cell)
+            lines.append(f"| {name} | {radii} | " + " | ".join(cells) + " |")
+    chords = result["chord_independence"]
+    if chords:
+        radii = list(next(iter(chords.values()))["radii"])
+        lines += ["", "| law | worst spread | " + " | ".join(radii) + " |",
+                  "|---|---|" + "---|" * len(radii)]
+        for law, c in chords.items():
+            lines.append(f"| {law} | {100 * c['worst_spread']:.1f} % | " + " | ".join(
+                f"{100 * x['spread']:.1f} %" for x in c["radii"].values()) + " |")
+    if result["throughput"]:
+        lines += ["", "| law | in memory blocks/s | with profiles | streamed lines/s | "
+                  "RSS MB |", "|---|---|---|---|---|"]
+    for law, t in result["throughput"].items():
+        if isinstance(t, dict):
+            lines.append(f"| {law} | {t['in_memory_blocks_per_s']} | "
+                         f"{t['in_memory_with_profiles_blocks_per_s']} | "
+                         f"{t['streamed_blocks_per_s']} | {t['streamed_peak_rss_mb']} |")
+    return "\n".join(lines)
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     parser.add_argument("--machine", default="laser_belt")
     parser.add_argument("--quick", action="store_true", help="smaller programs, two laws")
+    parser.add_argument("--seed", type=int, default=30, help="seed of the random programs")
+    parser.add_argument("--instances", type=int, default=None,
+                        help="random programs per class (default 3, --quick 1)")
+    parser.add_argument("--laws", default=None, help="comma-separated laws (default all)")
     parser.add_argument("--no-limits", action="store_true",
                         help="skip interpolating the references (the slow part)")
+    parser.add_argument("--markdown", action="store_true", help="tables on stderr")
+    parser.add_argument("--skip", default="", help="comma-separated parts to skip: "
+                        "programs, chords, throughput")
     args = parser.parse_args()
+    if args.instances is None:
+        args.instances = 1 if args.quick else 3
     cfg = load_machine(args.machine)
-    laws = ("trapezoid", "parabolic") if args.quick else LAWS
-    programs = {
-        "chorded_nest": cam.chorded_nest(*((2, 2) if args.quick else (6, 4))),
-        "lettering": cam.lettering("XY 26" if args.quick else "XY-twin 2026"),
-        "pocket": cam.pocket(),
-    }
+    laws = tuple(args.laws.split(",")) if args.laws else (
+        ("trapezoid", "parabolic") if args.quick else LAWS)
+    skip = set(filter(None, args.skip.split(",")))
     t0 = time.perf_counter()
-    result = {"machine": args.machine, "grid_mm": GRID * 1e3,
-              "programs": {name: program_figures(cfg, name, text, laws, not args.no_limits)
-                           for name, text in programs.items()},
-              "chord_independence": chord_independence(cfg, laws),
-              "throughput": throughput(cfg, args.machine, laws,
-                                       10_000 if args.quick else 100_000),
+    result = {"machine": args.machine, "grid_mm": GRID * 1e3, "seed": args.seed,
+              "programs": {} if "programs" in skip else {
+                  name: program_figures(cfg, text, laws, not args.no_limits)
+                  for name, text in programs(args).items()},
+              "chord_independence": {} if "chords" in skip else chord_independence(
+                  cfg, laws, RADII[:3] if args.quick else RADII),
+              "throughput": {} if "throughput" in skip else throughput(
+                  cfg, args.machine, laws, 10_000 if args.quick else 100_000),
               "seconds": None, "cpus": os.cpu_count(),
               "load_average_1min": round(os.getloadavg()[0], 2),
               "python": platform.python_version()}
     result["seconds"] = round(time.perf_counter() - t0, 1)
     print(json.dumps(result))
+    if args.markdown:
+        print(markdown(result), file=sys.stderr)
 
 
 if __name__ == "__main__":

@@ -25,13 +25,19 @@ GAIN_TUNING_ID = "xy_twin/GainTuning-v0"
 SERVO_ID = "xy_twin/Servo-v0"
 GAIN_TUNING_RUNS = 5
 """Tuning runs per episode of the registered gain-tuning id."""
+GAIN_TUNING_THRESHOLD = -4.0
+"""The gain-tuning id's ``reward_threshold``: the analytic design's reward under the default
+weights when it never saturates (``envs.gain_tuning.GainTuningEnv``, Rewards)."""
 
-for _id, _entry, _steps in (
-        (GAIN_TUNING_ID, "envs.gain_tuning:GainTuningEnv", GAIN_TUNING_RUNS),
-        ("XYTable-GainTuning-v0", "envs.gain_tuning:GainTuningEnv", GAIN_TUNING_RUNS),
-        (SERVO_ID, "envs.servo:ServoEnv", 20_000),
-        ("XYTable-Servo-v0", "envs.servo:ServoEnv", 20_000)):
+for _id, _entry, _steps, _threshold in (
+        (GAIN_TUNING_ID, "envs.gain_tuning:GainTuningEnv", GAIN_TUNING_RUNS,
+         GAIN_TUNING_THRESHOLD),
+        ("XYTable-GainTuning-v0", "envs.gain_tuning:GainTuningEnv", GAIN_TUNING_RUNS,
+         GAIN_TUNING_THRESHOLD),
+        (SERVO_ID, "envs.servo:ServoEnv", 20_000, None),
+        ("XYTable-Servo-v0", "envs.servo:ServoEnv", 20_000, None)):
     if _id not in registry:
-        register(id=_id, entry_point=_entry, max_episode_steps=_steps)
+        register(id=_id, entry_point=_entry, max_episode_steps=_steps,
+                 reward_threshold=_threshold)
 
-__all__ += ["GAIN_TUNING_RUNS"]
+__all__ += ["GAIN_TUNING_RUNS", "GAIN_TUNING_THRESHOLD"]

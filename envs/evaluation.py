@@ -32,14 +32,17 @@ from twin.errors import ConfigError, SimulationError
 from twin.session.loop import TickLoop
 from twin.session.setup import wire
 
-__all__ = ["METRICS", "RunOutcome", "Weights", "cost_terms", "measure", "metric_scales",
-           "tuning_run"]
+__all__ = ["METRICS", "METRIC_UNITS", "RunOutcome", "Weights", "cost_terms",
+           "cycle_time_limit", "measure", "metric_scales", "reported", "tuning_run"]
 
 METRICS = ("max_coordinate_error", "rms_coordinate_error", "max_contour_error",
            "rms_contour_error", "overshoot", "settling_travel", "cycle_time",
            "saturation_time")
 """What a tuning run measures (m, m, m, m, m, m, s, s); coordinate errors are the larger
 of the two axes."""
+
+METRIC_UNITS = {m: ("s", 1.0) if "time" in m else ("µm", 1e6) for m in METRICS}
+"""The unit each metric is reported in, and its factor from SI."""
 
 _FLOORS = {"cycle_time": 1e-3, "saturation_time": None}
 _LENGTH_FLOOR = 1e-6  # m: below a micrometre a baseline error is noise, not a scale
@@ -245,3 +248,27 @@ def cost_terms(outcome: RunOutcome, scales: Mapping[str, float], weights: Weight
                              for m in METRICS}
     terms["failure"] = 0.0
     return terms
+
+
+def reported(metrics: Mapping[str, float]) -> dict[str, float]:
+    """``METRICS`` (SI) in the units people read, the unit in each key:
+    ``max_coordinate_error_um``, ``cycle_time_s`` (NaN stays NaN)."""
+    out = {}
+    for m, v in metrics.items():
+        unit, k = METRIC_UNITS.get(m, ("", 1.0))
+        out[f"{m}_{'um' if unit == 'µm' else unit}" if unit else m] = v * k
+    return out
+
+
+def cycle_time_limit(outcome: RunOutcome, baseline_cycle: float, max_increase: float,
+                     weight: float) -> float:
+    """The cost of a run that breaks the constraint "the cycle time grows by at most
+    ``max_increase`` (1, e.g. 0.0 or 0.05) over the analytic design's ``baseline_cycle``
+    (s)": 0 within it (and for a failed run, which costs the failure penalty);
+    ``weight·(1 + 100·excess)`` beyond it, ``excess`` the share of ``baseline_cycle``
+    over the limit. With ``weight`` the sum of the cost weights, a run that breaks it
+    costs more than the analytic design does."""
+    if outcome.failed:
+        return 0.0
+    excess = outcome.metrics["cycle_time"] / baseline_cycle - 1.0 - max_increase
+    return weight * (1.0 + 100.0 * excess) if excess > 1e-9 else 0.0

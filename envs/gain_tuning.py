@@ -14,7 +14,9 @@ from envs.evaluation import (
     RunOutcome,
     Weights,
     cost_terms,
+    cycle_time_limit,
     metric_scales,
+    reported,
     tuning_run,
 )
 from envs.programs import PROGRAMS
@@ -56,12 +58,22 @@ class Tuning:
         The controller's model of the machine: the analytic design, the tuning space's
         scales and the corner model come from it; the runs are on ``cfg``. Default
         ``cfg``.
+    max_cycle_time_increase : float, optional
+        A constraint: the cycle time may grow by at most this share (1) of the analytic
+        design's; a run beyond it gets the cost term ``cycle_time_limit``
+        (``envs.evaluation.cycle_time_limit``). None: no constraint (and no such term).
     """
 
     def __init__(self, cfg: MachineConfig, program: str = "compact", *,
                  weights: Weights | None = None, penalty: float = 50.0,
                  max_time_factor: float = 3.0, baseline: RunOutcome | None = None,
-                 belief: MachineConfig | None = None):
+                 belief: MachineConfig | None = None,
+                 max_cycle_time_increase: float | None = None):
+        if max_cycle_time_increase is not None and not (
+                math.isfinite(max_cycle_time_increase) and max_cycle_time_increase >= 0.0):
+            raise ConfigError("max_cycle_time_increase", f"must be a share >= 0 (0.05 is "
+                              f"5 %), got {max_cycle_time_increase!r}")
+        self.max_cycle_time_increase = max_cycle_time_increase
         if program not in PROGRAMS:
             raise ConfigError("program", f"unknown tuning program {program!r}; valid: "
                               f"{', '.join(PROGRAMS)}")
@@ -89,8 +101,15 @@ class Tuning:
                           max_time=self.max_time, model_axes=self.belief.axes)
 
     def terms(self, outcome: RunOutcome) -> dict[str, float]:
-        """Weighted cost terms (``cost_terms``) of an outcome on this machine."""
-        return cost_terms(outcome, self.scales, self.weights, penalty=self.penalty)
+        """Weighted cost terms (``cost_terms``) of an outcome on this machine, and the
+        cycle-time constraint's (``cycle_time_limit``) when there is one."""
+        terms = cost_terms(outcome, self.scales, self.weights, penalty=self.penalty)
+        if self.max_cycle_time_increase is not None:
+            weight = math.fsum(getattr(self.weights, m) for m in METRICS)
+            terms["cycle_time_limit"] = cycle_time_limit(
+                outcome, self.baseline.metrics["cycle_time"], self.max_cycle_time_increase,
+                weight)
+        return terms
 
     def evaluate(self, action: Sequence[float] | np.ndarray
                  ) -> tuple[TuningSettings, RunOutcome, dict[str, float]]:
@@ -163,6 +182,14 @@ class GainTuningEnv(gym.Env):
     ``failure`` (``penalty`` for a run that diverged or tripped, else 0). The analytic
     design scores ``-Σ w_i`` (minus the saturation weight when it never saturates).
 
+    ``info`` also holds ``is_success`` (the run beat the analytic design: it did not fail
+    and cost less), ``metrics`` in the units people read, the unit in each key
+    (``max_coordinate_error_um``, ``cycle_time_s``; ``baseline_metrics`` at reset alike),
+    and the run's ``settings`` (SI). The registered id's ``reward_threshold`` is -4.0: the
+    analytic design's reward under the default weights when it never saturates (every
+    term 1 times its weight, the saturation term 0): above it, on average, an agent beats
+    the analytic design.
+
     ## Starting State
 
     ``reset`` picks the machine (the nominal one, or a random variant with
@@ -186,10 +213,13 @@ class GainTuningEnv(gym.Env):
     | weights     | ``Weights()``| cost weights per metric                             |
     | penalty     | 50.0         | cost of a failed run                                |
     | render_mode | None         | "rgb_array": ``render()`` plots the last run        |
+    | max_cycle_time_increase | None | constraint: the cycle time may grow by this share |
 
     ## Version History
 
-    * v0: initial version.
+    * v0: initial version; ``info["is_success"]``, metrics in µm and s with the unit in
+      their names, and ``reward_threshold`` added without a change of the dynamics or the
+      reward.
     """
 
     metadata: ClassVar[dict[str, Any]] = {"render_modes": ["rgb_array"], "render_fps": 1}
@@ -197,7 +227,8 @@ class GainTuningEnv(gym.Env):
     def __init__(self, *, machine: str | MachineConfig = "tomsk_xy",
                  program: str | Sequence[str] = "compact", randomize: bool = False,
                  weights: Weights | dict[str, float] | None = None, penalty: float = 50.0,
-                 render_mode: str | None = None):
+                 render_mode: str | None = None,
+                 max_cycle_time_increase: float | None = None):
         if render_mode is not None and render_mode not in self.metadata["render_modes"]:
             raise ConfigError("render_mode", f"must be None or one of "
                               f"{self.metadata['render_modes']}, got {render_mode!r}")
@@ -213,6 +244,7 @@ class GainTuningEnv(gym.Env):
         self._weights = weights if isinstance(weights, Weights) else \
             Weights.from_mapping(weights)
         self._penalty = float(penalty)
+        self._cycle_limit = max_cycle_time_increase
         self.action_space = gym.spaces.Box(-1.0, 1.0, (DIM,), dtype=np.float32)
         n = len(METRICS)
         self.observation_space = gym.spaces.Box(-_ABS_CLIP, _ABS_CLIP, (3 * n + DIM,),
@@ -235,7 +267,8 @@ class GainTuningEnv(gym.Env):
         reuse = self.tuning is not None and self.tuning.cfg is cfg \
             and self.tuning.program == program
         if not reuse:   # a run is deterministic: the same machine keeps its baseline
-            self.tuning = Tuning(cfg, program, weights=self._weights, penalty=self._penalty)
+            self.tuning = Tuning(cfg, program, weights=self._weights, penalty=self._penalty,
+                                 max_cycle_time_increase=self._cycle_limit)
         base = self.tuning.baseline
         self._best = self.tuning.relative(base)
         self._best_cost = self.tuning.baseline_cost
@@ -243,7 +276,7 @@ class GainTuningEnv(gym.Env):
         self._last = (base, self._best_cost)
         return obs, {"machine": cfg.name, "program": program,
                      "baseline_cost": self._best_cost,
-                     "baseline_metrics": dict(base.metrics)}
+                     "baseline_metrics": reported(base.metrics)}
 
     def step(self, action: np.ndarray) -> tuple[np.ndarray, float, bool, bool, dict]:
         if self.tuning is None:
@@ -256,11 +289,18 @@ class GainTuningEnv(gym.Env):
             self._best = self.tuning.relative(outcome)
         obs = self._observation(self.tuning, outcome, a)
         self._last = (outcome, cost)
-        info = {"terms": terms, "cost": cost, "metrics": dict(outcome.metrics),
+        info = {"terms": terms, "cost": cost, "metrics": reported(outcome.metrics),
+                "is_success": bool(not outcome.failed
+                                   and cost < self.tuning.baseline_cost * (1 - 1e-12)),
                 "diverged": outcome.diverged, "tripped": outcome.tripped,
                 "status": outcome.status, "settings": settings.to_dict(),
                 "sim_time": outcome.sim_time}
         return obs, -cost, outcome.failed, False, info
+
+    @property
+    def last_outcome(self) -> RunOutcome | None:
+        """The last run's outcome (``metrics`` in SI), or None before ``reset``."""
+        return None if self._last is None else self._last[0]
 
     def render(self) -> np.ndarray | None:
         """``render_mode="rgb_array"``: a plot of the last run, (H, W, 3) uint8. Each metric
@@ -274,14 +314,22 @@ class GainTuningEnv(gym.Env):
         outcome, cost = self._last
         last = np.exp(self.tuning.relative(outcome))
         best = np.exp(self._best)
+        base = self.tuning.baseline.metrics
+        zero = np.array([base[m] == 0.0 for m in METRICS])   # no ratio to a zero design
         fig = Figure(figsize=(6.4, 3.6), dpi=100)
         canvas = FigureCanvasAgg(fig)
         ax = fig.subplots()
         x = np.arange(len(METRICS))
-        ax.bar(x - 0.2, last, 0.4, label="last run")
-        ax.bar(x + 0.2, best, 0.4, label="best so far")
+        ax.bar(x[~zero] - 0.2, last[~zero], 0.4, label="last run")
+        ax.bar(x[~zero] + 0.2, best[~zero], 0.4, label="best so far")
         ax.axhline(1.0, color="k", lw=0.8)
         ax.set_yscale("log")
+        for k in np.flatnonzero(zero):
+            m = METRICS[k]
+            unit, scale = ("s", 1.0) if "time" in m else ("µm", 1e6)
+            value = outcome.metrics[m] * scale if not outcome.failed else math.nan
+            ax.text(k, 1.0, f"analytic 0\nlast {value:.3g} {unit}", ha="center",
+                    va="bottom", fontsize=6, color="0.3")
         ax.set_xticks(x, [m.replace("_", " ") for m in METRICS], rotation=30, ha="right",
                       fontsize=7)
         ax.set_ylabel("÷ analytic design")

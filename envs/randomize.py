@@ -22,7 +22,9 @@ parameter (per axis)                  factor       why it varies
 ====================================  ===========  ==================================
 
 A draw that the machine schema rejects (e.g. a damping ratio above its bound) is clipped
-to the bound rather than redrawn, so a seed always gives one machine.
+to the bound rather than redrawn, so a seed always gives one machine; a draw whose fastest
+elastic mode the base's physics step does not resolve gets more physics steps per drive
+interval (the drive interval, and with it the controller's period, stays).
 """
 
 from __future__ import annotations
@@ -36,6 +38,7 @@ from typing import Any
 import numpy as np
 
 from twin.config import AXES, MachineConfig, load_machine
+from twin.config.schema import ELASTIC_STEP
 from twin.errors import ConfigError
 
 __all__ = ["RANGES", "MachineRandomizer"]
@@ -117,5 +120,19 @@ class MachineRandomizer:
 
     def sample(self, rng: np.random.Generator, *, name: str | None = None) -> MachineConfig:
         """One machine drawn with ``rng``; named ``name`` (default ``<base>~random``)."""
-        cfg = self.base.with_overrides(self.overrides(rng))
+        over = self.overrides(rng)
+        sim = self.base.simulation
+        # a stiffer draw may have a faster elastic mode than the base's physics step
+        # resolves (the screw body between its springs): more steps per drive interval
+        fine = self.base.with_overrides({**over, "simulation.timestep": sim.timestep / 16,
+                                         "simulation.drive_substeps": sim.drive_substeps * 16})
+        fastest = max(a.transmission.fastest_mode(fine.moving_masses()[k],
+                                                  a.mechanics.rotor_inertia, a.mechanics.travel)
+                      for k, a in fine.axes.items())
+        drive_dt = sim.timestep * sim.drive_substeps
+        steps = math.ceil(fastest * drive_dt / ELASTIC_STEP)
+        if steps > sim.drive_substeps:
+            over |= {"simulation.timestep": drive_dt / steps,
+                     "simulation.drive_substeps": steps}
+        cfg = self.base.with_overrides(over)
         return dataclasses.replace(cfg, name=name or f"{self.base.name}~random")

@@ -26,8 +26,9 @@ from __future__ import annotations
 
 import dataclasses
 import math
-from collections.abc import Sequence
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 
@@ -36,7 +37,8 @@ from twin.controller.gains import RegulatorGains, default_gains
 from twin.controller.linear import LinearAxisModel
 from twin.errors import ConfigError
 
-__all__ = ["ALPHA_SPAN", "DIM", "KI_DECADES", "NAMES", "TuningSettings", "TuningSpace"]
+__all__ = ["ALPHA_SPAN", "DIM", "KI_DECADES", "NAMES", "TuningSettings", "TuningSpace",
+           "check_action", "settings_from_dict"]
 
 ALPHA_SPAN = (0.02, 0.2, 0.5)
 """Relative half-range of α1, α2, α3 around the analytic values (1)."""
@@ -180,6 +182,18 @@ class TuningSpace:
                 out.append(0.0 if a0 == 0.0 else (a / a0 - 1.0) / span)
         out.append(math.log(settings.max_jerk / self.max_jerk) / math.log(self.jerk_span))
         return np.clip(np.asarray(out), -1.0, 1.0)
+
+
+def settings_from_dict(values: Mapping[str, Any], base: RegulatorGains) -> TuningSettings:
+    """``TuningSettings`` of ``TuningSettings.to_dict``'s plain values (SI); ``base``
+    supplies the DAC, output and trip limits."""
+    gains = RegulatorGains(kp=tuple(float(v) for v in values["kp"]),
+                           ki=tuple(float(v) for v in values["ki"]),
+                           dcu_alpha=tuple(tuple(float(v) for v in row)
+                                           for row in values["dcu_alpha"]),
+                           output_limit=base.output_limit, dac_bits=base.dac_bits,
+                           following_error_limit=base.following_error_limit)
+    return TuningSettings(gains, float(values["max_jerk"]))
 
 
 def check_action(action: Sequence[float] | np.ndarray, dim: int) -> np.ndarray:

@@ -46,10 +46,11 @@ def test_elastic_oscillation_of_a_quasi_static_signal_is_tiny():
 
 
 def test_mode_periods_match_the_locked_rotor_modes_of_the_model_readme():
-    # twin/models/README.md: tomsk X 93.2 Hz, Y 161.4 Hz; laser_belt ω_L = 100 rad/s
+    # twin/models/README.md: tomsk X 92.7 Hz, Y 158.3 Hz (the three-mass chain with the nut
+    # at the far end, where the mode is lowest); laser_belt ω_L = 100 rad/s
     px, py = mode_periods(load_machine("tomsk_xy"))
-    assert 1.0 / px == pytest.approx(93.2, rel=0.01)
-    assert 1.0 / py == pytest.approx(161.4, rel=0.01)
+    assert 1.0 / px == pytest.approx(92.7, rel=0.01)
+    assert 1.0 / py == pytest.approx(158.3, rel=0.01)
     lx, ly = mode_periods(load_machine("laser_belt"))
     assert lx == pytest.approx(2 * math.pi / 100.0, rel=1e-3)
     assert ly == pytest.approx(2 * math.pi / 100.0, rel=1e-3)
@@ -188,12 +189,45 @@ def test_rrd_holds_one_subtree_per_law_with_every_tick(compared):
             counts[path] = counts.get(path, 0) + chunk.num_rows
     for law, s in compared["profiles"].items():
         assert counts[f"laws/{law}/errors/contour_um"] == s["ticks"]["due"]
-    # the overlaid paths are drawn as in a run's layout: mm, Y up (the data stay in metres)
+    # the overlaid paths are drawn as in a run's layout: mm, Y up
     (frame,) = [rb for rb in (c.to_record_batch() for c in reader.stream().to_chunks()
                               if c.entity_path == "/laws")
                 if "Transform3D:mat3x3" in rb.schema.names]
     mat = np.asarray(frame.column("Transform3D:mat3x3").to_pylist()[0][0]).reshape(3, 3)
-    np.testing.assert_array_equal(mat, np.diag([1e3, -1e3, 1.0]))
+    np.testing.assert_array_equal(mat, np.diag([1.0, -1.0, 1.0]))
+
+
+def test_overlay_is_framed_on_the_whole_path_and_the_data_time_span(compared):
+    """compare.rrd's layout: the path view holds every law's whole path (programmed and
+    actual), the plots the data's time span and value range with at least two labelled
+    ticks, and their titles name each law's colour (no legend over the traces)."""
+    from tests.rrd import labelled, layout_views
+    from tests.test_run import _rrd_points, _rrd_scalars
+
+    path = compared["recording"]
+    views = layout_views(path)
+    scalars = _rrd_scalars(path)
+    (paths,) = [v for v in views if v["kind"] == "2D"]
+    pts = np.vstack([_rrd_points(path, f"laws/{law}/path/actual")
+                     for law in compared["profiles"]])
+    (x0, x1), (y0, y1) = paths["bounds"]["x_range"], paths["bounds"]["y_range"]
+    assert x0 < pts[:, 0].min() and pts[:, 0].max() < x1
+    assert y0 < -pts[:, 1].max() and -pts[:, 1].min() < y1
+    assert max(x1 - x0, y1 - y0) <= 1.2 * max(np.ptp(pts[:, 0]), np.ptp(pts[:, 1]))
+    assert "trapezoid red" in paths["name"] and "parabolic blue" in paths["name"]
+    # the view's origin lies above /laws, which flips Y: a view at /laws itself would show
+    # its data untransformed (upside down, and outside these bounds)
+    assert paths["origin"] == "/"
+    t_all = np.concatenate([t for t, _ in scalars.values()])
+    plots = [v for v in views if v["kind"] == "TimeSeries"]
+    assert len(plots) == 5
+    for view in plots:
+        values = np.concatenate([scalars[e.lstrip("/")][1] for e in view["contents"]])
+        lo, hi = view["y_range"]
+        assert lo <= values.min() and values.max() <= hi and labelled(lo, hi) >= 2
+        assert view["legend"] is False
+        assert "trapezoid red, parabolic blue" in view["name"], view["name"]
+        np.testing.assert_allclose(view["time"], (t_all.min(), t_all.max()), atol=1e-9)
 
 
 def test_sweep_plots_a_figure_against_the_parameter(tmp_path):

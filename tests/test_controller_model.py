@@ -80,3 +80,29 @@ def test_machines_diff_lists_the_differing_fields_with_units(believed):
     assert [d["field"] for d in doc["differences"]] == ["axes.x.tacho.gain",
                                                         "axes.y.tacho.gain"]
     assert doc["differences"][0]["unit"] == "V·s/rad"
+
+
+def test_the_belief_of_the_x_axis_moves_the_y_carriage_too():
+    """The X axis carries the Y carriage: its linear model is that of an axis whose own
+    carriage weighs both (random masses on a light rotor, so that they matter), not of the
+    X carriage alone."""
+    import numpy as np
+
+    from twin.drive import axis_transfer_function
+    from twin.session.run import axis_models
+
+    rng = np.random.default_rng(3)
+    for _ in range(3):
+        mx, my = (float(m) for m in rng.uniform(500.0, 3000.0, 2))
+        cfg = TOMSK.with_overrides({"axes.x.mechanics.carriage_mass": mx,
+                                    "axes.y.mechanics.carriage_mass": my,
+                                    "axes.*.mechanics.rotor_inertia": 2e-4})
+        both = cfg.with_overrides({"axes.x.mechanics.carriage_mass": mx + my})
+        model_x, model_y = axis_models(cfg)
+        num, den = axis_transfer_function(both.axes["x"])
+        np.testing.assert_allclose(model_x.den, den / den[0], rtol=1e-12)
+        np.testing.assert_allclose(model_x.num, num / den[0], rtol=1e-12)
+        alone = axis_transfer_function(cfg.axes["x"])[1]
+        assert not np.allclose(model_x.den, alone / alone[0], rtol=1e-3)
+        num, den = axis_transfer_function(cfg.axes["y"])
+        np.testing.assert_allclose(model_y.den, den / den[0], rtol=1e-12)

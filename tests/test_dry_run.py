@@ -68,7 +68,7 @@ def test_cli_dry_run_never_trips(tmp_path):
                  str(tmp_path))
     assert done.returncode == 0, done.stderr
     s = json.loads(done.stdout)
-    assert s["commands"] == ["jog y 0.015"]
+    assert s["commands"] == ["jog y 15 mm"]          # as a person reads it, not in metres
     assert s["path_length_mm"] == pytest.approx(15.0, abs=1e-4)
 
 

@@ -103,3 +103,19 @@ def test_a_second_job_into_a_busy_folder_is_refused(tmp_path):
     proc = _twin("tune", "--method", "analytic", "--program", "tiny", "--out", str(tmp_path))
     assert proc.returncode == 0, proc.stderr       # released with its holder
     assert (tmp_path / "best.toml").is_file()
+
+
+def test_an_output_path_through_a_dangling_symlink_names_the_symlink(tmp_path):
+    link = tmp_path / "runs"
+    link.symlink_to(tmp_path / "gone" / "deeper")
+    loop = tmp_path / "loop"
+    loop.symlink_to(loop)
+    for path, named in ((link, link), (link / "below" / "more", link), (loop, loop)):
+        with pytest.raises(ConfigError) as info:
+            output_dir(path)
+        assert info.value.field == "out"
+        assert info.value.message.startswith(f"{named} is a symlink to "), info.value.message
+        assert "File exists" not in info.value.message
+    assert not (tmp_path / "gone").exists()            # nothing was created behind it
+    (tmp_path / "gone" / "deeper").mkdir(parents=True)
+    assert output_dir(link / "below") == link / "below" and (link / "below").is_dir()

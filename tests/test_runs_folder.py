@@ -35,6 +35,7 @@ def folder(tmp_path_factory):
     for name in ("c-killed.rrd.partial", "d-nosummary.rrd"):
         os.utime(out / name, (old, old))
     (out / "result.json").write_text(json.dumps({"cost": 1.0}))  # not a run
+    (out / "deep.json").write_text("[" * 100_000 + "]" * 100_000)  # hostile: nor this
     return out
 
 
@@ -80,7 +81,7 @@ def test_clean_asks_first_and_removes_only_the_leftovers(folder, tmp_path):
     assert removed == ["c-killed.rrd.partial", "d-nosummary.rrd"]
     left = sorted(p.name for p in work.iterdir())
     assert left == ["a-good.json", "a-good.rrd", "b-timeout.json", "b-timeout.rrd",
-                    "e-live.rrd.partial", "result.json"]
+                    "deep.json", "e-live.rrd.partial", "result.json"]
     assert clean(inventory(work)) == []
 
 

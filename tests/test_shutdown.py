@@ -149,6 +149,7 @@ def test_a_stop_signal_lost_in_a_c_callback_still_stops_the_run(tmp_path, monkey
     fired: list[float] = []
     lost: list[type] = []
     monkeypatch.setattr(sys, "unraisablehook", lambda u: lost.append(u.exc_type))
+    before = signal.getsignal(signal.SIGINT)   # what this process had (xdist's may differ)
 
     def progress(t: float, _max_time: float) -> None:
         if not fired:
@@ -164,7 +165,60 @@ def test_a_stop_signal_lost_in_a_c_callback_still_stops_the_run(tmp_path, monkey
     assert summary["status"] == "ABORTED" and summary["aborted"] == "interrupted (Ctrl-C)"
     assert summary["controller_status"] == "DWELLING"
     assert summary["sim_time_s"] <= fired[0] + 0.25 + 1e-9   # at the next checkpoint
-    assert signal.getsignal(signal.SIGINT) is signal.default_int_handler
+    assert signal.getsignal(signal.SIGINT) is before   # the handler given back
+
+
+_DROP_SIGINT = """
+import ctypes, os, signal, sys
+from twin.system import interrupts
+def drop():
+    def inside():
+        os.kill(os.getpid(), signal.SIGINT)
+        for _ in range(1000):
+            pass
+    ctypes.CFUNCTYPE(None)(inside)()
+"""
+
+
+def test_a_ctrl_c_dropped_while_the_command_imports_ends_it_once_imported():
+    """The ``twin`` command's start (``twin.system.interrupts``): a Ctrl-C whose exit an
+    import's callback drops is honoured when the imports are done, silently."""
+    script = _DROP_SIGINT + """
+interrupts.install()
+drop()                      # the handler's SystemExit is dropped here
+print("went on", flush=True)
+interrupts.honour()
+print("not reached", flush=True)
+"""
+    proc = subprocess.run([sys.executable, "-c", script], capture_output=True, text=True,
+                          timeout=120)
+    assert (proc.returncode, proc.stdout, proc.stderr) == (130, "went on\n", "")
+
+
+def test_a_ctrl_c_dropped_before_a_run_stops_the_run_before_it_writes(tmp_path):
+    """After the imports, a Ctrl-C dropped in a callback before a run begins is raised by
+    the run's own handlers as they are installed: nothing is written."""
+    program = tmp_path / "dwell.ngc"
+    program.write_text("G4 P600\nM30\n")
+    out = tmp_path / "runs"
+    script = _DROP_SIGINT + f"""
+interrupts.install()
+interrupts.honour()
+from twin.session.run import RunSpec, prepare, run
+p = prepare(RunSpec(program={str(program)!r}))
+drop()                      # the KeyboardInterrupt is dropped here: not printed
+print("went on", flush=True)
+try:
+    run(RunSpec(program={str(program)!r}), out_dir={str(out)!r}, rerun="file", prepared=p)
+except KeyboardInterrupt as exc:
+    print(type(exc).__name__, flush=True)
+    sys.exit(130)
+"""
+    proc = subprocess.run([sys.executable, "-c", script], capture_output=True, text=True,
+                          timeout=300, env={**os.environ, "RERUN_ANALYTICS": "0"})
+    assert (proc.returncode, proc.stdout, proc.stderr) == (130, "went on\nTerminated\n",
+                                                           "")
+    assert not out.exists() or not any(out.iterdir())
 
 
 def test_a_run_cut_by_max_time_says_timeout(tmp_path):

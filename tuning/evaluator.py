@@ -133,14 +133,29 @@ class Evaluator:
     def create(cls, machine: str | MachineConfig, program: str = "compact", *,
                weights: Weights | None = None, penalty: float = 50.0, workers: int = 1,
                on_trial: Callable[[Trial], None] | None = None,
-               belief: str | MachineConfig | None = None) -> Evaluator:
+               belief: str | MachineConfig | None = None,
+               max_cycle_time_increase: float | None = None) -> Evaluator:
         """Load the machine (and the controller's model of it, ``belief``; default the
-        machine), run the analytic baseline and return an evaluator."""
+        machine), run the analytic baseline and return an evaluator (with the cycle-time
+        constraint ``max_cycle_time_increase``, a share, when given)."""
         cfg = machine if isinstance(machine, MachineConfig) else load_machine(machine)
         model = belief if belief is None or isinstance(belief, MachineConfig) \
             else load_machine(belief)
-        return cls(Tuning(cfg, program, weights=weights, penalty=penalty, belief=model),
+        return cls(Tuning(cfg, program, weights=weights, penalty=penalty, belief=model,
+                          max_cycle_time_increase=max_cycle_time_increase),
                    workers, on_trial)
+
+    def settings_trial(self, settings: dict[str, Any], x: Sequence[float]) -> Trial:
+        """Run ``settings`` (``TuningSettings.to_dict``, SI) once, in this process, as a
+        trial at the normalised vector ``x`` (not recorded among ``trials``)."""
+        from envs.space import settings_from_dict
+
+        s = settings_from_dict(settings, self.tuning.space.analytic)
+        outcome = self.tuning.run(s)
+        terms = self.tuning.terms(outcome)
+        return Trial(tuple(float(v) for v in x), math.fsum(terms.values()), terms,
+                     dict(outcome.metrics), outcome.status, s.to_dict(), outcome.wall_time,
+                     outcome.sim_time)
 
     @property
     def dim(self) -> int:

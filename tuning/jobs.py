@@ -29,7 +29,11 @@ from tuning.cma_job import run_cma
 from tuning.evaluator import Evaluator, Trial
 from tuning.report import (
     comparison,
+    notes,
     plot_convergence,
+    rounded_settings,
+    settings_changes,
+    settings_markdown,
     table_markdown,
     weights_markdown,
     write_overrides,
@@ -89,6 +93,9 @@ class TuneSpec:
         lacks; otherwise the log starts afresh.
     weights : dict
         Cost weights by metric (``envs.evaluation.Weights``).
+    max_cycle_time_increase : float or None
+        A constraint: the cycle time may grow by at most this share (1; 0.0 forbids any
+        growth) of the analytic design's (``envs.gain_tuning.Tuning``); None: none.
     worker : bool
         Optuna: join the study as one of its workers (``optuna_job.run_worker``): run its
         trials until the study's run budget (set by the first worker's ``max_runs``) is
@@ -114,6 +121,7 @@ class TuneSpec:
     policy_runs: int = 5
     resume: bool = False
     weights: dict[str, float] = field(default_factory=dict)
+    max_cycle_time_increase: float | None = None
     worker: bool = False
     heartbeat_s: int = 5
     grace_s: int = 20
@@ -132,6 +140,11 @@ class TuneSpec:
                 or self.workers < 1:
             raise ConfigError("workers", f"must be an integer >= 1, got {self.workers!r}")
         Weights.from_mapping(self.weights)
+        limit = self.max_cycle_time_increase
+        if limit is not None and not (isinstance(limit, int | float) and math.isfinite(limit)
+                                      and limit >= 0.0):
+            raise ConfigError("max_cycle_time_increase", f"must be a share >= 0 (0.05 is "
+                              f"5 %), got {limit!r}")
         if self.worker and self.method != "optuna":
             raise ConfigError("worker", f"workers join Optuna studies; --method is "
                               f"{self.method!r}")
@@ -162,7 +175,10 @@ class TuneResult:
     ----------
     spec : TuneSpec
     baseline, best : Trial
-        The analytic design and the best trial (cost-wise; the baseline if nothing beat it).
+        The analytic design and the best settings as written to ``best.toml``: the best
+        trial's (cost-wise; the baseline's if nothing beat it) rounded
+        (``tuning.report.rounded_settings``) and run once more, so that the file
+        reproduces the figures reported.
     trials : list of Trial
         Every run of the job, in order (for Optuna: the whole study's).
     files : dict of str to Path
@@ -179,15 +195,23 @@ class TuneResult:
     wall_time: float
     weights: dict[str, float] = field(default_factory=dict)
     """The cost weights of the job (``envs.evaluation.Weights``, every metric's)."""
+    improved: bool = False
+    """A search beat the analytic design (with the settings as written). When none did,
+    ``best`` is the analytic design rounded: its figures differ from ``baseline``'s by
+    the rounding only."""
 
     def summary(self) -> dict[str, Any]:
-        """JSON-ready summary (µm, s in the comparison; SI in the trials)."""
+        """JSON-ready summary (µm, s in the comparison; SI in the trials and settings)."""
         return {
             "method": self.spec.method, "machine": self.spec.machine,
             "program": self.spec.program, "runs": len(self.trials),
             "wall_time_s": self.wall_time,
             "baseline": self.baseline.to_dict(), "best": self.best.to_dict(),
+            "improved": self.improved,
+            "notes": notes(self.baseline, self.best, runs=len(self.trials),
+                           improved=self.improved),
             "comparison": comparison(self.baseline, self.best),
+            "settings": settings_changes(self.baseline.settings, self.best.settings),
             "max_coordinate_error_reduction_pct": 100.0 * (
                 1.0 - self.best.metrics["max_coordinate_error"]
                 / self.baseline.metrics["max_coordinate_error"]),
@@ -224,7 +248,7 @@ FINISH_S = 2.0
 
 def _search(spec: TuneSpec, ev: Evaluator, files: dict[str, Path],
             progress: Callable[[int], None] | None, budget_s: float,
-            training: list[float]) -> list[Trial]:
+            training: list[float], warn: Callable[[str], None] | None = None) -> list[Trial]:
     """Run the method within ``budget_s`` (what is left of the job's budget once the
     machine is loaded and the baseline has run); returns its trials. PPO/SAC append the
     cost of every training run to ``training``."""
@@ -232,7 +256,7 @@ def _search(spec: TuneSpec, ev: Evaluator, files: dict[str, Path],
         return []
     if spec.method == "cma":
         run_cma(ev, budget_s=budget_s, max_evals=spec.max_runs, seed=spec.seed,
-                log=spec.out_dir / "cma_trials.jsonl", resume=spec.resume)
+                log=spec.out_dir / "cma_trials.jsonl", resume=spec.resume, warn=warn)
         files["log"] = spec.out_dir / "cma_trials.jsonl"
         return ev.trials
     if spec.method == "optuna":
@@ -266,7 +290,8 @@ def _search(spec: TuneSpec, ev: Evaluator, files: dict[str, Path],
 
 def tune(spec: TuneSpec, *, on_trial: Callable[[Trial], None] | None = None,
          progress: Callable[[int], None] | None = None,
-         on_start: Callable[[Path, dict[str, float]], None] | None = None) -> TuneResult:
+         on_start: Callable[[Path, dict[str, float]], None] | None = None,
+         warn: Callable[[str], None] | None = None) -> TuneResult:
     """Run the job ``spec``; write the override TOML, plot, table and JSON.
 
     Parameters
@@ -278,6 +303,8 @@ def tune(spec: TuneSpec, *, on_trial: Callable[[Trial], None] | None = None,
         PPO/SAC: called with the number of training steps done.
     on_start : callable(Path, dict), optional
         Called once the job has its folder, with the folder and the cost weights.
+    warn : callable(str), optional
+        Told what the job skips (CMA: lines of a resumed trial log that hold no trial).
     """
     start = time.perf_counter()
     if spec.out_dir is None:
@@ -293,26 +320,38 @@ def tune(spec: TuneSpec, *, on_trial: Callable[[Trial], None] | None = None,
     with folder_lock(out):
         if on_start is not None:
             on_start(out, dataclasses.asdict(Weights.from_mapping(spec.weights)))
-        return _tune_in(spec, cfg, out, start, on_trial, progress)
+        return _tune_in(spec, cfg, out, start, on_trial, progress, warn)
 
 
 def _tune_in(spec: TuneSpec, cfg: MachineConfig, out: Path, start: float,
              on_trial: Callable[[Trial], None] | None,
-             progress: Callable[[int], None] | None) -> TuneResult:
+             progress: Callable[[int], None] | None,
+             warn: Callable[[str], None] | None = None) -> TuneResult:
     """The job, in its locked folder ``out``."""
     files: dict[str, Path] = {}
     with Evaluator.create(cfg, spec.program, weights=Weights.from_mapping(spec.weights),
                           workers=spec.workers if spec.method in ("cma", "optuna") else 1,
-                          on_trial=on_trial, belief=spec.controller_model) as ev:
+                          on_trial=on_trial, belief=spec.controller_model,
+                          max_cycle_time_increase=spec.max_cycle_time_increase) as ev:
+        # what is left, less the time kept for the files (and the one run of the best
+        # settings as written, which follows the search)
         left = spec.budget_s - (time.perf_counter() - start) - FINISH_S
         training: list[float] = []
-        trials = _search(spec, ev, files, progress, left, training)
+        trials = _search(spec, ev, files, progress, left, training, warn)
         baseline = ev.baseline
-    best = min([baseline, *trials], key=lambda t: t.cost)
+        found = min([baseline, *trials], key=lambda t: t.cost)
+        best = ev.settings_trial(rounded_settings(found.settings), found.x)
+        improved = found is not baseline and best.cost < baseline.cost * (1.0 - 1e-9)
+        if found is not baseline and not improved:
+            # rounding lost the little it had won: the analytic design stands, as written
+            best = ev.settings_trial(rounded_settings(baseline.settings), baseline.x)
+    said = notes(baseline, best, runs=len(trials), improved=improved)
     header = (f"twin tune --method {spec.method}: best settings for {cfg.name}, program "
               f"{spec.program}", f"cost {best.cost:.4g} (analytic {baseline.cost:.4g}); "
               f"max coordinate error {best.metrics['max_coordinate_error'] * 1e6:.3g} µm "
-              f"(analytic {baseline.metrics['max_coordinate_error'] * 1e6:.3g} µm)",
+              f"(analytic {baseline.metrics['max_coordinate_error'] * 1e6:.3g} µm); cycle "
+              f"time {best.metrics['cycle_time']:.3f} s (analytic "
+              f"{baseline.metrics['cycle_time']:.3f} s)", *said,
               "apply with: twin run --set-file THIS_FILE")
     # what the job is for comes first: the settings and the result; the figure and the
     # report after them, so that a failing plot (a full disk, a broken backend) loses
@@ -323,15 +362,21 @@ def _tune_in(spec: TuneSpec, cfg: MachineConfig, out: Path, start: float,
     files["plot"] = out / "convergence.png"
     weights = dataclasses.asdict(ev.tuning.weights)     # the weights the runs were costed with
     result = TuneResult(spec, baseline, best, list(trials), files,
-                        time.perf_counter() - start, weights)
+                        time.perf_counter() - start, weights, improved)
     doc = {**result.summary(), "trials": [t.to_dict() for t in trials],
            "training_costs": training}
     write_json_atomic(files["result"], doc, indent=1)
     rows = comparison(baseline, best)
+    limit = ("" if spec.max_cycle_time_increase is None else
+             f"Constraint: the cycle time grows by at most "
+             f"{spec.max_cycle_time_increase * 100:g} % over the analytic design's.\n\n")
     write_text_atomic(files["report"],
                       f"# {spec.method} tuning of {cfg.name} ({spec.program})\n\n"
                       f"{len(trials)} tuning runs, {result.wall_time:.0f} s.\n\n"
-                      + table_markdown(rows) + "\n" + weights_markdown(weights))
+                      + "".join(f"**{n[0].upper()}{n[1:]}.**\n\n" for n in said)
+                      + table_markdown(rows) + "\n"
+                      + settings_markdown(settings_changes(baseline.settings, best.settings))
+                      + "\n" + weights_markdown(weights) + "\n" + limit)
     plot_convergence(files["plot"], trials, baseline,
                      title=f"{spec.method} on {cfg.name} ({spec.program})",
                      training=training)

@@ -62,7 +62,8 @@ WORKER = f"{socket.gethostname()}:{os.getpid()}"
 """This process, as a trial's ``worker`` attribute names it (host and pid)."""
 
 def _identity(tuning: Tuning) -> dict[str, Any]:
-    return study_identity(tuning.cfg, tuning.belief, tuning.program, tuning.weights)
+    return study_identity(tuning.cfg, tuning.belief, tuning.program, tuning.weights,
+                          tuning.max_cycle_time_increase)
 
 
 def open_study(url: str | RDBStorage, name: str, names: tuple[str, ...], *, seed: int = 0,

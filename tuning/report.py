@@ -21,17 +21,96 @@ from typing import Any
 
 import numpy as np
 
-from envs.evaluation import METRICS
-from envs.space import TuningSettings
+from envs.evaluation import METRIC_UNITS, METRICS
+from envs.space import TuningSettings, settings_from_dict
 from tuning.evaluator import Trial
 from twin.config import read_toml
 from twin.controller.gains import RegulatorGains
 from twin.errors import ConfigError
 
-__all__ = ["comparison", "plot_convergence", "read_overrides", "table_markdown",
+__all__ = ["SIGNIFICANT", "comparison", "notes", "plot_convergence", "read_overrides",
+           "rounded_settings", "settings_changes", "settings_markdown", "table_markdown",
            "weights_markdown", "weights_text", "write_overrides"]
 
-_UNITS = {m: ("s", 1.0) if "time" in m else ("µm", 1e6) for m in METRICS}
+_UNITS = METRIC_UNITS
+
+SIGNIFICANT = 5
+"""Significant digits the best settings are written with (``rounded_settings``): a gain
+to 0.01 % or better, finer than the DAC's step makes any difference; the jerk limit to 4."""
+
+_SETTINGS = (("kp", "V/m"), ("ki", "V/(m·s)"), ("dcu_alpha", "V/m"), ("max_jerk", "m/s³"))
+
+
+def _round(value: float, digits: int) -> float:
+    if value == 0.0 or not math.isfinite(value):
+        return float(value)
+    return float(round(value, digits - 1 - math.floor(math.log10(abs(value)))))
+
+
+def rounded_settings(settings: dict[str, Any]) -> dict[str, Any]:
+    """``TuningSettings.to_dict()`` values rounded to ``SIGNIFICANT`` digits (the jerk
+    limit to 4): what ``best.toml`` holds, and what the job runs once more so that the
+    file reproduces the figures it reports."""
+    return {"kp": [_round(v, SIGNIFICANT) for v in settings["kp"]],
+            "ki": [_round(v, SIGNIFICANT) for v in settings["ki"]],
+            "dcu_alpha": [[_round(v, SIGNIFICANT) for v in row]
+                          for row in settings["dcu_alpha"]],
+            "max_jerk": _round(settings["max_jerk"], 4)}
+
+
+def settings_changes(analytic: dict[str, Any], best: dict[str, Any]) -> list[dict[str, Any]]:
+    """Every setting of the best run against the analytic design's: rows ``{setting,
+    unit, analytic, best, change_pct}`` (``kp x``, ``dcu_alpha y 2``, ``max_jerk``; SI)."""
+    rows = []
+    for name, unit in _SETTINGS:
+        a, b = analytic[name], best[name]
+        if name == "max_jerk":
+            pairs = [("max_jerk", a, b)]
+        elif name == "dcu_alpha":
+            pairs = [(f"α{k + 1} {ax}", va, vb) for ax, ra, rb in zip("xy", a, b, strict=True)
+                     for k, (va, vb) in enumerate(zip(ra, rb, strict=True))]
+        else:
+            pairs = [(f"{name} {ax}", va, vb) for ax, va, vb in zip("xy", a, b, strict=True)]
+        for label, va, vb in pairs:
+            change = (vb - va) / abs(va) * 100.0 if va else (None if vb == va else math.inf)
+            rows.append({"setting": label, "unit": unit, "analytic": va, "best": vb,
+                         "change_pct": change})
+    return rows
+
+
+def settings_markdown(rows: list[dict[str, Any]]) -> str:
+    """The settings' changes as a Markdown section (only those that changed)."""
+    changed = [r for r in rows if r["change_pct"] is None or r["change_pct"] != 0.0]
+    if not changed:
+        return "## Settings\n\nThe analytic design's, unchanged.\n"
+    out = ["## Settings that changed", "", "| setting | unit | analytic | best | change |",
+           "|---|---|---:|---:|---:|"]
+    for r in changed:
+        change = "from 0" if r["change_pct"] in (None, math.inf) else f"{r['change_pct']:+.1f} %"
+        out.append(f"| {r['setting']} | {r['unit']} | {r['analytic']:.6g} | {r['best']:.6g} "
+                   f"| {change} |")
+    return "\n".join(out) + "\n"
+
+
+def notes(baseline: Trial, best: Trial, *, runs: int, improved: bool) -> list[str]:
+    """What a reader must not miss: that nothing beat the analytic design, or the cycle
+    time the best settings trade for their accuracy (more than 1 % longer)."""
+    out = []
+    if runs == 0:
+        return ["the analytic design only (no search): best.toml holds its settings, "
+                "rounded"]
+    if not improved:
+        out.append(f"nothing beat the analytic design in {runs} tuning runs: best.toml holds "
+                   "the analytic design's own settings (rounded); running without it is "
+                   "the same design")
+        return out
+    t0, t1 = baseline.metrics["cycle_time"], best.metrics["cycle_time"]
+    if t1 > 1.01 * t0:
+        j0, j1 = baseline.settings["max_jerk"], best.settings["max_jerk"]
+        out.append(f"the best settings trade cycle time for accuracy: the cycle takes "
+                   f"{(t1 / t0 - 1) * 100:+.1f} % ({t0:.3f} → {t1:.3f} s; max_jerk "
+                   f"{j0:.4g} → {j1:.4g} m/s³); --max-cycle-time-increase 0% forbids that")
+    return out
 
 
 def _num(v: float, unit: str) -> str:
@@ -95,30 +174,30 @@ def read_overrides(path: Path, base: RegulatorGains) -> TuningSettings:
     doc = read_toml(path)
     try:
         reg = doc["controller"]["regulator"]
-        jerk = _si(doc["controller"]["limits"]["max_jerk"], "m/s³", "max_jerk")
-        gains = RegulatorGains(kp=tuple(_si(v, "V/m", "kp") for v in reg["kp"]),
-                               ki=tuple(_si(v, "V/(m·s)", "ki") for v in reg["ki"]),
-                               dcu_alpha=tuple(tuple(_si(v, "V/m", "dcu_alpha") for v in r)
-                                               for r in reg["dcu_alpha"]),
-                               output_limit=base.output_limit, dac_bits=base.dac_bits,
-                               following_error_limit=base.following_error_limit)
+        return settings_from_dict({
+            "max_jerk": _si(doc["controller"]["limits"]["max_jerk"], "m/s³", "max_jerk"),
+            "kp": [_si(v, "V/m", "kp") for v in reg["kp"]],
+            "ki": [_si(v, "V/(m·s)", "ki") for v in reg["ki"]],
+            "dcu_alpha": [[_si(v, "V/m", "dcu_alpha") for v in r]
+                          for r in reg["dcu_alpha"]]}, base)
     except (KeyError, TypeError) as exc:
         raise ConfigError(str(path), f"not a tuning override file: missing or bad {exc}") \
             from None
-    return TuningSettings(gains, jerk)
 
 
 def comparison(baseline: Trial, best: Trial) -> list[dict[str, Any]]:
-    """Rows ``{metric, unit, analytic, best, change_pct}`` (report units: µm, s)."""
+    """Rows ``{metric, unit, analytic, best, change_pct}`` (report units: µm, s): the cost,
+    the cycle time beside it, then the other metrics."""
     rows = []
-    for m in METRICS:
+    for m in ("cycle_time", *(m for m in METRICS if m != "cycle_time")):
         unit, k = _UNITS[m]
         a, b = baseline.metrics[m] * k, best.metrics[m] * k
         change = (b - a) / a * 100.0 if a > 0.0 and math.isfinite(b) else None
         rows.append({"metric": m, "unit": unit, "analytic": a, "best": b,
                      "change_pct": change})
-    rows.append({"metric": "cost", "unit": "1", "analytic": baseline.cost, "best": best.cost,
-                 "change_pct": (best.cost - baseline.cost) / baseline.cost * 100.0})
+    rows.insert(0, {"metric": "cost", "unit": "1", "analytic": baseline.cost,
+                    "best": best.cost,
+                    "change_pct": (best.cost - baseline.cost) / baseline.cost * 100.0})
     return rows
 
 
@@ -132,13 +211,26 @@ def table_markdown(rows: list[dict[str, Any]]) -> str:
     return "\n".join(out) + "\n"
 
 
+def _plain_log(ax) -> None:
+    """A log axis labelled with plain numbers (4.05, not 4.05×10⁰)."""
+    from matplotlib.ticker import FuncFormatter, LogLocator, NullFormatter
+
+    from twin.analysis.report import readable
+
+    ax.set_yscale("log")
+    ax.yaxis.set_major_locator(LogLocator(subs=(1.0, 2.0, 5.0)))
+    ax.yaxis.set_major_formatter(FuncFormatter(lambda v, _pos: readable(v, 3)))
+    ax.yaxis.set_minor_formatter(NullFormatter())
+
+
 def plot_convergence(path: Path, trials: Sequence[Trial], baseline: Trial, *,
                      title: str, training: Sequence[float] = ()) -> Path:
-    """Cost per run with the best so far, and the max coordinate error, against the run
-    number; the analytic baseline dashed and drawn as run 0, so that even a job without
-    a search (``analytic``) has its point. With ``training`` (PPO/SAC: the cost of every
-    training run, on randomised machines), a third panel shows it with a moving median.
-    Writes a PNG."""
+    """Per tuning run, against the run number (the analytic design dashed and drawn as
+    run 0, so that even a job without a search has its point): the cost with the best so
+    far, the cycle time (what the accuracy may cost), the max coordinate error, and the
+    settings that matter most over the analytic design's (kp per axis, α1 per axis, the
+    jerk limit). With ``training`` (PPO/SAC: the cost of every training run, on
+    randomised machines), a last panel shows it with a moving median. Writes a PNG."""
     import matplotlib
 
     matplotlib.use("Agg")
@@ -146,11 +238,13 @@ def plot_convergence(path: Path, trials: Sequence[Trial], baseline: Trial, *,
 
     cost = np.array([t.cost for t in trials]) if trials else np.zeros(0)
     err = np.array([t.metrics.get("max_coordinate_error", math.nan) * 1e6 for t in trials])
+    cycle = np.array([t.metrics.get("cycle_time", math.nan) for t in trials])
     n = np.arange(1, len(trials) + 1)
     base_err = baseline.metrics["max_coordinate_error"] * 1e6
-    rows = 3 if len(training) else 2
-    fig, axes = plt.subplots(rows, 1, figsize=(8, 3 * rows))
-    ax1, ax2 = axes[0], axes[1]
+    base_cycle = baseline.metrics["cycle_time"]
+    rows = 5 if len(training) else 4
+    fig, axes = plt.subplots(rows, 1, figsize=(8, 2.6 * rows), sharex=False)
+    ax1, ax2, ax3, ax4 = axes[:4]
     ax1.plot([0], [baseline.cost], "o", color="C3", label="analytic design (run 0)")
     ax1.plot(n, cost, ".", color="0.6", label="run")
     if len(cost):
@@ -160,31 +254,51 @@ def plot_convergence(path: Path, trials: Sequence[Trial], baseline: Trial, *,
         ax1.text(0.5, 0.5, "no search: the analytic design only", transform=ax1.transAxes,
                  ha="center", va="center", color="0.4")
     ax1.axhline(baseline.cost, ls="--", color="C3")
-    ax1.set_yscale("log")
+    _plain_log(ax1)
     ax1.set_ylabel("cost (1)")
     ax1.legend(loc="upper right", fontsize=8)
     ax1.set_title(title)
-    ax2.plot([0], [base_err], "o", color="C3")
-    ax2.plot(n, err, ".", color="0.6")
-    ax2.axhline(base_err, ls="--", color="C3")
-    ax2.set_ylabel("max coordinate error (µm)")
-    ax2.set_xlabel("tuning run")
-    ax2.set_ylim(0.0, base_err * 3.0)
-    for a in (ax1, ax2):
+    for ax, values, base, label in ((ax2, cycle, base_cycle, "cycle time (s)"),
+                                    (ax3, err, base_err, "max coordinate error (µm)")):
+        ax.plot([0], [base], "o", color="C3")
+        ax.plot(n, values, ".", color="0.6")
+        ax.axhline(base, ls="--", color="C3")
+        ax.set_ylabel(label)
+        finite = values[np.isfinite(values)]
+        top = max(base * 3.0, 0.0) if label.startswith("max") else \
+            max(float(finite.max()) if finite.size else base, base) * 1.05
+        ax.set_ylim(0.0 if label.startswith("max") else base * 0.9, top)
+    a0 = baseline.settings
+    for (name, pick), colour in zip((("kp x", lambda s: s["kp"][0]),
+                                     ("kp y", lambda s: s["kp"][1]),
+                                     ("α1 x", lambda s: s["dcu_alpha"][0][0]),
+                                     ("α1 y", lambda s: s["dcu_alpha"][1][0]),
+                                     ("max_jerk", lambda s: s["max_jerk"])),
+                                    ("C0", "C1", "C2", "C4", "C3"), strict=True):
+        base = pick(a0)
+        ratio = np.array([pick(t.settings) / base for t in trials]) if base else n * np.nan
+        ax4.plot(n, ratio, ".", ms=3, color=colour, label=name)
+    ax4.axhline(1.0, ls="--", color="0.4")
+    _plain_log(ax4)
+    ax4.set_ylabel("setting ÷ analytic")
+    ax4.legend(loc="upper right", fontsize=7, ncol=5)
+    ax4.set_xlabel("tuning run")
+    for a in (ax1, ax2, ax3, ax4):
         a.set_xlim(-0.5, max(len(trials), 1) + 0.5)
+        a.grid(True, alpha=0.3)
     if len(training):
-        ax3 = axes[2]
+        ax5 = axes[4]
         c = np.asarray(training, dtype=float)
         k = np.arange(1, len(c) + 1)
-        ax3.plot(k, c, ".", color="0.7", ms=3, label="training run")
+        ax5.plot(k, c, ".", color="0.7", ms=3, label="training run")
         w = max(1, len(c) // 20)
         med = np.array([np.median(c[max(0, i - w):i + 1]) for i in range(len(c))])
-        ax3.plot(k, med, "-", color="C0", label=f"moving median ({w + 1} runs)")
-        ax3.axhline(baseline.cost, ls="--", color="C3", label="analytic, nominal machine")
-        ax3.set_yscale("log")
-        ax3.set_xlabel("training run (randomised machines)")
-        ax3.set_ylabel("cost (1)")
-        ax3.legend(loc="upper right", fontsize=8)
+        ax5.plot(k, med, "-", color="C0", label=f"moving median ({w + 1} runs)")
+        ax5.axhline(baseline.cost, ls="--", color="C3", label="analytic, nominal machine")
+        _plain_log(ax5)
+        ax5.set_xlabel("training run (randomised machines)")
+        ax5.set_ylabel("cost (1)")
+        ax5.legend(loc="upper right", fontsize=8)
     fig.tight_layout()
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)

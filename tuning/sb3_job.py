@@ -38,7 +38,7 @@ from envs.gain_tuning import GainTuningEnv
 from tuning.evaluator import Trial, baseline_trial
 from twin.config import MachineConfig
 from twin.errors import ConfigError
-from twin.system.jsonio import write_json_atomic
+from twin.system.jsonio import load_json, write_json_atomic
 
 __all__ = ["ALGORITHMS", "MANIFEST", "apply_policy", "latest_checkpoint", "train"]
 
@@ -62,8 +62,8 @@ def _manifest(directory: Path) -> dict[str, str]:
     """The folder's manifest ({} if none, or if it is not one: then nothing is trusted)."""
     path = Path(directory) / MANIFEST
     try:
-        doc = json.loads(path.read_text(encoding="utf-8"))
-    except (OSError, UnicodeDecodeError, json.JSONDecodeError):
+        doc = load_json(path.read_text(encoding="utf-8"), str(path))   # nesting bounded
+    except (OSError, UnicodeDecodeError, json.JSONDecodeError, ConfigError):
         return {}
     if not isinstance(doc, dict):
         return {}
@@ -318,8 +318,8 @@ def apply_policy(policy: Path, machine: str | MachineConfig, *, program: str = "
         action, _ = model.predict(obs, deterministic=True)
         obs, reward, terminated, _, info = env.step(action)
         trial = Trial(tuple(float(v) for v in np.clip(action, -1, 1)), -float(reward),
-                      info["terms"], info["metrics"], info["status"], info["settings"],
-                      0.0, info["sim_time"])
+                      info["terms"], dict(env.last_outcome.metrics), info["status"],
+                      info["settings"], 0.0, info["sim_time"])
         trials.append(trial)
         if on_trial is not None:
             on_trial(trial)

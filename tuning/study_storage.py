@@ -129,11 +129,15 @@ def _engine_options(url: str) -> dict[str, Any]:
 
 
 def study_identity(cfg: MachineConfig, belief: MachineConfig | None, program: str,
-                   weights: Weights) -> dict[str, Any]:
+                   weights: Weights, max_cycle_time_increase: float | None = None
+                   ) -> dict[str, Any]:
     """What a study tunes: machine and controller-model names and configuration hashes,
-    program, cost weights and coordinates (stored with the study, checked on joining)."""
+    program, cost weights, the cycle-time constraint (when there is one) and coordinates
+    (stored with the study, checked on joining)."""
     belief = belief or cfg
-    return {"machine": cfg.name,
+    limit = {} if max_cycle_time_increase is None else {
+        "max_cycle_time_increase": float(max_cycle_time_increase)}
+    return {**limit, "machine": cfg.name,
             "machine_config_sha256": machine_identity(cfg)["config_sha256"],
             "controller_model": belief.name,
             "controller_model_config_sha256": machine_identity(belief)["config_sha256"],

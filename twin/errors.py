@@ -69,8 +69,25 @@ class GCodeError(TwinError, ValueError):
         if file is not None:
             text = f"{file}, {text}"
         if source:
-            text += f"\n    {source.rstrip()}\n    {' ' * max(column - 1, 0)}^"
+            shown, at = _excerpt(source.rstrip(), max(column - 1, 0))
+            text += f"\n    {shown}\n    {' ' * at}^"
         super().__init__(text)
+
+
+EXCERPT = 255
+"""Longest source line an error shows whole (LinuxCNC's longest line); of a longer one it
+shows this many characters around the column (a line of 100 000 brackets is not printed
+back)."""
+
+
+def _excerpt(source: str, at: int) -> tuple[str, int]:
+    """The part of ``source`` an error shows, and where character ``at`` is in it."""
+    if len(source) <= EXCERPT:
+        return source, at
+    lo = max(0, min(at - EXCERPT // 2, len(source) - EXCERPT))
+    hi = lo + EXCERPT
+    shown = ("…" if lo else "") + source[lo:hi] + ("…" if hi < len(source) else "")
+    return shown, at - lo + (1 if lo else 0)
 
 
 class PlanningError(TwinError, ValueError):

@@ -91,6 +91,7 @@ ERRORS = [
     ("o<nowhere> call", 1, 1, "unknown-sub", "no nowhere.ngc"),
     ("o100 while [1]\no100 endwhile", 1, 1, "loop-limit", "ran more than 100000 times"),
     ("o<r> sub\no<r> call\no<r> endsub\no<r> call", 2, 1, "call-depth", "deeper than 64"),
+    ("G1 X" + "[" * 101 + "1" + "]" * 101, 1, 105, "nesting", "deeper than 100 levels"),
     ("o100 frobnicate", 1, 1, "unknown-word", "O-word without a keyword"),
     ("o100 if", 1, 1, "missing-word", "takes 1 bracketed argument"),
     ("G0 X1 o100 call", 1, 7, "syntax", "must begin its line"),

@@ -14,7 +14,7 @@ from twin.controller.geometry import Arc, Line
 from twin.controller.planner import MotionBlock, PlannedBlock, Planner
 from twin.controller.profiles import LAWS, Limits, max_end_speed
 from twin.controller.reach import monotone_end_speed, reach_floor
-from twin.controller.segment_limits import SegmentLimits
+from twin.controller.segment_limits import CENTRIPETAL, CRUISE_JERK, SegmentLimits
 from twin.controller.spline_path import SplinePath
 from twin.controller.workzone import WorkZone
 from twin.errors import ConfigError, PlanningError
@@ -170,6 +170,7 @@ def test_segment_caps_respect_projected_axis_limits_and_curvature():
     segments.append(SplinePath([(0, 0), (0.01, 0.004), (0.02, -0.003), (0.03, 0.0)]))
     blocks = blocks_of(planner.plan(MotionBlock(s, 0.05) for s in segments))
     a_tot = min(CONTOUR.max_acceleration, *(x.max_acceleration for x in AXIS_LIMITS))
+    j_tot = min(CONTOUR.max_jerk, *(x.max_jerk for x in AXIS_LIMITS))
     for b in blocks:
         seg, v = b.segment, b.v_nominal
         tang = np.abs(seg.tangent(np.linspace(0.0, seg.length, 2001)))
@@ -186,8 +187,16 @@ def test_segment_caps_respect_projected_axis_limits_and_curvature():
             assert v == pytest.approx(bound, rel=1e-12)
         else:
             a_n = v * v * kappa
-            assert a_n <= a_tot / math.sqrt(2) * (1 + 1e-6)
+            assert a_n <= CENTRIPETAL * a_tot * (1 + 1e-6)
             assert math.hypot(a_n, b.limits.max_acceleration) <= a_tot * (1 + 1e-9)
+            # the jerk vector (s⃛ − v³κ², 3·v·s̈·κ + v³κ') within J at the cap and the
+            # block's tangential limits (issue 30's split), κ' by dense differences
+            s_dense = np.linspace(0.0, seg.length, 2001)
+            dk = np.abs(np.diff(seg.curvature(s_dense)) / np.diff(s_dense)).max()
+            a_t, j_t = b.limits.max_acceleration, b.limits.max_jerk
+            tangential = j_t + v**3 * kappa**2
+            normal = 3.0 * v * a_t * kappa + v**3 * dk
+            assert math.hypot(tangential, normal) <= j_tot * (1 + 1e-3)
 
 
 @pytest.mark.parametrize("seed", range(20))
@@ -200,8 +209,8 @@ def test_arc_tangent_extent_matches_dense_sampling(seed):
     caps = SegmentLimits(Limits(10.0, 1.0, 1.0), (Limits(1.0, 1e9, 1e9), Limits(2.0, 1e9, 1e9)))
     v, _, _ = caps.curve_caps(arc, 10.0)
     tang = np.abs(arc.tangent(np.linspace(0.0, arc.length, 200001))).max(axis=0)
-    expected = min(1.0 / tang[0], 2.0 / tang[1], math.sqrt(r / math.sqrt(2)),
-                   (0.25 * r * r) ** (1 / 3))
+    expected = min(1.0 / tang[0], 2.0 / tang[1], math.sqrt(CENTRIPETAL * r),
+                   (CRUISE_JERK * r * r) ** (1 / 3))
     assert v == pytest.approx(expected, rel=1e-6)
 
 

@@ -4,6 +4,7 @@ machine's maximum (a dwell or an arc of a billion turns), both set in the machin
 
 from __future__ import annotations
 
+import json
 import os
 import subprocess
 import sys
@@ -74,4 +75,6 @@ def test_twin_run_refuses_a_denormal_feed_naming_the_line(tmp_path):
                           text=True, timeout=120, env={**os.environ, "RERUN_ANALYTICS": "0"})
     assert proc.returncode == 2 and "Traceback" not in proc.stderr
     assert "line 2: feed" in proc.stderr and "controller.min_feed" in proc.stderr
-    assert not proc.stdout and not list(tmp_path.glob("*.json"))
+    refusal = json.loads(proc.stdout)   # --json: its one object, and no run record
+    assert refusal["status"] == "REFUSED" and refusal["error"].startswith("line 2: feed")
+    assert proc.stdout.count("\n") == 1 and not list(tmp_path.glob("*.json"))

@@ -148,33 +148,6 @@ def test_machines_fields_lists_each_setting_with_unit_and_range():
             "one of digital, analog"
 
 
-def test_the_current_loop_lag_is_the_first_moment_of_the_loop_as_set():
-    """T_ie = R·T_ii/K_pi: the first moment of the closed loop written out (PI, armature,
-    the small lags lumped into T_μ as the design does; numerically), and 2·T_μ at the
-    design."""
-    from twin.drive.linear import current_loop_lag
-
-    rng = np.random.default_rng(5)
-    base = design(TOMSK.axes["y"])
-    assert current_loop_lag(base) == base.current_loop_time_constant
-    for _ in range(8):
-        kp = float(base.current_kp * rng.uniform(0.3, 3.0))
-        ti = float(base.current_ti * rng.uniform(0.5, 2.0))
-        d = design(TOMSK.with_overrides({"axes.y.regulators.current_kp": kp,
-                                         "axes.y.regulators.current_ti": ti}).axes["y"])
-        t_mu = d.converter_time_constant
-        s = 1e-3j   # rad/s: the first moment from the response near s = 0
-        loop = (kp * (ti * s + 1) / (ti * s) / (d.resistance * (d.armature_time_constant * s
-                                                                 + 1)) / (t_mu * s + 1))
-        closed = loop / (1 + loop)
-        moment = -((closed - 1) / s).real
-        assert current_loop_lag(d) == pytest.approx(moment, rel=1e-4)
-    d = design(TOMSK.with_overrides({"axes.y.regulators.current_kp": base.current_kp,
-                                     "axes.y.regulators.current_ti": base.current_ti}
-                                    ).axes["y"])
-    assert current_loop_lag(d) == pytest.approx(2 * d.converter_time_constant, rel=1e-12)
-
-
 def test_the_analog_current_filter_closed_form_matches_solve_ivp():
     """filter_current: T_f·y' = j(t) − y for the bridge's piece current, against DOP853 over
     random pieces (τ near T_f included)."""

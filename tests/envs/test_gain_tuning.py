@@ -22,6 +22,10 @@ def test_registered_ids():
     env = gym.make(envs.GAIN_TUNING_ID, **KW)
     assert env.spec.max_episode_steps == envs.GAIN_TUNING_RUNS
     assert isinstance(env.unwrapped, GainTuningEnv)
+    # the threshold is the analytic design's reward when it never saturates (default weights)
+    w = Weights()
+    assert env.spec.reward_threshold == -(sum(getattr(w, m) for m in METRICS)
+                                          - w.saturation_time)
     env.close()
 
 
@@ -45,6 +49,23 @@ def test_reward_is_minus_the_sum_of_the_terms():
     assert reward == pytest.approx(-info0["baseline_cost"], rel=1e-12)
     assert info["terms"]["overshoot"] == pytest.approx(2.0)
     assert info["metrics"] == info0["baseline_metrics"]
+    assert info["is_success"] is False                 # the analytic design beats nothing
+
+
+def test_info_reports_metrics_in_micrometres_and_seconds_and_success():
+    env = GainTuningEnv(**KW)
+    _, info0 = env.reset(seed=0)
+    rng = np.random.default_rng(3)
+    for action in rng.uniform(-1, 1, (3, 11)).astype(np.float32):
+        _, _, _, _, info = env.step(action)
+        si = env.last_outcome.metrics
+        for m in METRICS:
+            unit = "s" if "time" in m else "um"
+            factor = 1.0 if unit == "s" else 1e6
+            got = info["metrics"][f"{m}_{unit}"]
+            assert got == pytest.approx(si[m] * factor, rel=1e-12, nan_ok=True), m
+        assert info["is_success"] == (not env.last_outcome.failed
+                                      and info["cost"] < info0["baseline_cost"])
 
 
 def test_observation_describes_the_last_run():
@@ -53,11 +74,12 @@ def test_observation_describes_the_last_run():
     assert env.observation_space.contains(obs)
     np.testing.assert_array_equal(obs[:8][[0, 1, 2, 3, 6]], 0.0)   # ln(baseline/baseline)
     a = np.full(11, -0.4, dtype=np.float32)
-    obs, _, _, _, info = env.step(a)
+    obs, _, _, _, _ = env.step(a)
     np.testing.assert_allclose(obs[16:27], a, atol=1e-7)
     scales = env.tuning.scales
     for k, m in enumerate(METRICS):
-        expected = np.clip(np.log(max(info["metrics"][m] / scales[m], 1e-12)), -5, 5)
+        si = env.last_outcome.metrics[m]
+        expected = np.clip(np.log(max(si / scales[m], 1e-12)), -5, 5)
         assert obs[k] == pytest.approx(expected, abs=1e-5)
 
 
@@ -162,3 +184,24 @@ def test_the_checkers_pass_with_the_render_mode():
         check_env(gym.make(envs.GAIN_TUNING_ID, render_mode="rgb_array", **KW).unwrapped)
     with pytest.raises(Exception, match="render_mode"):
         GainTuningEnv(render_mode="human", **KW)
+
+
+def test_the_cycle_time_constraint_costs_more_than_the_analytic_design():
+    """``max_cycle_time_increase=0``: a jerk limit of J0/4 lengthens the cycle, and that
+    run costs more than the analytic design; within the limit the term is 0."""
+    env = GainTuningEnv(**KW, max_cycle_time_increase=0.0)
+    _, info0 = env.reset(seed=0)
+    slow = np.zeros(11, dtype=np.float32)
+    slow[-1] = -1.0
+    _, reward, _, _, info = env.step(slow)
+    base = info0["baseline_metrics"]["cycle_time_s"]
+    grown = info["metrics"]["cycle_time_s"] / base - 1.0
+    assert grown > 0.0
+    weight = sum(getattr(Weights(), m) for m in METRICS)
+    assert info["terms"]["cycle_time_limit"] == pytest.approx(weight * (1 + 100 * grown))
+    assert -reward > info0["baseline_cost"] and not info["is_success"]
+    assert reward == pytest.approx(-sum(info["terms"].values()), rel=1e-12)
+    _, _, _, _, info = env.step(np.zeros(11, dtype=np.float32))
+    assert info["terms"]["cycle_time_limit"] == 0.0
+    with pytest.raises(Exception, match="max_cycle_time_increase"):
+        GainTuningEnv(**KW, max_cycle_time_increase=-0.1).reset(seed=0)

@@ -324,3 +324,51 @@ def test_one_client_owns_the_outputs_until_it_goes(rig):
         assert not module.enabled and module.holding_registers()[DAC_X] == 0
     finally:
         CLIENT.reset(token)
+
+
+def test_an_access_list_lets_only_its_clients_claim_the_outputs(plants):
+    """``hil.owners`` / ``--owner``: a client outside the list gets exception 1 on every
+    output write and never owns the outputs; one inside claims them first come."""
+    from types import SimpleNamespace
+
+    from twin.hardware.owners import Owners
+
+    plant, _ = plants
+    plant.reset()
+    owners = Owners(["10.0.0.0/24", "cell-7"], resolve=lambda host: ["192.168.5.7"])
+    module = HilModule(plant, RMAP, watchdog=WATCHDOG, sync_phase=None, clock=Clock(),
+                       owners=owners)
+    stranger, unknown = SimpleNamespace(host="10.0.1.9"), SimpleNamespace()
+    for client in (stranger, unknown, None):
+        token = CLIENT.set(client)
+        try:
+            for write in (lambda: module.write_holding(FEED, 77),
+                          lambda: module.write_registers(DAC_X, [5, 5, 9]),
+                          lambda: module.write_coil(ENABLE, True)):
+                with pytest.raises(Refused) as caught:
+                    result = write()
+                    if isinstance(result, ExcCodes):    # write_registers answers a code
+                        raise Refused(result, "")
+                assert caught.value.code == ExcCodes.ILLEGAL_FUNCTION
+            assert module.input_registers() and module.discrete_inputs()   # reads stay open
+        finally:
+            CLIENT.reset(token)
+    assert module.owner is not stranger and module.holding_registers()[FEED] == 0
+    for host in ("10.0.0.200", "::ffff:192.168.5.7"):      # the network; the resolved host
+        token = CLIENT.set(SimpleNamespace(host=host))
+        try:
+            assert module.write_registers(DAC_X, [0, 0, len(host)]) is None
+            assert module.owner is CLIENT.get()
+        finally:
+            CLIENT.reset(token)
+        module.release(module.owner)
+
+
+def test_mask_write_and_unknown_functions_in_the_glue(rig):
+    module, _, _ = rig
+    regs = [0] * 3
+    assert access(module, 22, 0, FEED, regs, None) is None          # function 22 reads ...
+    assert regs[FEED] == 0
+    assert access(module, 22, 0, FEED, regs, [41]) is None          # ... then writes
+    assert module.holding_registers()[FEED] == 41 and module.owner is CLIENT.get()
+    assert access(module, 7, 0, 0, regs, None) == ExcCodes.ILLEGAL_FUNCTION

@@ -21,15 +21,25 @@ MACHINES = ["tomsk_xy", "laser_belt"]
 def test_names_follow_the_model_convention():
     m = mujoco.MjModel.from_xml_path(str(MODEL_XML))
     joints = [m.joint(i).name for i in range(m.njnt)]
-    assert joints == ["x", "y", "x_rotor", "y_rotor"]
-    assert [m.tendon(i).name for i in range(m.ntendon)] == ["x_screw", "y_screw"]
+    assert joints == ["x", "y", "x_rotor", "y_rotor", "x_shaft", "y_shaft"]
+    assert [m.tendon(i).name for i in range(m.ntendon)] == ["x_screw", "y_screw", "x_gear",
+                                                            "y_gear"]
     assert m.body("y_carriage").parentid == m.body("x_carriage").id  # Y rides on X
     assert m.key("home").id == 0 and m.nu == 0
+    # a machine without screw bodies has the two-mass structure, in the same order
+    two = load_model("laser_belt")
+    assert [two.joint(i).name for i in range(two.njnt)] == ["x", "y", "x_rotor", "y_rotor"]
+    assert [two.tendon(i).name for i in range(two.ntendon)] == ["x_screw", "y_screw"]
 
 
-@pytest.mark.parametrize("machine", MACHINES)
+TWO_MASS = {"axes.*.transmission.screw_diameter": 0.0, "axes.*.transmission.nut_start": 0.0}
+"""tomsk_xy as it was before the screw body: the two-mass model with a constant spring."""
+
+
+@pytest.mark.parametrize("machine", [*MACHINES, "tomsk_two_mass"])
 def test_machine_parameters_land_in_the_compiled_model(machine):
-    cfg = load_machine(machine)
+    cfg = load_machine("tomsk_xy").with_overrides(TWO_MASS) if machine == "tomsk_two_mass" \
+        else load_machine(machine)
     m = load_model(cfg)
     assert m.opt.timestep == cfg.simulation.timestep
     for axis in ("x", "y"):
@@ -45,18 +55,49 @@ def test_machine_parameters_land_in_the_compiled_model(machine):
         assert m.body_inertia[m.body(f"{axis}_motor").id][0] == mech.rotor_inertia
         assert rotor.frictionloss[0] == mech.rotor_coulomb
         assert m.dof_damping[rotor.dofadr[0]] == mech.rotor_viscous
-        # screw tendon: length r·θ − x with the series stiffness of the chain
-        t = m.tendon(f"{axis}_screw")
-        first = m.tendon_adr[t.id]
-        wraps = range(first, first + m.tendon_num[t.id])
-        coef = {m.joint(m.wrap_objid[w]).name: m.wrap_prm[w] for w in wraps}
         lead_per_rad = (tr.lead / (2 * math.pi) if tr.kind == "screw" else tr.pulley_radius)
-        assert coef == pytest.approx({f"{axis}_rotor": lead_per_rad / tr.gear_ratio, axis: -1.0})
-        series = 1.0 / sum(1.0 / k for k in tr.stiffness.values())
-        assert m.tendon_stiffness[t.id] == pytest.approx(series)
         mass = m.body_subtreemass[m.body(f"{axis}_carriage").id]
-        damping = 2 * tr.damping_ratio * math.sqrt(series * mass)
-        assert m.tendon_damping[t.id] == pytest.approx(damping)
+        if tr.screw_diameter == 0.0:
+            # the two-mass model: one tendon r·θ − x with the series stiffness of the chain
+            coef = _wraps(m, f"{axis}_screw")
+            assert coef == pytest.approx({f"{axis}_rotor": lead_per_rad / tr.gear_ratio,
+                                          axis: -1.0})
+            series = 1.0 / sum(1.0 / k for k in tr.stiffness.values())
+            assert m.tendon_stiffness[m.tendon(f"{axis}_screw").id] == pytest.approx(series)
+            damping = 2 * tr.damping_ratio * math.sqrt(series * mass)
+            assert m.tendon_damping[m.tendon(f"{axis}_screw").id] == pytest.approx(damping)
+            continue
+        # three masses: the screw's inertia ρ·π·d⁴·L/32, computed here as MuJoCo computes a
+        # steel cylinder's; the gear spring r·θ − r_s·θ_s, the axial one r_s·θ_s − x
+        steel = mujoco.MjSpec()
+        steel.worldbody.add_body().add_geom(type=mujoco.mjtGeom.mjGEOM_CYLINDER,
+                                            size=[tr.screw_diameter / 2, tr.screw_length / 2,
+                                                  0], density=7850.0)
+        axial_inertia = steel.compile().body_inertia[1][2]
+        assert m.body_inertia[m.body(f"{axis}_shaft").id][0] == pytest.approx(axial_inertia,
+                                                                             rel=1e-9)
+        assert _wraps(m, f"{axis}_gear") == pytest.approx(
+            {f"{axis}_rotor": lead_per_rad / tr.gear_ratio, f"{axis}_shaft": -lead_per_rad})
+        assert _wraps(m, f"{axis}_screw") == pytest.approx({f"{axis}_shaft": lead_per_rad,
+                                                            axis: -1.0})
+        assert m.tendon_stiffness[m.tendon(f"{axis}_gear").id] == pytest.approx(
+            1.0 / sum(1.0 / k for n, k in tr.stiffness.items() if n in ("gear", "coupling")))
+        # the axial spring as at the home keyframe: the screw's E·A/a from its value at the
+        # far end of travel (fixed-free, tomsk_xy)
+        far = tr.nut_start + mech.travel[1] - mech.travel[0]
+        home = tr.nut_start + ax.switches.home - mech.travel[0]
+        parts = {**tr.stiffness, "screw": tr.stiffness["screw"] * far / home}
+        axial = 1.0 / sum(1.0 / k for n, k in parts.items() if n not in ("gear", "coupling"))
+        assert m.tendon_stiffness[m.tendon(f"{axis}_screw").id] == pytest.approx(axial,
+                                                                                rel=1e-12)
+
+
+def _wraps(m: mujoco.MjModel, tendon: str) -> dict[str, float]:
+    """Joint name → coefficient of a fixed tendon."""
+    t = m.tendon(tendon)
+    first = m.tendon_adr[t.id]
+    return {m.joint(m.wrap_objid[w]).name: m.wrap_prm[w]
+            for w in range(first, first + m.tendon_num[t.id])}
 
 
 @pytest.mark.parametrize("machine", MACHINES)

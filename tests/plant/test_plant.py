@@ -92,13 +92,15 @@ def test_non_finite_dac_raises_and_changes_nothing(bad):
 
 
 def test_diverging_physics_raises_instead_of_a_silent_nan_state(tmp_path, monkeypatch):
-    # A 10 ms step is far beyond the stability limit of the 1 kHz screw mode. The machine
-    # file refuses it, naming the step and the mode; forced past that check, the state
+    # A 10 ms step is far beyond the stability limit of the screw modes (the fastest: the
+    # screw body between its gear and axial springs, 2.2 krad/s with the nut nearest the
+    # motor). The machine file refuses it, naming the step and the mode; forced past that
+    # check, the state
     # blows up, and MuJoCo's auto-reset is off so the plant must notice and say so.
     monkeypatch.chdir(tmp_path)  # MuJoCo logs the warning to ./MUJOCO_LOG.TXT
     base = Plant.from_machine("tomsk_xy").config
     with pytest.raises(ConfigError, match=r"simulation.timestep: 0.01 s is too long for "
-                       r"the elastic mode of axis x: ω = 585.8 rad/s"):
+                       r"the elastic mode of axis x: ω = 2212 rad/s"):
         base.with_overrides({"simulation.timestep": 1e-2, "simulation.drive_substeps": 1,
                              "controller.period": 1e-2})
     cfg = base.with_overrides({"simulation.drive_substeps": 1, "controller.period": 1e-2})

@@ -6,7 +6,8 @@ import numpy as np
 import pytest
 import rerun.chunk as rc
 
-from tests.test_run import _rrd_scalars
+from tests.rrd import labelled, layout_views
+from tests.test_run import _rrd_points, _rrd_scalars
 from twin.session.run import RunSpec, run
 from twin.session.setup import shipped_program
 from twin.telemetry.channels import error_colors
@@ -62,10 +63,10 @@ def test_motor_speed_is_the_table_speed_through_the_transmission(square):
 
     scalars = _rrd_scalars(square.summary["recording"])
     ratio = load_machine("tomsk_xy").axes["x"].transmission.ratio
-    _, table = scalars["axes/x/velocity/actual"]
-    _, motor = scalars["axes/x/drive/motor_speed"]
-    np.testing.assert_allclose(motor, table / ratio, rtol=1e-12)
-    assert np.abs(motor).max() > 10.0                          # rad/s, not m/s
+    _, table = scalars["axes/x/velocity/actual"]                  # mm/min
+    _, motor = scalars["axes/x/drive/motor_speed"]                # rpm
+    np.testing.assert_allclose(motor, table / 60e3 / ratio * 60.0 / (2.0 * np.pi), rtol=1e-12)
+    assert np.abs(motor).max() > 100.0                         # rpm, not rad/s
 
 
 def test_actual_path_is_coloured_by_its_contour_error(square):
@@ -92,24 +93,79 @@ def test_path_view_is_in_millimetres_with_y_up(square):
     (rb,) = _chunks(square.summary["recording"], "/path")
     mat = np.asarray(rb.column("Transform3D:mat3x3").to_pylist()[0][0]).reshape(3, 3)
     # column-major in rerun: the same matrix either way, it is diagonal
-    np.testing.assert_array_equal(mat, np.diag([1e3, -1e3, 1.0]))
+    np.testing.assert_array_equal(mat, np.diag([1.0, -1.0, 1.0]))     # the data are in mm
+    pts = _rrd_points(square.summary["recording"], "path/actual")
+    np.testing.assert_allclose(pts, square.record["position"] * 1e3, rtol=1e-6, atol=1e-4)
 
 
-def test_path_view_is_fitted_to_the_whole_programmed_path(square):
+def test_path_view_is_framed_on_the_whole_path_with_a_grid_and_a_scale(square):
     """rerun fits a 2-D view to the first frames it sees, which cut off the path's later
-    parts; the layout carries the programmed path's extent (mm, Y negated), with a margin."""
+    parts; the layout carries the whole path's extent (mm, Y negated), with a margin, and
+    the view holds a labelled grid and a scale bar."""
     from twin.telemetry.channels import programmed_polyline
 
-    reader = rc.RrdReader(square.summary["recording"])
-    ranges = [rb.column("VisualBounds2D:range").to_pylist()[0][0]
-              for store in reader.blueprints()
-              for rb in (c.to_record_batch() for c in reader.stream(store=store).to_chunks())
-              if "VisualBounds2D:range" in rb.schema.names]
-    assert ranges, "the path view carries its bounds"
-    bounds = ranges[-1]                                   # the last blueprint is the active one
-    mm = programmed_polyline(square.path) * 1e3
-    (x0, x1), (y0, y1) = bounds["x_range"], bounds["y_range"]
+    path = square.summary["recording"]
+    (view,) = [v for v in layout_views(path) if v["kind"] == "2D"]
+    mm = np.vstack([programmed_polyline(square.path) * 1e3,
+                    square.record["position"] * 1e3])
+    (x0, x1), (y0, y1) = view["bounds"]["x_range"], view["bounds"]["y_range"]
     assert x0 < mm[:, 0].min() and mm[:, 0].max() < x1
     assert y0 < -mm[:, 1].max() and -mm[:, 1].min() < y1
     span = max(np.ptp(mm[:, 0]), np.ptp(mm[:, 1]))
-    assert max(x1 - x0, y1 - y0) <= 1.1 * span           # a margin, not a zoomed-out view
+    assert max(x1 - x0, y1 - y0) <= 1.15 * span           # a margin, not a zoomed-out view
+    assert "/path/grid/**" in view["contents"] and "(mm, Y up" in view["name"]
+    assert view["origin"] == "/"               # above /path, whose transform flips Y
+    labels = _chunks(path, "/path/grid/labels")[-1]       # static: the last one stands
+    values = [float(t) for t in labels.column("Points2D:labels").to_pylist()[0]]
+    positions = labels.column("Points2D:positions").to_pylist()[0]
+    xs = [v for v, p in zip(values, positions, strict=True) if np.isclose(p[0], v)]
+    ys = [v for v, p in zip(values, positions, strict=True) if np.isclose(p[1], v)]
+    assert len(xs) >= 2 and len(ys) >= 2                   # coordinates along both edges
+    scale = _chunks(path, "/path/grid/scale")[-1]
+    (bar,) = scale.column("LineStrips2D:strips").to_pylist()[0]
+    (text,) = scale.column("LineStrips2D:labels").to_pylist()[0]
+    assert text == f"{bar[1][0] - bar[0][0]:g} mm"          # the bar is as long as it says
+    step = np.diff(sorted(set(xs)))
+    assert np.allclose(step, bar[1][0] - bar[0][0])         # one grid step
+
+
+def test_every_plot_is_framed_on_its_data_with_labelled_ticks(square):
+    """Each time series of the layout: a y range holding all its data with at least two
+    labelled values (as egui_plot labels them), the data's time span, its unit in the
+    title and no legend box over the traces; every recorded series is in a plot."""
+    from twin.telemetry.channels import series_for
+
+    path = square.summary["recording"]
+    scalars = _rrd_scalars(path)
+    plots = [v for v in layout_views(path) if v["kind"] == "TimeSeries"]
+    assert len(plots) == 6 + 10 + 6                   # Run, drive and motion tabs
+    t_all = np.concatenate([t for t, _ in scalars.values()])
+    shown = set()
+    for view in plots:
+        entities = [e.lstrip("/") for e in view["contents"]]
+        data = [scalars[e][1] for e in entities if e in scalars]
+        assert data, view["name"]
+        shown |= set(entities)
+        values = np.concatenate([np.ravel(d) for d in data])
+        values = values[np.isfinite(values)]
+        lo, hi = view["y_range"]
+        assert lo <= values.min() and values.max() <= hi, view["name"]
+        assert (values.max() - values.min()) >= 0.1 * (hi - lo) or np.ptp(values) == 0.0
+        assert labelled(lo, hi) >= 2, (view["name"], lo, hi)
+        units = {series_for(e)[0] for e in entities}
+        assert len(units) == 1, view["name"]
+        unit = units.pop()
+        assert f"({unit})" in view["name"] if unit != "1" else "(share" in view["name"]
+        assert view["legend"] is False
+        np.testing.assert_allclose(view["time"], (t_all.min(), t_all.max()), atol=1e-9)
+    assert set(scalars) <= shown
+
+
+def test_positions_are_recorded_in_mm_and_velocities_in_mm_per_min(square):
+    scalars = _rrd_scalars(square.summary["recording"])
+    rec = square.record
+    t, pos = scalars["axes/y/position/actual"]
+    order = np.argsort(t, kind="stable")
+    np.testing.assert_allclose(pos[order], rec["position"][:, 1] * 1e3, rtol=1e-14)
+    _, vel = scalars["axes/y/velocity/reference"]
+    np.testing.assert_allclose(vel[order], rec["ref_velocity"][:, 1] * 60e3, rtol=1e-14)

@@ -117,17 +117,20 @@ def test_served_run_stops_its_server_on_sigterm(tmp_path):
                              "--rerun-port", str(port), "--out", str(tmp_path), "--json"],
                             stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
     try:
-        _read_until(proc, f"serving the run at rerun+http://127.0.0.1:{port}/proxy")
+        line = _read_until(proc, f"serving it at rerun+http://127.0.0.1:{port}/proxy")
+        # the run is reported when it ends, not when the server is stopped
+        summary = json.loads(proc.stdout.readline())
+        assert line.startswith(f"run {summary['run_id']} finished after ")
+        assert "--connect" in line
         assert _listening_addresses(port) == {"0100007F"}
         proc.send_signal(signal.SIGTERM)
         out, err = proc.communicate(timeout=30)
     finally:
         if proc.poll() is None:
             proc.kill()
-    assert "Traceback" not in err
+    assert "Traceback" not in err and not out.strip()
     assert _listening_addresses(port) == set()
     assert _processes_with(f"--port {port}") == []        # no rerun left in its group
-    summary = json.loads(out)
     assert summary["status"] == "FINISHED"
     assert (tmp_path / f"{summary['run_id']}.rrd").exists()
 

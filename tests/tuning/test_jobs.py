@@ -3,6 +3,7 @@
 
 import math
 import os
+import re
 
 import numpy as np
 import pytest
@@ -101,9 +102,21 @@ def cfg_kp(cfg):
 
 
 def test_analytic_job_is_the_baseline(tmp_path):
+    from tuning.report import rounded_settings
+
     result = tune(TuneSpec(method="analytic", program="tiny", out_dir=tmp_path))
-    assert result.trials == [] and result.best == result.baseline
-    assert result.summary()["max_coordinate_error_reduction_pct"] == 0.0
+    assert result.trials == [] and not result.improved
+    # best.toml holds the analytic design rounded, and best is that file's run
+    assert result.best.settings == rounded_settings(result.baseline.settings)
+    assert result.best.cost == pytest.approx(result.baseline.cost, rel=0.01)
+    assert abs(result.summary()["max_coordinate_error_reduction_pct"]) < 1.0
+    assert "analytic design only" in result.summary()["notes"][0]
+    text = result.files["overrides"].read_text()
+    assert "analytic design only" in text
+    numbers = [float(n) for n in re.findall(r'"(-?[0-9.e+-]+) ', text)]
+    assert len(numbers) == 1 + 2 + 2 + 6                      # every value, at 5 digits
+    for v in numbers:
+        assert v == 0.0 or v == round(v, 4 - math.floor(math.log10(abs(v)))), v
 
 
 def test_override_file_errors(tmp_path):

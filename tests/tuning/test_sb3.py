@@ -159,3 +159,14 @@ def test_policy_errors(tmp_path):
         apply_policy(junk, "tomsk_xy")
     with pytest.raises(ConfigError, match="method"):
         train("a2c", machine="tomsk_xy", out_dir=tmp_path, total_steps=1)
+
+
+def test_a_manifest_nested_too_deep_lists_nothing(tmp_path):
+    """A manifest that would take Python's JSON parser past its stack (issue 33) is no
+    manifest: nothing in the folder is trusted, and nothing is raised."""
+    (tmp_path / MANIFEST).write_text('{"policy_16_steps.zip": ' + "[" * 100_000
+                                     + "]" * 100_000 + "}")
+    (tmp_path / "policy_16_steps.zip").write_bytes(b"not a checkpoint")
+    with pytest.raises(ConfigError, match="not in"):
+        latest_checkpoint(tmp_path)
+

@@ -37,7 +37,7 @@ from __future__ import annotations
 
 import dataclasses
 import math
-from collections.abc import Mapping, Sequence
+from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -50,9 +50,9 @@ from twin.session.run import RunResult, RunSpec, run
 from twin.system.jsonio import output_dir
 from twin.telemetry.sink import Sink
 
-__all__ = ["FIGURES", "LAW_COLOURS", "Comparison", "LawRun", "compare", "elastic_oscillation",
-           "figure_value",
-           "junction_speed_jump", "junctions", "law_figures", "mode_periods",
+__all__ = ["FIGURES", "LAW_COLOURS", "LAW_COLOUR_NAMES", "Comparison", "LawRun", "compare",
+           "elastic_oscillation", "figure_value", "junction_speed_jump", "junctions",
+           "law_figures", "mode_periods",
            "true_contour_error", "verdict", "widest_difference"]
 
 FIGURES = (
@@ -78,6 +78,10 @@ LAW_COLOURS = {"trapezoid": (214, 39, 40), "parabolic": (31, 119, 180),
                "cosine": (44, 160, 44), "cubic": (148, 103, 189),
                "jerk-limited": (255, 127, 14)}
 """One colour per law (RGB), shared by the PNG report and the rerun overlay."""
+
+LAW_COLOUR_NAMES = {"trapezoid": "red", "parabolic": "blue", "cosine": "green",
+                    "cubic": "purple", "jerk-limited": "orange"}
+"""The names of ``LAW_COLOURS``, for the overlay's titles (its plots name their series)."""
 
 
 # --------------------------------------------------------------------------- metrics
@@ -294,7 +298,6 @@ class _LawSink:
         self.shared, self.law = shared, law
         self.prefix = f"laws/{law}/"
         self.colour = LAW_COLOURS.get(law, (90, 90, 90))
-        self.style("errors/contour_um", name="contour error (µm)")
 
     def static_path(self, entity: str, points: np.ndarray, *,
                     color: tuple[int, int, int] = (160, 160, 160)) -> None:
@@ -305,18 +308,31 @@ class _LawSink:
 
     def points(self, t: np.ndarray, columns: Mapping[str, np.ndarray], *,
                colors: Mapping[str, np.ndarray] | None = None) -> None:
-        """The law's points, in its colour (the overlay's, not the error's)."""
-        self.shared.points(t, {self.prefix + k: v for k, v in columns.items()})
+        """The law's actual path in its colour (the overlay's, not the error's); its
+        reference path is not drawn (the programmed path is)."""
+        if "path/actual" in columns:
+            values = columns["path/actual"]
+            rgb = np.broadcast_to(np.array(self.colour, dtype=np.uint8), (len(values), 3))
+            self.shared.points(t, {self.prefix + "path/actual": values},
+                               colors={self.prefix + "path/actual": rgb})
 
     def event(self, t: float, text: str, *, level: str = "INFO") -> None:
         self.shared.event(t, f"{self.law}: {text}", level=level)
 
-    def style(self, entity: str, *, name: str, color: tuple[int, int, int] | None = None
+    def style(self, entity: str, *, name: str | list[str],
+              color: tuple[int, int, int] | list[tuple[int, int, int]] | None = None
               ) -> None:
+        """The law's series in the law's colour, named ``<law>: <name>`` (a reference
+        keeps its own colour)."""
         style = getattr(self.shared, "style", None)
-        if style is not None:
-            colour = color if entity.endswith("/reference") else self.colour
-            style(self.prefix + entity, name=f"{self.law}: {name}", color=colour)
+        if style is None:
+            return
+        names = [name] if isinstance(name, str) else list(name)
+        colours = [color] if isinstance(color, tuple) else list(color or [])
+        if not entity.endswith("/reference"):
+            colours = [self.colour] * len(names)
+        style(self.prefix + entity, name=[f"{self.law}: {n}" for n in names],
+              color=colours or None)
 
     def close(self) -> None:
         """The shared sink stays open for the next law."""
@@ -326,14 +342,16 @@ def _shared_sink(path: Path, laws: Sequence[str], run_id: str) -> Sink:
     from twin.telemetry.blueprint import overlay_blueprint
     from twin.telemetry.rerun_sink import RerunSink
 
+    names = {law: LAW_COLOUR_NAMES.get(law, "grey") for law in laws}
     sink = RerunSink(path, recording_id=run_id, recording_name=run_id,
-                     blueprint=overlay_blueprint(laws))
+                     blueprint=lambda extents: overlay_blueprint(names, extents))
     sink.machine_frame("laws")          # the paths in mm, Y up, as in a run's layout
     return sink
 
 
 def compare(spec: RunSpec, laws: Sequence[str], *, out_dir: str | Path = "runs",
-            recording: bool | str | Path = True, run_id: str = "compare") -> Comparison:
+            recording: bool | str | Path = True, run_id: str = "compare",
+            on_law: Callable[[str, int, int], None] | None = None) -> Comparison:
     """Run ``spec`` once per law.
 
     Parameters
@@ -349,6 +367,8 @@ def compare(spec: RunSpec, laws: Sequence[str], *, out_dir: str | Path = "runs",
         path; False: none.
     run_id : str
         Name of the comparison.
+    on_law : callable(law, k, n), optional
+        Told as the ``k``-th of ``n`` laws starts (progress).
 
     Returns
     -------
@@ -359,7 +379,9 @@ def compare(spec: RunSpec, laws: Sequence[str], *, out_dir: str | Path = "runs",
     shared = _shared_sink(rrd, laws, run_id) if recording is not False else None
     runs: dict[str, LawRun] = {}
     try:
-        for law in laws:
+        for k, law in enumerate(laws):
+            if on_law is not None:
+                on_law(law, k, len(laws))
             law_spec = dataclasses.replace(spec, profile=law)
             sink = _LawSink(shared, law) if shared is not None else None
             result = run(law_spec, out_dir=out, rerun="none", run_id=f"{run_id}-{law}",

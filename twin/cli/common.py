@@ -1,8 +1,8 @@
 """What every ``twin`` command shares: the stderr console and the one way to fail.
 
 Human output goes to stderr (tables may go to stdout when no ``--json`` is asked for);
-``--json`` prints exactly one JSON object on stdout; bad input exits with code 2 and a
-message naming the place.
+``--json`` prints exactly one JSON object on stdout, a refusal's too (``refusal``); bad
+input exits with code 2 and a message naming the place.
 """
 
 from __future__ import annotations
@@ -11,14 +11,14 @@ import enum
 import sys
 from collections.abc import Mapping, Sequence
 from pathlib import Path
-from typing import Any
+from typing import Any, NoReturn
 
 import typer
 from rich.console import Console
 from rich.markup import escape
 from rich.table import Table
 
-from twin.errors import ConfigError
+from twin.errors import ConfigError, GCodeError
 from twin.system.jsonio import json_text
 
 __all__ = [
@@ -28,7 +28,10 @@ __all__ = [
     "err",
     "fail",
     "parse_position",
+    "print_paths",
+    "refusal",
     "summary_table",
+    "usage_text",
 ]
 
 CONTROLLER_MODEL_HELP = (
@@ -93,10 +96,58 @@ def parse_position(text: str | None, option: str = "--from") -> tuple[float, flo
     return (x, y)
 
 
-def fail(exc: BaseException) -> None:
-    """Print ``exc`` (which names its place) on stderr and exit with code 2."""
+_PLAIN = {
+    "less_than_equal": "must be at most {le}", "less_than": "must be less than {lt}",
+    "greater_than_equal": "must be at least {ge}", "greater_than": "must be more than {gt}",
+    "int_parsing": "must be a whole number", "int_from_float": "must be a whole number",
+    "float_parsing": "must be a number", "bool_parsing": "must be true or false",
+    "finite_number": "must be a finite number",
+}
+"""Plain words for the checks typer leaves to pydantic (its ``Input should be ...``)."""
+
+
+def usage_text(exc: BaseException) -> str:
+    """The one line of a usage error (an option's bad value, an unknown option): click's
+    message on one line, and a value typer checked with pydantic in plain words, naming the
+    option and the value (``--dcu-order: must be at most 3, got 7``)."""
+    cause = exc.__cause__
+    errors = getattr(cause, "errors", None)
+    param = getattr(exc, "param", None)
+    if callable(errors) and param is not None:
+        name = (param.opts[0] if getattr(param, "opts", None) else param.name) or "value"
+        found = list(errors())
+        if found and all(e.get("type") in _PLAIN for e in found):
+            return f"{name}: " + "; ".join(
+                f"{_PLAIN[e['type']].format(**e.get('ctx', {}))}, got {e.get('input')!s}"
+                for e in found)
+    format_message = getattr(exc, "format_message", None)
+    message = format_message() if format_message is not None else str(exc)
+    return " ".join(message.split())    # click lists choices on lines of their own
+
+
+def refusal(exc: BaseException, status: str = "REFUSED") -> dict[str, Any]:
+    """The one JSON object ``--json`` prints when a command stops on ``exc``: its status,
+    the message's first line as ``error``, and the place it names (``field``; ``line``,
+    ``column``, ``code`` and ``file`` of a G-code error)."""
+    doc: dict[str, Any] = {"status": status, "error": str(exc).splitlines()[0] if str(exc)
+                           else type(exc).__name__}
+    if isinstance(exc, ConfigError):
+        doc["field"] = exc.field
+    if isinstance(exc, GCodeError):
+        doc.update(line=exc.line, column=exc.column, code=exc.code, file=exc.file)
+    return doc
+
+
+def fail(exc: BaseException, as_json: bool = False, *, code: int = 2,
+         status: str = "REFUSED") -> NoReturn:
+    """Print ``exc`` (which names its place) on stderr and exit with ``code`` (2: bad
+    input); with ``as_json``, first its ``refusal`` object on stdout, the one object
+    ``--json`` promises."""
+    if as_json:
+        sys.stdout.write(json_text(refusal(exc, status)) + "\n")
+        sys.stdout.flush()
     err.print(f"[bold red]error:[/] {escape(str(exc))}", highlight=False, soft_wrap=True)
-    raise typer.Exit(2)
+    raise typer.Exit(code)
 
 
 METRIC_ROWS = (
@@ -117,9 +168,21 @@ RUN_ROWS = (
     ("elastic oscillation", "elastic_oscillation_um", "µm"),
     ("settling travel", "settling_travel_um", "µm"),
     ("real-time factor", "real_time_factor", "×"),
-    ("recording", "recording", ""),
 )
-"""The rows of one run's summary table (``twin run``, ``demo``, ``home``, ``jog``)."""
+"""The rows of one run's summary table (``twin run``, ``demo``, ``home``, ``jog``); the
+recording's path follows the table on a line of its own (``print_paths``), whole at any
+width."""
+
+
+def print_paths(console: Console, summary: Mapping[str, Any], out: Path | None = None
+                ) -> None:
+    """The files of a run, one line each, never cut: ``record:`` (the summary's .json in
+    ``out``) and ``recording:`` (its .rrd)."""
+    if out is not None:
+        console.print(f"record: {out / (summary['run_id'] + '.json')}", highlight=False,
+                      soft_wrap=True)
+    if summary.get("recording"):
+        console.print(f"recording: {summary['recording']}", highlight=False, soft_wrap=True)
 
 
 def _value(summary: Mapping[str, Any], key: Any) -> Any:

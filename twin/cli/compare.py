@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import shutil
 import sys
 from pathlib import Path
 from typing import Any
@@ -28,7 +29,7 @@ __all__ = ["register"]
 
 def _table(verdicts: list[dict[str, Any]], laws: list[str], title: str) -> Table:
     """Every figure per law, the winner (bold) and its margin."""
-    from twin.analysis.report import margin_text
+    from twin.analysis.report import margin_text, readable
 
     table = Table(title=title)
     table.add_column("figure (smaller is better)")
@@ -38,8 +39,8 @@ def _table(verdicts: list[dict[str, Any]], laws: list[str], title: str) -> Table
     table.add_column("winner")
     table.add_column("margin", justify="right")
     for e in verdicts:
-        cells = [f"[bold]{e['values'][law]:.4g}[/]" if law == e["winner"]
-                 else f"{e['values'][law]:.4g}" for law in laws]
+        cells = [f"[bold]{readable(e['values'][law])}[/]" if law == e["winner"]
+                 else readable(e["values"][law]) for law in laws]
         table.add_row(e["label"], *cells, e["unit"], e["winner"] or "tie", margin_text(e))
     return table
 
@@ -66,7 +67,8 @@ def _call_folder(out: Path) -> Path:
 
 
 def _parse_sweep(text: str) -> tuple[str, list[Any]]:
-    """``key=v1,v2,...`` → (key, values); a value with a unit (``600mm/min``) in SI."""
+    """``key=v1,v2,...`` → (key, values); a value with a unit (``600mm/min``) in SI.
+    Raises ``ConfigError`` naming ``--sweep`` for an unknown key or a bad value."""
     from twin.config.overrides import parse_sets, resolve_key
     from twin.config.quantities import to_si
     from twin.config.schema import field_meta
@@ -118,54 +120,109 @@ def compare_cmd(
     from twin.session.run import RunSpec
 
     laws = [p.strip().replace("_", "-") for p in profiles.split(",") if p.strip()]
+    folder = None
+    title = f"{Path(program).name if program else builtin.value} on {machine}"
     try:
         rerun = rerun_target(rerun)
         for law in laws:
-            check_law(law)
+            try:
+                check_law(law)
+            except ConfigError as exc:
+                raise ConfigError("--profiles", exc.message) from None
+        if not laws:
+            raise ConfigError("--profiles", "names no law")
         base = RunSpec(machine=machine, controller_model=controller_model,
                        program=str(program) if program else None,
                        builtin=builtin.value, planner=None if planner is None
                        else planner.value, dcu_order=dcu_order,
                        overrides=parse_sets(sets))
         base.belief(base.machine_config())
+        swept = _parse_sweep(sweep) if sweep is not None else None    # before any file
         folder = _call_folder(out)
-        if sweep is not None:
-            result = _sweep(base, laws, sweep, figure, folder, write_sweep_report)
+        say = _Say(len(laws))
+        if swept is not None:
+            result = _sweep(base, laws, swept, figure, folder, write_sweep_report, say,
+                            title)
         else:
-            with err.status(f"running {len(laws)} laws …"):
-                comparison = compare(base, laws, out_dir=folder,
+            with say:
+                comparison = compare(base, laws, out_dir=folder, on_law=say.law,
                                      recording={"file": True, "none": False}.get(rerun, rerun))
-            report = write_report(comparison, folder / "compare.png",
-                                  title=f"{program or builtin.value} on {machine}")
+            report = write_report(comparison, folder / "compare.png", title=title)
             result = {"profiles": comparison.summaries(),
                       "verdict": verdict(comparison.summaries()), "report": str(report),
                       "recording": comparison.recording}
             write_json_atomic(folder / "verdict.json", result["verdict"])
         result["folder"] = str(folder)
     except TwinError as exc:
-        fail(exc)
+        if folder is not None:      # refused: this call's own folder goes with it
+            shutil.rmtree(folder, ignore_errors=True)
+        fail(exc, as_json)
     if as_json:
         sys.stdout.write(json_text(result) + "\n")
         return
     # a log (not a terminal) gets the table whole rather than folded to 80 columns
     console = Console(width=None if sys.stdout.isatty() else 160)
     if sweep is None:
-        console.print(_table(result["verdict"], laws, f"{program or builtin.value} on {machine}"))
+        console.print(_table(result["verdict"], laws, title))
         console.print(_wins(result["verdict"]), highlight=False)
     else:
-        table = Table(title=f"{figure} against {result['sweep']['key']}")
-        table.add_column("value")
-        for law in laws:
-            table.add_column(law, justify="right")
-        for i, v in enumerate(result["sweep"]["values"]):
-            table.add_row(str(v), *(f"{result['sweep']['table'][law][i]:.4g}" for law in laws))
-        console.print(table)
+        console.print(_sweep_table(result["sweep"], laws, title))
     console.print(f"report: {result['report']}", highlight=False)
     if result.get("recording"):
         console.print(f"recording: {result['recording']}", highlight=False)
 
 
-def _sweep(base, laws: list[str], text: str, figure: str, out: Path, plot) -> dict[str, Any]:
+class _Say:
+    """Progress of a comparison: a spinner on a terminal; elsewhere (a log, a pipe) one
+    plain line on stderr as each law starts."""
+
+    def __init__(self, laws: int):
+        self.laws, self.prefix = laws, ""
+        self._status = None
+
+    def __enter__(self) -> _Say:
+        if err.is_terminal:
+            self._status = err.status("starting …")
+            self._status.__enter__()
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        if self._status is not None:
+            self._status.__exit__(*exc)
+            self._status = None
+
+    def law(self, law: str, k: int, n: int) -> None:
+        text = f"{self.prefix}{law} ({k + 1} of {n}) …"
+        if self._status is not None:
+            self._status.update(text)
+        else:
+            err.print(f"compare: {text}", highlight=False, soft_wrap=True)
+
+
+def _sweep_table(sweep: dict[str, Any], laws: list[str], title: str) -> Table:
+    """The figure and the cycle time per law at each swept value, units in the header."""
+    from twin.analysis.report import figure_label, figure_unit
+    from twin.config import field_unit
+
+    unit = field_unit(sweep["key"])
+    name = sweep["key"].rsplit(".", 1)[-1]
+    label = figure_label(sweep["figure"])
+    table = Table(title=f"{title}: {label} against {name}")
+    table.add_column(f"{name} ({unit})" if unit else name, justify="right")
+    for law in laws:
+        table.add_column(f"{law}\n{label} ({figure_unit(sweep['figure'])})",
+                         justify="right")
+        table.add_column(f"{law}\ncycle time (s)", justify="right")
+    for i, v in enumerate(sweep["values"]):
+        table.add_row(f"{v:g}" if isinstance(v, float) else str(v),
+                      *(cell for law in laws for cell in (
+                          f"{sweep['table'][law][i]:.4g}",
+                          f"{sweep['cycle_time_s'][law][i]:.3f}")))
+    return table
+
+
+def _sweep(base, laws: list[str], swept: tuple[str, list[Any]], figure: str, out: Path,
+           plot, say: _Say, title: str) -> dict[str, Any]:
     """Every law at each value of the swept key; the figure against the value."""
     import dataclasses
 
@@ -173,16 +230,17 @@ def _sweep(base, laws: list[str], text: str, figure: str, out: Path, plot) -> di
     from twin.config import field_unit
     from twin.config.overrides import resolve_key
 
-    key, values = _parse_sweep(text)
+    key, values = swept
     path = resolve_key(key)
     table: dict[str, list[float]] = {law: [] for law in laws}
     cycle: dict[str, list[float]] = {law: [] for law in laws}
     runs: dict[str, list[dict[str, Any]]] = {law: [] for law in laws}
     for i, value in enumerate(values):
         spec = dataclasses.replace(base, overrides={**base.overrides, path: value})
-        with err.status(f"{key} = {value} …"):
+        say.prefix = f"{key} = {value:g}: " if isinstance(value, float) else f"{key} = {value}: "
+        with say:
             comparison = compare(spec, laws, out_dir=out, recording=False,
-                                 run_id=f"sweep-{i}")
+                                 run_id=f"sweep-{i}", on_law=say.law)
         for law, summary in comparison.summaries().items():
             if figure not in summary:
                 raise ConfigError("--figure", f"not a summary figure: {figure!r}; e.g. "
@@ -192,7 +250,7 @@ def _sweep(base, laws: list[str], text: str, figure: str, out: Path, plot) -> di
             cycle[law].append(float(summary["cycle_time_s"]))
             runs[law].append(summary)
     report = plot(key, values, figure, table, out / "sweep.png", cycle_times=cycle,
-                  key_unit=field_unit(path))
+                  key_unit=field_unit(path), title=title)
     return {"sweep": {"key": path, "values": values, "figure": figure, "table": table,
                       "cycle_time_s": cycle},
             "profiles": runs, "report": str(report)}

@@ -60,6 +60,11 @@ def hil_server(
     fast: bool = typer.Option(True, "--fast/--pymodbus-only", help="Answer a tick's reads "
                               "and writes directly (a few µs instead of pymodbus' ~150); "
                               "--pymodbus-only lets pymodbus serve every request."),
+    owner: list[str] = typer.Option([], "--owner", help="Only this client may claim the "
+                                    "outputs (a host, an address or a network such as "
+                                    "10.0.0.0/24; repeatable; replaces the machine's "
+                                    "hil.owners); others may only read. Default: the first "
+                                    "client to feed the watchdog."),
 ) -> None:
     """Serve the twin as a Modbus/TCP I/O module until Ctrl-C or SIGTERM."""
     import numpy as np
@@ -67,10 +72,12 @@ def hil_server(
     from twin.config import load_machine
     from twin.config.overrides import parse_sets
     from twin.hardware.hil_server import hil_plant, serve_hil
+    from twin.hardware.owners import Owners
     from twin.hardware.register_map import load_register_map
 
     try:
         cfg = load_machine(machine).with_overrides(parse_sets(sets))
+        owners = Owners(owner, field="--owner") if owner else Owners(cfg.hil.owners)
         rmap = load_register_map(register_map)
         position = parse_position(start)
         try:
@@ -79,7 +86,7 @@ def hil_server(
         except ConfigError as exc:
             raise ConfigError("--from", exc.message) from None
     except TwinError as exc:
-        fail(exc)
+        fail(exc, as_json)
 
     if rt_priority and not set_fifo_priority(rt_priority):
         err.print("[yellow]warning:[/] SCHED_FIFO not permitted here; serving with normal "
@@ -89,7 +96,7 @@ def hil_server(
         info = {"host": bound_host, "port": bound_port, "machine": cfg.name,
                 "realtime": os.sched_getscheduler(0) == os.SCHED_FIFO,
                 "watchdog_ms": watchdog_ms, "drive_interval_s": plant.drive_dt,
-                "register_map": rmap.source}
+                "register_map": rmap.source, "owners": list(owners.entries)}
         if as_json:
             sys.stdout.write(json_text(info) + "\n")
             sys.stdout.flush()
@@ -102,21 +109,22 @@ def hil_server(
         err.print(table)
         err.print(f"HIL server: {cfg.name} on modbus://{bound_host}:{bound_port} (unit "
                   f"{rmap.module.device_id}), drive interval {plant.drive_dt * 1e3:g} ms, "
-                  f"watchdog {watchdog_ms:g} ms; Ctrl-C stops", highlight=False)
+                  f"watchdog {watchdog_ms:g} ms; outputs: {owners.describe()}; Ctrl-C stops",
+                  highlight=False)
 
     try:
         socket.getaddrinfo(host, port, type=socket.SOCK_STREAM)
     except (OSError, UnicodeError) as exc:
-        fail(ConfigError("--host", f"cannot bind {host!r}: {exc}"))
+        fail(ConfigError("--host", f"cannot bind {host!r}: {exc}"), as_json)
     try:
         stats = serve_hil(plant, rmap, host=host, port=port, watchdog=watchdog_ms * 1e-3,
                           sync_phase=None if no_sync else sync_phase,
                           output_window=window_ms * 1e-3,
-                          on_ready=ready, fast=fast)
+                          on_ready=ready, fast=fast, owners=owners)
     except (OSError, RuntimeError) as exc:   # pymodbus: "Could not start listen" (in use)
         if "listen" not in str(exc) and not isinstance(exc, OSError):
             raise
-        fail(ConfigError("--port", f"cannot listen on {host}:{port}: {exc}"))
+        fail(ConfigError("--port", f"cannot listen on {host}:{port}: {exc}"), as_json)
     if as_json:  # stdout carried the one ready object; the statistics go to stderr
         sys.stderr.write(json_text({"hil_stats": dataclasses.asdict(stats)}) + "\n")
         return

@@ -9,7 +9,7 @@ from pathlib import Path
 import typer
 from rich.table import Table
 
-from twin.cli.common import CONTROLLER_MODEL_HELP, choices, err, fail
+from twin.cli.common import CONTROLLER_MODEL_HELP, choices, err, fail, refusal
 from twin.config import AXES
 from twin.errors import ExperimentAborted, FitError, TwinError
 from twin.system.jsonio import json_text
@@ -61,15 +61,17 @@ def identify(
                               from_log=from_log, out_dir=out, noise=noise,
                               rt_priority=rt_priority, axes=axes.value, progress=say)
     except ExperimentAborted as exc:
+        _stopped(exc, as_json, "ABORTED")
         err.print(f"[bold red]experiments aborted, the machine was stopped:[/] {exc}",
                   highlight=False, soft_wrap=True)
         raise typer.Exit(1) from None
     except FitError as exc:
+        _stopped(exc, as_json, "FAILED")
         err.print(f"[bold red]identification failed:[/] {exc}; {output} was not written",
                   highlight=False, soft_wrap=True)
         raise typer.Exit(1) from None
     except TwinError as exc:
-        fail(exc)
+        fail(exc, as_json)
     if as_json:
         sys.stdout.write(json_text(result) + "\n")
         return
@@ -103,6 +105,12 @@ def identify(
                   highlight=False)
     err.print(f"calibrated machine: {result['calibrated']}\nreport: {result['report']}",
                   highlight=False)
+
+
+def _stopped(exc: BaseException, as_json: bool, status: str) -> None:
+    """With ``--json``: the one object, saying why nothing was identified."""
+    if as_json:
+        sys.stdout.write(json_text(refusal(exc, status)) + "\n")
 
 
 def register(app: typer.Typer) -> None:

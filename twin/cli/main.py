@@ -7,18 +7,12 @@ the place (G-code line and column, config field).
 
 from __future__ import annotations
 
-import signal
-
-
-def _interrupted_while_starting(signum: int, frame: object) -> None:
-    raise SystemExit(128 + signum)
-
+from twin.system import interrupts
 
 # A Ctrl-C while the command is still importing (numpy, MuJoCo, ...) ends it quietly with the
-# shell's 130 instead of a KeyboardInterrupt traceback; Python's own handler is back once
-# the commands are registered, and a run installs its own (twin.session.run_end).
-if signal.getsignal(signal.SIGINT) is signal.default_int_handler:
-    signal.signal(signal.SIGINT, _interrupted_while_starting)
+# shell's 130 instead of a KeyboardInterrupt traceback, even where an import drops the
+# exception (twin.system.interrupts); a run installs its own handlers (twin.session.run_end).
+interrupts.install()
 
 import sys  # noqa: E402
 from pathlib import Path  # noqa: E402
@@ -39,6 +33,7 @@ from twin.cli.common import (  # noqa: E402
     PlannerMode,
     err,
     fail,
+    print_paths,
     report_dry_run,
     rerun_target,
     summary_table,
@@ -84,8 +79,11 @@ def _emit(obj: dict[str, Any], as_json: bool) -> None:
 
 
 def _progress() -> Progress:
+    """A run's progress on a terminal; elsewhere nothing (not even the blank line a
+    stopped live display leaves before an error)."""
     return Progress(TextColumn("[bold]sim"), BarColumn(), TextColumn("{task.description}"),
-                    TimeElapsedColumn(), console=err, transient=True)
+                    TimeElapsedColumn(), console=err, transient=True,
+                    disable=not err.is_terminal)
 
 
 # --------------------------------------------------------------------------- run
@@ -122,10 +120,11 @@ def _run(program: Path | None, machine: str, profile: str | None, planner: str |
                 raise typer.Exit(1)
             return
         with _progress() as bar:
-            task = bar.add_task("0.0 s", total=None)
+            task = bar.add_task("starting", total=None)
 
-            def progress(t: float, _limit: float) -> None:
-                bar.update(task, description=f"{t:.1f} s")
+            def progress(t: float, done: float) -> None:
+                share = "" if done != done else f", {done:.0%} of the program"
+                bar.update(task, description=f"{t:.1f} s simulated{share}")
 
             def warn(message: str) -> None:
                 bar.console.print(f"[yellow]warning:[/] {message}", highlight=False,
@@ -138,12 +137,10 @@ def _run(program: Path | None, machine: str, profile: str | None, planner: str |
         _report(exc.result.summary, out, as_json)
         raise typer.Exit(128 + exc.signum) from None
     except TwinError as exc:
-        fail(exc)
+        fail(exc, as_json)
     summary = result.summary
     for note in summary.get("input_warnings", ()):
         err.print(f"[yellow]warning:[/] {note}", highlight=False, soft_wrap=True)
-    if rerun == "serve":
-        _keep_serving(rerun_port)
     _report(summary, out, as_json)
     if "summary_error" in summary:   # not saved: printed, so that nothing is lost
         err.print(f"[bold red]error:[/] {escape(summary['summary_error'])}", highlight=False,
@@ -151,6 +148,9 @@ def _run(program: Path | None, machine: str, profile: str | None, planner: str |
         if not as_json:
             sys.stderr.write(json_text({k: v for k, v in summary.items()
                                         if k not in ("config", "spec")}) + "\n")
+    if rerun == "serve":        # the run is over and reported; the server stays for viewers
+        sys.stdout.flush()
+        _keep_serving(rerun_port, summary)
     if summary["status"] != "FINISHED":
         raise typer.Exit(1)
 
@@ -170,18 +170,21 @@ def _report(summary: dict, out: Path, as_json: bool) -> None:
                           f"{t['skipped']} skipped; start jitter p50/p99/max "
                           f"{t['jitter_p50_us']:.0f}/{t['jitter_p99_us']:.0f}/"
                           f"{t['jitter_max_us']:.0f} µs", highlight=False)
-        console.print(f"record: {out / (summary['run_id'] + '.json')}", highlight=False)
+        print_paths(console, summary, out)
     if summary.get("error") and summary.get("status") != "FINISHED":
         # why it stopped (a driver fault, a missed deadline, a program error), in words
         err.print(f"[bold red]{summary['status'].lower()}:[/] {escape(summary['error'])}",
                   highlight=False, soft_wrap=True)
 
 
-def _keep_serving(port: int) -> None:
-    """After a ``--rerun serve`` run: serve the recording until Ctrl-C, SIGTERM or SIGHUP,
-    then stop the server's whole process group (nothing is left listening)."""
+def _keep_serving(port: int, summary: dict[str, Any]) -> None:
+    """After a ``--rerun serve`` run (reported already): one line saying that the run
+    ended and where it is served, then serve it until Ctrl-C, SIGTERM or SIGHUP, and stop
+    the server's whole process group (nothing is left listening)."""
+    import shlex
+
     from twin.session.run_end import stop_signals
-    from twin.telemetry.viewer import running_rerun, stop_rerun
+    from twin.telemetry.viewer import rerun_command, running_rerun, stop_rerun
 
     servers = running_rerun()
     if not servers:
@@ -189,8 +192,10 @@ def _keep_serving(port: int) -> None:
     url = f"rerun+http://127.0.0.1:{port}/proxy"
     try:
         with stop_signals([]):      # before the message: a signal right after it is caught
-            err.print(f"serving the run at {url} (connect: rerun --connect {url}); Ctrl-C "
-                      "to stop", highlight=False, soft_wrap=True)
+            err.print(f"run {summary['run_id']} {summary['status'].lower()} after "
+                      f"{summary.get('sim_time_s', 0.0):.1f} s simulated; serving it at "
+                      f"{url} (view: {shlex.quote(rerun_command())} --connect {url}); "
+                      "Ctrl-C to stop", highlight=False, soft_wrap=True)
             for proc in servers:
                 proc.wait()
     except KeyboardInterrupt:
@@ -242,7 +247,7 @@ def run_cmd(
     try:
         rerun = rerun_target(rerun, live=True)
     except TwinError as exc:
-        fail(exc)
+        fail(exc, as_json)
     _run(program, machine, None if profile is None else profile.value,
          None if planner is None else planner.value, dcu_order, period, sets, rerun, out,
          as_json, dry_run, builtin.value, driver, rt_priority, set_file, controller_model,
@@ -266,11 +271,12 @@ def demo(machine: str = MachineOpt, out: Path = OutOpt, as_json: bool = JsonOpt,
                              progress=lambda t, _m, task=task, bar=bar, o=order:
                              bar.update(task, description=f"DCU {o}: {t:.1f} s"))
         except TwinError as exc:
-            fail(exc)
+            fail(exc, as_json)
         rows[order] = result.summary
         if not as_json:
             Console().print(_summary_table(result.summary, f"default program, {machine}, "
                                                            f"DCU order {order}"))
+            print_paths(Console(), result.summary, out)
     _emit({"runs": {str(k): {kk: vv for kk, vv in v.items() if kk not in ("config", "spec")}
                     for k, v in rows.items()}}, as_json)
 
@@ -324,7 +330,7 @@ def machines(
         try:
             cfg = load_machine(name)
         except TwinError as exc:
-            fail(exc)
+            fail(exc, as_json)
         ax = cfg.axes["x"]
         rows.append({
             "name": name,
@@ -338,10 +344,16 @@ def machines(
     if as_json:
         _emit({"machines": rows}, True)
         return
-    table = Table(title="machines")
+    from rich import box
+
+    table = Table(title="machines", box=box.SIMPLE_HEAD)
+    headers = {"name": "machine", "converter": "converter", "transmission": "transmission",
+               "counts_per_um": "counts\nper µm", "max_feed_mm_per_min": "max feed\n(mm/min)",
+               "period_ms": "period\n(ms)"}
     keys = [k for k in rows[0] if k != "description"]
     for key in keys:
-        table.add_column(key)
+        table.add_column(headers.get(key, key), no_wrap=True,
+                         justify="right" if isinstance(rows[0][key], float) else "left")
     for r in rows:
         table.add_row(*(f"{r[k]:g}" if isinstance(r[k], float) else str(r[k]) for k in keys))
     Console().print(table)
@@ -356,7 +368,7 @@ def _machine_fields(machine: str, as_json: bool) -> None:
     try:
         cfg = load_machine(machine)
     except TwinError as exc:
-        fail(exc)
+        fail(exc, as_json)
     rows = []
     for path, value in flatten(cfg).items():
         meta = field_meta(path)
@@ -384,7 +396,7 @@ def _machine_diff(a: str, b: str, as_json: bool) -> None:
     try:
         ma, mb = load_machine(a), load_machine(b)
     except TwinError as exc:
-        fail(exc)
+        fail(exc, as_json)
     rows = [{"field": path, "unit": field_unit(path), a: va, b: vb}
             for path, va, vb in diff_machines(ma, mb)]
     if as_json:
@@ -420,8 +432,7 @@ def _register_more() -> None:
 
 
 _register_more()
-if signal.getsignal(signal.SIGINT) is _interrupted_while_starting:
-    signal.signal(signal.SIGINT, signal.default_int_handler)
+interrupts.honour()   # a Ctrl-C dropped during the imports ends the command now
 
 def entry() -> None:
     """The ``twin`` entry point. Click's usage errors (an unknown option, a value that is
@@ -432,10 +443,10 @@ def entry() -> None:
     except typer.Abort:
         raise SystemExit(130) from None
     except typer.TyperException as exc:    # typer's own click: a usage error
-        format_message = getattr(exc, "format_message", None)
-        message = format_message() if format_message is not None else str(exc)
-        message = " ".join(message.split())    # click lists choices on lines of their own
-        err.print(f"[bold red]error:[/] {escape(message)}", highlight=False, soft_wrap=True)
+        from twin.cli.common import usage_text
+
+        err.print(f"[bold red]error:[/] {escape(usage_text(exc))}", highlight=False,
+                  soft_wrap=True)
         raise SystemExit(getattr(exc, "exit_code", 2)) from None
     raise SystemExit(code if isinstance(code, int) else 0)
 

@@ -20,6 +20,7 @@ from twin.cli.common import (
     err,
     fail,
     parse_position,
+    print_paths,
     report_dry_run,
     rerun_target,
     summary_table,
@@ -47,42 +48,33 @@ def experiment(
     controller_model: str | None = typer.Option(None, "--controller-model",
                                                 help=CONTROLLER_MODEL_HELP),
     sets: list[str] = typer.Option([], "--set", help=SET_HELP),
-    rerun: str = typer.Option("none", "--rerun", help=RERUN_HELP + "; default none."),
-    out: Path = typer.Option(Path("runs"), "--out", help="Folder of --rerun file."),
+    rerun: str = typer.Option("file", "--rerun", help=RERUN_HELP + "."),
+    out: Path = typer.Option(Path("runs"), "--out", help="Directory for the record (.json "
+                             "and .rrd)."),
     as_json: bool = typer.Option(False, "--json", help="Print exactly one JSON object."),
 ) -> None:
-    """A typical experiment (seed 000): step or ramp response of one axis."""
+    """A typical experiment (seed 000): step or ramp response of one axis; its figures
+    and recording are written like a run's."""
     from twin.config import load_machine
     from twin.config.overrides import parse_sets
-    from twin.session.experiments import run_experiment
+    from twin.session.experiments import record_experiment
 
-    sink = None
     kind, axis = kind.value, axis.value
     try:
         rerun = rerun_target(rerun)
         cfg = load_machine(machine).with_overrides(parse_sets(sets))
         belief = load_machine(controller_model) if controller_model else None
-        if rerun != "none":
-            import time
-
-            from twin.system.jsonio import output_dir
-            from twin.telemetry.rerun_sink import RerunSink
-
-            path = Path(rerun) if rerun != "file" else output_dir(out) / (
-                f"{kind}-{axis}-{time.strftime('%Y%m%d-%H%M%S')}.rrd")
-            sink = RerunSink(path, recording_id=f"{kind}-{axis}")
         scale = 1.0 if open_loop else 1e-3
-        result, _ = run_experiment(cfg, kind=kind, axis=axis, amplitude=amplitude * scale,
-                                   duration=duration, open_loop=open_loop, sink=sink,
-                                   belief=belief)
+        result, summary = record_experiment(cfg, out_dir=out, rerun=rerun, belief=belief,
+                                            kind=kind, axis=axis,
+                                            amplitude=amplitude * scale, duration=duration,
+                                            open_loop=open_loop)
     except TwinError as exc:
-        fail(exc)
-    finally:
-        if sink is not None:
-            sink.close()
+        fail(exc, as_json)
     report = result.to_report()
     if as_json:
-        sys.stdout.write(json_text(report) + "\n")
+        sys.stdout.write(json_text({**report, "run_id": summary["run_id"],
+                                    "recording": summary["recording"]}) + "\n")
         return
     table = Table(title=f"{kind} response, axis {axis}, {'open' if open_loop else 'closed'}"
                         " loop")
@@ -97,6 +89,7 @@ def experiment(
                          ("elastic mode (Hz)", report["elastic_mode_hz"])):
         table.add_row(label, "—" if math.isnan(value) else f"{value:.4g}")
     Console().print(table)
+    print_paths(Console(), summary, Path(out))
 
 
 def _manual(commands: list[str], machine: str, out: Path, as_json: bool,
@@ -118,7 +111,7 @@ def _manual(commands: list[str], machine: str, out: Path, as_json: bool,
             return
         result = run(spec, out_dir=out)
     except TwinError as exc:
-        fail(exc)
+        fail(exc, as_json)
     s = result.summary
     pos = result.record["position"][-1] if len(result.record["t"]) else [math.nan] * 2
     s["final_position_mm"] = {"x": pos[0] * 1e3, "y": pos[1] * 1e3}
@@ -128,6 +121,7 @@ def _manual(commands: list[str], machine: str, out: Path, as_json: bool,
     else:
         Console().print(summary_table({"value": s}, RUN_ROWS, title=title, skip_missing=True))
         Console().print(f"final position: X {pos[0] * 1e3:.4f} mm, Y {pos[1] * 1e3:.4f} mm")
+        print_paths(Console(), s, out)
     if s["status"] != "FINISHED":
         why = s.get("fault") or s.get("aborted") or s.get("timeout") or ""
         err.print(f"[bold red]stopped:[/] {s['status']} {why}".rstrip())
@@ -154,7 +148,7 @@ def home(
             pos = tuple(0.5 * (a.switches.limit_min + a.switches.limit_max)
                         for a in cfg.axes.values())
     except TwinError as exc:
-        fail(exc)
+        fail(exc, as_json)
     _manual([f"home {a}" for a in axes], machine, out, as_json, pos, False, False,
             title=f"home {', '.join(a.upper() for a in axes)}")
 
@@ -179,8 +173,8 @@ def jog(
     try:
         pos = parse_position(start)
     except TwinError as exc:
-        fail(exc)
-    _manual([f"jog {axis} {distance * 1e-3!r}"], machine, out, as_json, pos, dry_run,
+        fail(exc, as_json)
+    _manual([f"jog {axis} {distance:.15g} mm"], machine, out, as_json, pos, dry_run,
             ignore_soft_limits, title=f"jog {axis.upper()} {distance:+g} mm")
 
 

@@ -11,6 +11,7 @@ from typing import Any
 
 import typer
 from rich.console import Console
+from rich.markup import escape
 from rich.progress import BarColumn, Progress, TextColumn, TimeElapsedColumn
 
 from twin.cli.common import CONTROLLER_MODEL_HELP, Builtin, choices, err, fail
@@ -72,6 +73,16 @@ def tune(
     out: Path | None = typer.Option(None, "--out", help="The job's folder; default: a new "
                                     "runs/tune/MACHINE-PROGRAM-METHOD-TIME (with --resume: "
                                     "the newest one of this machine, program and method)."),
+    weight: list[str] = typer.Option([], "--weight", metavar="TERM=W", help="A cost weight "
+                                     "(repeatable): max_coordinate_error, "
+                                     "rms_coordinate_error, max_contour_error, "
+                                     "rms_contour_error, overshoot, settling_travel, "
+                                     "cycle_time, saturation_time; each term is its metric "
+                                     "over the analytic design's, times W."),
+    max_cycle_time_increase: str | None = typer.Option(
+        None, "--max-cycle-time-increase", metavar="PCT", help="A constraint: the cycle "
+        "time may grow by at most this much over the analytic design's (0% forbids any "
+        "growth; 5% or 0.05)."),
     as_json: bool = typer.Option(False, "--json", help="Print exactly one JSON object."),
 ) -> None:
     """Tune the regulator gains, DCU coefficients and jerk limit of a machine."""
@@ -79,12 +90,15 @@ def tune(
     from tuning.jobs import tune as run_job
 
     if method is None and not worker:
-        fail(ConfigError("--method", "is required: " + ", ".join(m.value for m in Method)))
+        fail(ConfigError("--method", "is required: " + ", ".join(m.value for m in Method)), as_json)
     method = "optuna" if method is None else method.value
     program = program.value
     try:
+        weights = _weights(weight)
+        limit = _share(max_cycle_time_increase)
         spec = TuneSpec(method=method, machine=machine, controller_model=controller_model,
-                        program=program, budget_s=budget_s,
+                        program=program, budget_s=budget_s, weights=weights,
+                        max_cycle_time_increase=limit,
                         out_dir=out, storage=storage, study=study, workers=workers,
                         seed=seed, max_runs=max_runs, policy=policy, train_steps=train_steps,
                         resume=resume, worker=worker, heartbeat_s=heartbeat_s,
@@ -93,14 +107,18 @@ def tune(
         watch = _Watch(method, budget_s, train_steps if training else None)
         with watch:
             result = run_job(spec, on_trial=watch.on_trial, progress=watch.on_steps,
-                             on_start=watch.on_start)
+                             on_start=watch.on_start, warn=watch.warn)
+            watch.runs = len(result.trials)     # the job's (an Optuna study's: every worker's)
+            watch.best = result.best.cost
     except TwinError as exc:
-        fail(exc)
+        fail(exc, as_json)
     summary = result.summary()
     if as_json:
         sys.stdout.write(json_text(summary) + "\n")
         return
     from rich.table import Table
+
+    from twin.analysis.report import readable
 
     table = Table(title=f"{method} on {machine} ({program}): {summary['runs']} runs, "
                         f"{summary['wall_time_s']:.0f} s")
@@ -108,12 +126,53 @@ def tune(
         table.add_column(col, justify="left" if col in ("metric", "unit") else "right")
     for row in summary["comparison"]:
         change = "" if row["change_pct"] is None else f"{row['change_pct']:+.1f} %"
-        table.add_row(row["metric"], row["unit"], f"{row['analytic']:.4g}",
-                      f"{row['best']:.4g}", change)
+        table.add_row(row["metric"], row["unit"], readable(row["analytic"]),
+                      readable(row["best"]), change)
     console = Console()
     console.print(table)
+    changed = [r for r in summary["settings"] if r["change_pct"] != 0.0]
+    if changed:
+        settings = Table(title="settings that changed (best.toml)")
+        for col in ("setting", "unit", "analytic", "best", "change"):
+            settings.add_column(col, justify="left" if col in ("setting", "unit") else "right")
+        for r in changed:
+            change = "from 0" if r["change_pct"] is None or r["change_pct"] == float("inf") \
+                else f"{r['change_pct']:+.1f} %"
+            settings.add_row(r["setting"], r["unit"], readable(r["analytic"], 5),
+                             readable(r["best"], 5), change)
+        console.print(settings)
+    for note in summary["notes"]:
+        err.print(f"[yellow]note:[/] {escape(note)}", highlight=False, soft_wrap=True)
     for key, path in summary["files"].items():
         console.print(f"{key}: {path}", highlight=False)
+
+
+def _weights(items: list[str]) -> dict[str, float]:
+    """``--weight TERM=W`` options as {term: weight} (checked by ``Weights``)."""
+    out: dict[str, float] = {}
+    for item in items:
+        name, sep, value = item.partition("=")
+        try:
+            if not sep:
+                raise ValueError
+            out[name.strip()] = float(value)
+        except ValueError:
+            raise ConfigError("--weight", f"expected TERM=W (e.g. cycle_time=2), got "
+                              f"{item!r}") from None
+    return out
+
+
+def _share(text: str | None) -> float | None:
+    """``--max-cycle-time-increase``: "5%", "5 %" or "0.05" → 0.05; None for None."""
+    if text is None:
+        return None
+    t = text.strip()
+    try:
+        value = float(t[:-1]) / 100.0 if t.endswith("%") else float(t)
+    except ValueError:
+        raise ConfigError("--max-cycle-time-increase", f"expected a share such as 0%, 5% "
+                          f"or 0.05, got {text!r}") from None
+    return value
 
 
 class _Watch:
@@ -151,6 +210,9 @@ class _Watch:
 
         err.print(f"{self.method}: job folder {folder}; {weights_text(weights)} (each term "
                   "relative to the analytic design)", highlight=False, soft_wrap=True)
+
+    def warn(self, message: str) -> None:
+        err.print(f"[yellow]warning:[/] {escape(message)}", highlight=False, soft_wrap=True)
 
     def on_trial(self, trial: Any) -> None:
         self.runs += 1

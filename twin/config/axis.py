@@ -71,9 +71,25 @@ class MechanicsConfig(Validated):
 class TransmissionConfig(Validated):
     """Motor → table transmission: a gear then a lead screw (or a belt pulley).
 
-    The compliance of the whole chain is one linear spring (the ``x_screw`` tendon), the
-    series combination of ``stiffness`` components (N/m, referred to the table).
+    The ``stiffness`` components (N/m, referred to the table) make up the chain's
+    compliance. Without a screw body (``screw_diameter = 0``) the chain is one spring
+    between the rotor and the table, the series combination of every component: the
+    two-mass model. With one, the screw shaft is an inertia of its own between two springs
+    (the three-mass model): the ``TORSIONAL`` components (gear stage, coupling) between
+    rotor and screw, all others (screw shaft, nut, thrust bearing) axially between screw
+    and table.
+
+    With ``nut_start > 0`` the ``screw`` component varies with a, the nut's distance from
+    the drive-end bearing: E·A/a (``fixed-free``) or E·A·L/(a·(L − a)) (``fixed-fixed``,
+    L = ``screw_length``). The file's value is quoted where the screw is weakest within
+    the travel (``fixed-free``: the far end), the constant a two-mass file uses
+    everywhere. ``twin/models/README.md`` derives the numbers.
     """
+
+    TORSIONAL = ("gear", "coupling")  # a class constant (no annotation: not a field)
+    """Stiffness components between the rotor and a screw body; all others are axial."""
+    STEEL_DENSITY = 7850.0
+    """ρ of the screw shaft (kg/m³)."""
 
     kind: str = choice("screw", ("screw", "belt"), "a lead screw, or a belt on a pulley")
     gear_ratio: float = num(unit="1", ge=0.01, le=1000.0,
@@ -89,6 +105,23 @@ class TransmissionConfig(Validated):
         0.0, "m", display="µm", ge=0, le=1e-3,
         doc="lost motion of gear and nut together, referred to the "
         "table, in series with the screw spring (a dead band of this width); 0 = none")
+    screw_diameter: float = num(
+        0.0, "m", ge=0, le=0.2,
+        doc="screw shaft diameter, for its inertia ρ·π·d⁴·L/32 (steel); 0 = no screw body "
+        "(screw lumped with the rotor: the two-mass model), else at least 2 mm")
+    screw_length: float = num(
+        0.0, "m", ge=0, le=10.0,
+        doc="screw shaft length: its inertia, and the span between its bearings "
+        "(fixed-fixed); needed with screw_diameter or nut_start")
+    screw_support: str = choice(
+        "fixed-free", ("fixed-free", "fixed-fixed"), "axial supports of the screw: a "
+        "thrust bearing at the drive end only, or at both ends")
+    nut_start: float = num(
+        0.0, "m", ge=0, le=10.0,
+        doc="distance from the drive-end bearing to the nut with the table at the travel "
+        "end nearest it (drive_end); 0 = the screw's stiffness does not vary with the nut")
+    drive_end: str = choice("min", ("min", "max"), "the end of the travel nearest the "
+                            "screw's drive-end bearing")
 
     def _check(self) -> None:
         if self.kind not in ("screw", "belt"):
@@ -106,6 +139,57 @@ class TransmissionConfig(Validated):
             if not isinstance(k, int | float) or not math.isfinite(k) or not lo <= k <= hi:
                 raise ConfigError(f"stiffness.{name}", f"must lie in [{lo:g}, {hi:g}] N/m, "
                                   f"got {k!r}")
+        self._check_screw()
+
+    def _check_screw(self) -> None:
+        """The screw's geometry: for a screw only, complete, and a screw body between two
+        springs."""
+        given = [n for n in ("screw_diameter", "screw_length", "nut_start")
+                 if getattr(self, n) > 0.0]
+        if self.kind != "screw" and given:
+            raise ConfigError(given[0], f"only for a screw transmission (kind = 'screw'), "
+                              f"got {getattr(self, given[0]):g} m")
+        if 0.0 < self.screw_diameter < 2e-3:
+            raise ConfigError("screw_diameter", f"must be 0 (no screw body) or lie in "
+                              f"[0.002, 0.2] m, got {self.screw_diameter:g}")
+        needs = [n for n in ("screw_diameter", "nut_start") if getattr(self, n) > 0.0]
+        if needs and not self.screw_length >= 0.01:
+            raise ConfigError("screw_length", f"must lie in [0.01, 10] m with {needs[0]} "
+                              f"given, got {self.screw_length:g}")
+        if self.nut_start > 0.0 and not self.nut_start < self.screw_length:
+            raise ConfigError("nut_start", f"must be less than screw_length "
+                              f"({self.screw_length:g} m), got {self.nut_start:g}")
+        if self.nut_start > 0.0 and "screw" not in self.stiffness:
+            raise ConfigError("stiffness", "nut_start makes the 'screw' component vary with "
+                              "the nut position: it needs a 'screw' component, got "
+                              f"{sorted(self.stiffness)}")
+        if self.screw_diameter > 0.0:
+            torsional = [n for n in self.stiffness if n in self.TORSIONAL]
+            if not torsional or len(torsional) == len(self.stiffness):
+                raise ConfigError("stiffness", "a screw body (screw_diameter > 0) sits "
+                                  "between two springs: it needs a torsional component ("
+                                  + " or ".join(self.TORSIONAL) + ") and an axial one "
+                                  f"(screw, nut, bearing, ...), got {sorted(self.stiffness)}")
+
+    def check_travel(self, travel: tuple[float, float]) -> None:
+        """Check that the nut stays on the screw over ``travel`` (m): at the far end of
+        travel it is ``nut_start`` + the travel from the drive-end bearing, which must be
+        less than ``screw_length``.
+
+        Raises
+        ------
+        ConfigError
+            Naming ``screw_length`` (relative to this section).
+        """
+        if self.nut_start <= 0.0:
+            return
+        far = self.nut_start + (travel[1] - travel[0])
+        if not far < self.screw_length:
+            raise ConfigError("screw_length", f"must exceed nut_start + the length of "
+                              f"mechanics.travel = {self.nut_start:g} + "
+                              f"{travel[1] - travel[0]:g} = {far:g} m (the nut's distance "
+                              f"from the drive-end bearing at the far end of travel), got "
+                              f"{self.screw_length:g}")
 
     @property
     def ratio(self) -> float:
@@ -116,8 +200,105 @@ class TransmissionConfig(Validated):
 
     @property
     def axial_stiffness(self) -> float:
-        """Series stiffness of all components (N/m)."""
+        """Series stiffness of all components as the file gives them (N/m): the whole
+        chain's static stiffness with the nut where the screw is weakest."""
         return 1.0 / sum(1.0 / k for k in self.stiffness.values())
+
+    @property
+    def screw_ratio(self) -> float:
+        """Table travel per screw angle, lead/2π (m/rad); 0 for a belt."""
+        return self.lead / (2.0 * math.pi) if self.kind == "screw" else 0.0
+
+    @property
+    def screw_inertia(self) -> float:
+        """Rotational inertia of the screw shaft, J_s = ρ·π·d⁴·L/32 (kg·m²); 0 without a
+        screw body."""
+        d = self.screw_diameter
+        if d <= 0.0:
+            return 0.0
+        return self.STEEL_DENSITY * math.pi * d**4 * self.screw_length / 32.0
+
+    @property
+    def gear_stiffness(self) -> float:
+        """The spring between the rotor and a screw body: the ``TORSIONAL`` components in
+        series, referred to the table (N/m); ``inf`` without a screw body (every component
+        is then in the one spring of :meth:`spring_stiffness`)."""
+        if self.screw_diameter <= 0.0:
+            return math.inf
+        return 1.0 / sum(1.0 / k for n, k in self.stiffness.items() if n in self.TORSIONAL)
+
+    def nut_distance(self, position: float, travel: tuple[float, float]) -> float:
+        """The nut's distance from the drive-end bearing with the table at ``position``
+        (m) of the axis' ``travel`` (m); ``nan`` without ``nut_start``."""
+        if self.nut_start <= 0.0:
+            return math.nan
+        moved = position - travel[0] if self.drive_end == "min" else travel[1] - position
+        return self.nut_start + moved
+
+    def screw_shape(self, distance: float) -> float:
+        """g(a) of the screw's axial stiffness E·A/g(a) with the nut at ``distance`` a from
+        the drive-end bearing (m): a (fixed-free), a·(L − a)/L (fixed-fixed)."""
+        if self.screw_support == "fixed-free":
+            return distance
+        return distance * (self.screw_length - distance) / self.screw_length
+
+    def reference_position(self, travel: tuple[float, float]) -> float:
+        """The table position (m) at which ``stiffness.screw`` is quoted: where the screw
+        is weakest within ``travel`` (the largest g(a)); ``nan`` without ``nut_start``."""
+        if self.nut_start <= 0.0:
+            return math.nan
+        span = travel[1] - travel[0]
+        if self.screw_support == "fixed-free":
+            a = self.nut_start + span
+        else:
+            a = min(max(0.5 * self.screw_length, self.nut_start), self.nut_start + span)
+        moved = a - self.nut_start
+        return travel[0] + moved if self.drive_end == "min" else travel[1] - moved
+
+    def spring_stiffness(self, position: float | None,
+                         travel: tuple[float, float]) -> tuple[float, float]:
+        """(gear spring, axial spring) stiffness (N/m, referred to the table) with the
+        table at ``position`` (m) of ``travel`` (m); ``None``: the file's values.
+
+        Without a screw body the gear spring is ``inf`` and the axial one is the whole
+        chain (:attr:`axial_stiffness` when nothing varies); with one, the gear spring
+        holds the ``TORSIONAL`` components and the axial one the rest. The ``screw``
+        component scales as g(a_ref)/g(a) when ``nut_start`` is given (class docstring).
+        """
+        body = self.screw_diameter > 0.0
+        varies = position is not None and self.nut_start > 0.0
+        if not (body or varies):
+            return math.inf, self.axial_stiffness
+        compliance = 0.0
+        for name, k in self.stiffness.items():
+            if body and name in self.TORSIONAL:
+                continue
+            if name == "screw" and varies:
+                ref = self.screw_shape(self.nut_distance(self.reference_position(travel),
+                                                         travel))
+                compliance += self.screw_shape(self.nut_distance(position, travel)) / (k * ref)
+            else:
+                compliance += 1.0 / k
+        return self.gear_stiffness, 1.0 / compliance
+
+    def fastest_mode(self, moving_mass: float, rotor_inertia: float,
+                     travel: tuple[float, float]) -> float:
+        """The highest elastic mode of the chain with a free rotor (rad/s), at the nut
+        position of travel where the axial spring is stiffest: what the physics step must
+        resolve (``MachineConfig`` checks it). Two-mass: √(k·(1/m + r²/J)); three-mass:
+        the largest eigenvalue of the rotor–screw–table chain."""
+        stiff = max((self.spring_stiffness(p, travel) for p in travel), key=lambda s: s[1])
+        k_gear, k = stiff
+        if self.screw_diameter <= 0.0:
+            r = self.ratio
+            return math.sqrt(k * (1.0 / moving_mass + r * r / rotor_inertia))
+        import numpy as np
+
+        mass = np.array([rotor_inertia / self.ratio**2,
+                         self.screw_inertia / self.screw_ratio**2, moving_mass])
+        chain = np.array([[k_gear, -k_gear, 0.0], [-k_gear, k_gear + k, -k], [0.0, -k, k]])
+        scaled = chain / np.sqrt(np.outer(mass, mass))
+        return math.sqrt(float(np.linalg.eigvalsh(scaled)[-1]))
 
 
 @dataclass(frozen=True, kw_only=True)

@@ -17,9 +17,11 @@ from typing import Any
 from twin.config.build import deep_merge, from_dict, to_raw
 from twin.config.schema import AXES, MachineConfig, machine_from_raw
 from twin.errors import ConfigError, byte_place
+from twin.nesting import MAX_DEPTH, toml_too_deep
 
 __all__ = ["MACHINES_DIR", "available_machines", "diff_machines", "flatten", "from_dict",
-           "load_machine", "machine_from_toml_dict", "machine_identity", "read_toml"]
+           "load_machine", "machine_from_toml_dict", "machine_identity", "read_toml",
+           "toml_document"]
 
 MACHINES_DIR = Path(__file__).resolve().parent.parent / "machines"
 
@@ -65,11 +67,24 @@ def read_toml(path: str | Path, field: str | None = None) -> dict[str, Any]:
         line, column = byte_place(data, exc.start)
         raise ConfigError(where, f"{p}: not UTF-8 text: byte {exc.start} (line {line}, "
                           f"column {column}) is 0x{data[exc.start]:02x}") from None
-    try:
-        return tomllib.loads(text)
-    except tomllib.TOMLDecodeError as exc:
-        raise ConfigError(where, f"{p}: invalid TOML: {exc}" if field else
-                          f"invalid TOML: {exc}") from None
+    return toml_document(text, where, f"{p}: " if field else "")
+
+
+def toml_document(text: str, where: str, prefix: str = "") -> dict[str, Any]:
+    """``tomllib.loads(text)``, refused (``ConfigError`` naming ``where``, the line and the
+    table and key) when invalid or nested deeper than ``MAX_DEPTH`` levels: checked before
+    it is parsed, as ``tomllib`` and the walks over what it returns recurse."""
+    deep = toml_too_deep(text)
+    if deep is None:
+        try:
+            return tomllib.loads(text)
+        except tomllib.TOMLDecodeError as exc:
+            raise ConfigError(where, f"{prefix}invalid TOML: {exc}") from None
+        except RecursionError:      # cannot happen below MAX_DEPTH; never a traceback
+            pass
+    place = "" if deep is None else f"line {deep.line}, {deep.key}: "
+    raise ConfigError(where, f"{prefix}{place}nested deeper than {MAX_DEPTH} levels (tables, "
+                      "arrays and dotted keys together; a machine file nests 4)")
 
 
 _MACHINE_KEYS = ("description", "name")

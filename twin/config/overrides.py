@@ -23,6 +23,7 @@ from twin.config import read_toml
 from twin.config.quantities import display_unit, example, is_bare_number
 from twin.config.schema import field_meta
 from twin.errors import ConfigError
+from twin.nesting import MAX_DEPTH, toml_too_deep
 
 __all__ = ["SET_HELP", "SHORT_KEYS", "key_units", "parse_sets", "resolve_key",
            "set_file_overrides"]
@@ -38,7 +39,7 @@ SHORT_KEYS = {
 }
 """Short names accepted by ``--set`` and the dotted path each stands for."""
 
-_ROOTS = ("axes", "controller", "simulation")
+_ROOTS = ("axes", "controller", "simulation", "hil")
 
 
 def resolve_key(key: str) -> str:
@@ -59,9 +60,13 @@ def resolve_key(key: str) -> str:
                       + " (e.g. axes.x.mechanics.carriage_mass)")
 
 
-def _value(text: str) -> Any:
+def _value(text: str, key: str) -> Any:
+    source = f"v = {text}"
+    if toml_too_deep(source) is not None:   # tomllib would recurse into it
+        raise ConfigError(key, f"the value nests deeper than {MAX_DEPTH} levels of arrays "
+                          "and tables")
     try:
-        return tomllib.loads(f"v = {text}")["v"]
+        return tomllib.loads(source)["v"]
     except tomllib.TOMLDecodeError:
         return text
 
@@ -94,7 +99,7 @@ def parse_sets(items: Iterable[str]) -> dict[str, Any]:
         if not sep or not key.strip():
             raise ConfigError(item, "--set needs key=value")
         path = resolve_key(key)
-        out[path] = _checked(key.strip(), path, _value(text.strip()))
+        out[path] = _checked(key.strip(), path, _value(text.strip(), key.strip()))
     return out
 
 

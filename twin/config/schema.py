@@ -11,7 +11,6 @@ from __future__ import annotations
 
 import copy
 import dataclasses
-import math
 from collections.abc import Mapping
 from dataclasses import dataclass, field
 from typing import Any
@@ -44,6 +43,7 @@ __all__ = [
     "DeadlineConfig",
     "EncoderConfig",
     "GcodeSettings",
+    "HilSettings",
     "LimitsConfig",
     "MachineConfig",
     "MechanicsConfig",
@@ -188,6 +188,12 @@ class GcodeSettings(Validated):
                                doc="most passes of one O-word loop (a runaway loop is an "
                                "error at its line)")
     call_depth: int = num(64, "1", ge=1, le=10_000, doc="most subroutine calls open at once")
+    subroutine_path: tuple[str, ...] = field(
+        default=(), metadata={"doc": "folders searched for name.ngc when O<name> call names a "
+                              "subroutine the program does not define, after the program's "
+                              "own folder (LinuxCNC's SUBROUTINE_PATH); a relative folder "
+                              "is taken from the machine file's folder. Nothing outside "
+                              "these folders is read"})
     work_offsets: dict[str, tuple[float, float]] = field(
         default_factory=dict, metadata={"doc": "work offsets of the machine, e.g. G55 = "
                                         "[0.1, 0.05]: where each coordinate system's zero is "
@@ -195,6 +201,10 @@ class GcodeSettings(Validated):
                                         "in a program changes them for that run"})
 
     def _check(self) -> None:
+        for i, folder in enumerate(self.subroutine_path):
+            if not folder or "\0" in folder:
+                raise ConfigError(f"subroutine_path[{i}]", f"must name a folder, got "
+                                  f"{folder!r}")
         for name, offset in self.work_offsets.items():
             if name not in WORK_SYSTEMS:
                 raise ConfigError(f"work_offsets.{name}", f"must be one of "
@@ -255,6 +265,23 @@ class SimulationConfig(Validated):
     seed: int = num(0, "1", ge=0, le=2**32 - 1, doc="seed of the sensor noise")
 
 
+@dataclass(frozen=True, kw_only=True)
+class HilSettings(Validated):
+    """The twin standing in for the I/O module (``twin hil-server``)."""
+
+    owners: tuple[str, ...] = field(
+        default=(), metadata={"doc": "the clients that may claim the outputs (drive the "
+                              "table): host names, addresses or networks (10.0.0.0/24); "
+                              "others may only read. Empty: the first client to feed the "
+                              "watchdog, as an I/O module without an access list"})
+
+    def _check(self) -> None:
+        for i, owner in enumerate(self.owners):
+            if not owner.strip() or any(c.isspace() or c == "\0" for c in owner):
+                raise ConfigError(f"owners[{i}]", f"must be a host, an address or a "
+                                  f"network, got {owner!r}")
+
+
 def moving_masses(axes: Mapping[str, AxisConfig]) -> dict[str, float]:
     """Mass moved by each axis of the cross table (kg), the one place it is computed: the
     lower axis (x) carries the upper carriage (y)."""
@@ -272,6 +299,7 @@ class MachineConfig(Validated):
     axes: dict[str, AxisConfig]
     controller: ControllerSettings
     simulation: SimulationConfig = field(default_factory=SimulationConfig)
+    hil: HilSettings = field(default_factory=HilSettings)
     source: str = ""
 
     def _check(self) -> None:
@@ -290,27 +318,34 @@ class MachineConfig(Validated):
         self._check_elastic_modes()
 
     def _check_elastic_modes(self) -> None:
-        """The physics step must resolve each axis' fastest elastic mode: the screw spring
-        between the moving mass (the X axis carries the Y carriage) and the rotor reflected
-        to the table, ω² = k·(1/m + r²/J). MuJoCo integrates the spring explicitly; with
-        ω·timestep ≤ ELASTIC_STEP a period of the mode spans at least 2π/0.5 ≈ 12.6 steps
-        (a longer step diverges, and a run would stop with a diverged plant)."""
+        """The physics step must resolve each axis' fastest elastic mode
+        (``TransmissionConfig.fastest_mode``: the chain of rotor, screw and moving mass,
+        the X axis carrying the Y carriage, where the screw is stiffest). MuJoCo integrates
+        the springs explicitly; with ω·timestep ≤ ELASTIC_STEP a period of the mode spans
+        at least 2π/0.5 ≈ 12.6 steps (a longer step diverges, and a run would stop with a
+        diverged plant). Also: the nut stays on its screw over the travel."""
         dt = self.simulation.timestep
         mass = self.moving_masses()
         for ax in AXES:
             a = self.axes[ax]
-            k, r, j = a.transmission.axial_stiffness, a.transmission.ratio, \
-                a.mechanics.rotor_inertia
-            omega = math.sqrt(k * (1.0 / mass[ax] + r * r / j))
+            tr, travel = a.transmission, a.mechanics.travel
+            try:
+                tr.check_travel(travel)
+            except ConfigError as exc:
+                raise ConfigError(f"axes.{ax}.transmission.{exc.field}", exc.message) from None
+            k, j = tr.axial_stiffness, a.mechanics.rotor_inertia
+            omega = tr.fastest_mode(mass[ax], j, travel)
             if omega * dt > ELASTIC_STEP:
+                screw = (f", the screw body (axes.{ax}.transmission.screw_diameter, "
+                         f"screw_length, nut_start)" if tr.screw_diameter > 0.0 else "")
                 raise ConfigError(
                     "simulation.timestep", f"{dt:g} s is too long for the elastic mode of "
                     f"axis {ax}: ω = {omega:.4g} rad/s from axes.{ax}.transmission.stiffness "
                     f"({k:.4g} N/m in series), the moving mass {mass[ax]:g} kg "
                     f"(axes.{ax}.mechanics.carriage_mass"
                     + (", axes.y.mechanics.carriage_mass" if ax == "x" else "")
-                    + f") and axes.{ax}.mechanics.rotor_inertia ({j:g} kg·m² through the "
-                    f"axes.{ax}.transmission); it needs simulation.timestep <= "
+                    + f"){screw} and axes.{ax}.mechanics.rotor_inertia ({j:g} kg·m² through "
+                    f"the axes.{ax}.transmission); it needs simulation.timestep <= "
                     f"{ELASTIC_STEP:g}/ω = {ELASTIC_STEP / omega:.3g} s")
 
     def moving_masses(self) -> dict[str, float]:
@@ -365,7 +400,9 @@ def field_meta(path: str) -> dict[str, Any]:
             value_type = typing.get_args(tp)[1]
             if i + 1 == len(parts) - 1:
                 return (spec("N/m", ge=STIFFNESS_RANGE[0], le=STIFFNESS_RANGE[1],
-                             doc="one component of the series stiffness, at the table")
+                             doc="one component of the chain's stiffness, at the table "
+                             "(gear, coupling: rotor to screw body; others: axial; screw: "
+                             "where it is weakest over the travel)")
                         if f.name == "stiffness" else {})
             node, i = value_type, i + 2
             continue

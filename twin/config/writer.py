@@ -69,4 +69,5 @@ def machine_to_toml(cfg: MachineConfig, *, header: Sequence[str] = ()) -> str:
             _table(f"axes.{a}.{f.name}", getattr(cfg.axes[a], f.name), out)
     _table("controller", cfg.controller, out)
     _table("simulation", cfg.simulation, out)
+    _table("hil", cfg.hil, out)
     return "\n".join(out).lstrip("\n") + "\n"

@@ -6,8 +6,10 @@ window's speed passes (see `twin.controller.planner`'s module doc for the rules'
 the rapid speed within the contour limit and the per-axis and curve caps of
 `twin.controller.segment_limits`), its tangential limits, its end tangents and curvatures.
 ``BlockRules.node_cap`` is the speed limit of a node: both blocks' caps, at a kink the
-corner model and the velocity step the axes take in one period, where the curvature jumps
-the step of the normal acceleration. ``BlockRules.joins`` says whether a block may join a
+corner model and the velocity step the axes take in one period (for a law that limits
+jerk, the jerk that step shows), where the curvature jumps the step of the normal
+acceleration as the samples see it; ``BlockRules.follow`` lets a sliver of line between
+two curves carry the curvature across. ``BlockRules.joins`` says whether a block may join a
 run; ``open_run``, ``absorb`` and ``close_run`` grow a run and close it into one window
 block.
 """
@@ -21,14 +23,37 @@ from twin.controller.geometry import Arc, Line, Segment
 from twin.controller.profiles import Limits
 from twin.controller.segment_limits import SegmentLimits
 
-__all__ = ["APART", "JOINS", "RUN_CAP_SHARE", "STRAIGHT", "TOO_LONG", "BlockRules",
-           "WindowBlock", "absorb", "close_run", "open_run", "tangential_limits"]
+__all__ = ["APART", "JOINS", "RUN_CAP_SHARE", "RUN_LIMIT_SHARE", "SLIVER_JERK", "STEP_SEEN",
+           "STRAIGHT", "TOO_LONG", "BlockRules", "WindowBlock", "absorb", "close_run",
+           "open_run", "tangential_limits"]
 
 APART, JOINS, TOO_LONG = 0, 1, 2
 """``BlockRules.joins``: apart, joins the run, or the run is as long as the view."""
 RUN_CAP_SHARE = 0.95
-"""A block joins a run only if that lowers the run's speed cap by at most 5 %, and a
-faster block only if it is short (at most 5 % of the run): its cap then costs nothing."""
+"""A block joins a run (which then runs at the lower of their speed caps) only if the time
+that costs — the faster part, the block or the run so far, slowed to the lower cap — is at
+most 1 − RUN_CAP_SHARE (5 %) of the time of the run with it at the lower cap, or of the
+view at the higher. So caps within about 5 % join, and so does a short block, or a short
+start of a run, whose cap is further off: a run cut at every scatter of the caps of a
+chorded curve would confine its changes of speed to pieces a few chords long."""
+
+RUN_LIMIT_SHARE = 0.6
+"""A block joins a run only if its tangential acceleration and jerk limits agree with the
+run's within this share, or the part whose limits the joining lowers (the block, or the run
+so far) is short (5 % of the run with it): the run's changes of speed use the lowest of its
+members' limits (a tight curve's are low)."""
+
+STEP_SEEN = 0.75
+"""The largest share of a step of acceleration Δa between two samples that the sampled
+reference's third difference shows, over Δa/T: the second difference is the acceleration
+averaged by a triangle of half-width T, and the most of that triangle's area one period can
+hold is 3/4 (from −T/2 to T/2). A curvature step Δκ passed at v is held to
+v²·|Δκ|·STEP_SEEN ≤ J·T: the step spread over the samples it takes."""
+
+SLIVER_JERK = 0.1
+"""A line after a curve is a sliver (a blend that could not reach the middle of a chord by
+a rounding's width) when missing the curve's normal acceleration along it shows in the
+sampled reference as a jerk of at most this share of J (`BlockRules.follow`)."""
 
 STRAIGHT = 1e-9
 """A node whose tangent turns by less than this (rad) is straight through: a blend's ends
@@ -86,8 +111,18 @@ class BlockRules:
         # a node where the curvature jumps (a line meets an arc, a blend of another radius)
         # steps the normal acceleration by v²·|Δκ| within one period: at most J·T for a law
         # that limits jerk
-        self._jerk_step = None if period is None or not jerk else period * min(
-            limits.max_jerk, axis_limits[0].max_jerk, axis_limits[1].max_jerk)
+        # for a law that limits jerk, a kink's velocity step Δv shows in the sampled
+        # reference's third difference as up to Δv/T²: v·|Δt̂_k| ≤ J_k·T² (an exact stop,
+        # nearly: 0.3 mm/s at a right angle on laser_belt; G61 corners, arcs meeting lines)
+        self._kink_jerk = None if period is None or not jerk else (
+            axis_limits[0].max_jerk * period**2, axis_limits[1].max_jerk * period**2,
+            limits.max_jerk * period**2)
+        j_total = min(limits.max_jerk, axis_limits[0].max_jerk, axis_limits[1].max_jerk)
+        self._jerk_step = None if period is None or not jerk else (
+            period * j_total / STEP_SEEN)
+        # a sliver: ℓ·√(A·|κ|) ≤ SLIVER_JERK·J·T², written ℓ·√|κ| ≤ SLIVER_JERK·J·T²/√A
+        self._sliver = None if self._jerk_step is None else (
+            SLIVER_JERK * j_total * period * period / math.sqrt(limits.max_acceleration))
         self._view = view
         self._limits_cache: dict[tuple[float, float, float], Limits] = {}
         self.count = 0
@@ -135,6 +170,20 @@ class BlockRules:
         b.members = None
         return b
 
+    def follow(self, prev: WindowBlock, b: WindowBlock) -> None:
+        """Note that ``b`` follows ``prev`` (consecutive feed blocks): a sliver of line after
+        a curve takes the curve's end curvature for the curvature-step rule, so the step is
+        counted once, at the sliver's end, as large as the curves on both sides make it.
+
+        Passing a line of length ℓ after a curve κ at speed v drops the normal acceleration
+        v²κ for ℓ/v: the sampled reference shows a jerk of about v·κ·ℓ/T² there, at most
+        √(A·|κ|)·ℓ/T² at the curve's centripetal limit. The line is a sliver when that is
+        at most ``SLIVER_JERK``·J. Off with the curvature-step rule (no period, no jerk)."""
+        k = prev.k1
+        if (self._sliver is not None and b.k0 == 0.0 and b.k1 == 0.0 and k != 0.0
+                and b.length * math.sqrt(abs(k)) <= self._sliver):
+            b.k0 = b.k1 = k
+
     def node_cap(self, prev: WindowBlock, b: WindowBlock) -> float:
         """The speed limit of the node from ``prev`` to ``b`` (m/s): both segments' caps,
         and at a kink the corner model and the velocity step, where the curvature jumps the
@@ -151,8 +200,12 @@ class BlockRules:
                 step = step_speed(self._step, b.t0x - prev.t1x, b.t0y - prev.t1y)
                 if step < emax:
                     emax = step
+            if self._kink_jerk is not None:         # v·|Δt̂| ≤ J·T²
+                step = step_speed(self._kink_jerk, b.t0x - prev.t1x, b.t0y - prev.t1y)
+                if step < emax:
+                    emax = step
         dk = abs(b.k0 - prev.k1)
-        if dk > 0.0 and self._jerk_step is not None:    # v²·|Δκ| ≤ J·T
+        if dk > 0.0 and self._jerk_step is not None:    # v²·|Δκ|·STEP_SEEN ≤ J·T
             jump = math.sqrt(self._jerk_step / dk)
             if jump < emax:
                 emax = jump
@@ -165,11 +218,16 @@ class BlockRules:
         if b.rapid or run.rapid:
             return APART
         cap = run.v_nom
-        if b.v_nom < RUN_CAP_SHARE * cap:
+        lo, hi = (b.v_nom, cap) if b.v_nom < cap else (cap, b.v_nom)
+        slowed = run.length if b.v_nom < cap else b.length      # what the lower cap slows
+        if slowed * (1.0 / lo - 1.0 / hi) > (1.0 - RUN_CAP_SHARE) * max(
+                (run.length + b.length) / lo, self._view / hi):
             return APART
-        if b.v_nom * RUN_CAP_SHARE > cap and b.length > (1.0 - RUN_CAP_SHARE) * (
-                run.length + b.length):
-            return APART
+        share, short = RUN_LIMIT_SHARE, (1.0 - RUN_CAP_SHARE) * (run.length + b.length)
+        if (b.acc < share * run.acc or b.jerk < share * run.jerk) and run.length > short:
+            return APART                # the run's changes would be slowed
+        if (b.acc * share > run.acc or b.jerk * share > run.jerk) and b.length > short:
+            return APART                # the block's would
         last = run.members[-1] if run.members else run
         if self.node_cap(last, b) < (cap if cap < b.v_nom else b.v_nom):
             return APART

@@ -30,10 +30,25 @@ step the axes can take in one controller period T, the reference's own time step
     v · |t̂_out − t̂_in|    ≤ A   · T     for the contour limit A,
 
 which is the acceleration the sampled reference shows there (a step Δv within one period
-is Δv/T in its second difference), and at most the corner model's speed. Likewise, for a
-law that limits jerk, a node where the curvature jumps (a line entering an arc, a blend)
-is passed no faster than ``v² · |κ_out − κ_in| ≤ J · T``: the step of the normal
-acceleration within one period, the jerk the sampled reference shows there.
+is Δv/T in its second difference), and at most the corner model's speed. For a law that
+limits jerk the same step shows as Δv/T² in the third difference, so such a kink (a G61
+corner, an arc meeting a line at an angle) is passed at ``v·|Δt̂_k| ≤ J_k·T²``: all but
+stopped, as a jerk limit demands of a corner.
+
+Curvature across nodes (laws that limit jerk)
+---------------------------------------------
+A node where the curvature steps (a line entering an arc, a circular blend, arcs of two
+radii) steps the normal acceleration by ``v²·|κ_out − κ_in|``. The sampled reference
+averages the acceleration over a triangle of half-width T, so a step between two samples
+spreads over the samples it takes and shows as at most ``STEP_SEEN`` = 3/4 of ``Δa/T`` in
+the third difference: the node is passed at ``v²·|Δκ|·3/4 ≤ J·T`` (J the smallest of the
+contour and axis jerks). Where the curvature is continuous (a G2 blend, a spline, a chain
+of equal arcs) there is no such cap. A *sliver* — a line so short after a curve that
+missing the curve's normal acceleration along it shows as at most a tenth of J
+(`block_rules.SLIVER_JERK`), as blends leave between the rounded chords of CAM output —
+takes the curve's curvature, so the step is counted once, from the curve before it to the
+curve after. On a curve the jerk budget is split as `twin.controller.segment_limits`
+states (the tangential and normal components of the jerk vector, |j| ≤ J).
 
 Runs: the smooth laws across blocks
 -----------------------------------
@@ -41,8 +56,10 @@ Every law's speed change starts and ends at zero acceleration (the trapezoid exc
 a change confined to one block must fit inside it: over a curve sent as 0.01 mm chords a
 smooth law could barely accelerate at all. For those laws consecutive blocks are planned as
 one *run* when nothing at their nodes limits the speed (a tangent node, no curvature step
-that binds) and their speed caps agree within ``RUN_CAP_SHARE``: the passes see the run as
-one block with its lowest cap and its lowest tangential acceleration and jerk, one
+that binds) and joining costs little (`block_rules.RUN_CAP_SHARE`, ``RUN_LIMIT_SHARE``):
+their speed caps agree within about 5 %, or the part the joining slows is short, and their
+tangential limits agree within 0.6 or the part is short. The passes see the run as one
+block with its lowest cap and its lowest tangential acceleration and jerk, one
 ``plan_move`` covers it, and each block gets its part of that move (``PlannedBlock.piece``;
 the acceleration runs on across the nodes and the limits hold across them, being the
 run's). A run is cut once it is as long as the view (twice the braking distance), and a
@@ -276,7 +293,8 @@ class Planner:
         error: TwinError | None = None
         rules = self._rules
         rules.count = 0
-        block_of, joins_of = rules.block, rules.joins
+        block_of, joins_of, follow = rules.block, rules.joins, rules.follow
+        last: WindowBlock | None = None      # the feed block before, for `follow`
         self._time_bound = 0.0
         self._length = 0.0
         # the blocks that leave the window (_pop) gather here and are yielded after each
@@ -300,6 +318,12 @@ class Planner:
                 break
             if type(item) is BlendedBlock:
                 block = block_of(*item)
+                if block.rapid:
+                    last = None
+                else:
+                    if last is not None:
+                        follow(last, block)
+                    last = block
                 if exact_stop:                  # G61.1: every block ends at rest
                     if run is not None:
                         end_run(window, held, run)
@@ -312,6 +336,7 @@ class Planner:
                 exact_stop = item.mode == "exact_stop"
                 continue
             else:
+                last = None
                 if run is not None:
                     end_run(window, held, run)
                     run = held = None

@@ -10,10 +10,22 @@ on curved segments — the acceleration and jerk that the curvature itself deman
   ``|t̂_k|`` over the segment (exact for an arc, from its angle range; for a spline
   sampled, with a margin for what lies between samples), and the total acceleration and
   jerk vectors are kept within ``A = min(contour, axes)`` and ``J = min(contour, axes)``.
-  With κ the largest |curvature| and κ' the largest |dκ/ds|: centripetal ``v²κ ≤ A/√2``
-  and tangential ``a_t = √(A² − (v²κ)²)`` (so ``|a| ≤ A``); the jerk
-  ``|j| ≤ |s⃛| + v³(κ² + κ') + 3·v·a_t·κ`` is shared as ``v³(κ² + κ') ≤ J/4``,
-  ``3·v·a_t·κ ≤ J/2``, and the tangential jerk gets the rest, at least ``J/4``.
+  With κ the largest |curvature| and κ' the largest |dκ/ds|, the acceleration
+  ``a = s̈·t̂ + v²κ·n̂`` and the jerk ``j = (s⃛ − v³κ²)·t̂ + (3·v·s̈·κ + v³κ')·n̂`` are
+  held by this split of the budgets (issue 30; it was ``v²κ ≤ A/√2``, ``v³(κ² + κ') ≤ J/4``,
+  ``3·v·a_t·κ ≤ J/2``, the components summed):
+
+  ===========================  ==================================================
+  speed cap, centripetal       ``v²κ ≤ CENTRIPETAL·A`` (0.8: at the cap a_t ≥ 0.6·A)
+  speed cap, jerk at cruise    ``v³·√(κ⁴ + κ'²) ≤ CRUISE_JERK·J`` (one half)
+  tangential acceleration      ``a_t = √(A² − (v²κ)²)``, so ``|a| ≤ A``
+  jerk, tangential component   ``|s⃛| + v³κ² ≤ 0.8·J``: ``j_t = 0.8·J − v³κ² ≥ 0.3·J``
+  jerk, normal component       ``3·v·a_t·κ + v³κ' ≤ 0.6·J``: ``a_t ≤ (0.6·J − v³κ')/(3vκ)``
+  ===========================  ==================================================
+
+  The two jerk components are the legs of a right triangle whose hypotenuse is J
+  (0.8² + 0.6² = 1), so ``|j| ≤ J`` at every speed up to the cap and every tangential
+  acceleration and jerk within the block's limits.
   A law that does not limit jerk (the trapezoid, ``jerk=False``) gets no jerk caps: its
   own acceleration steps are impulses of jerk anyway.
 """
@@ -28,9 +40,18 @@ import numpy as np
 from twin.controller.geometry import Arc, Line, Segment
 from twin.controller.profiles import Limits
 
-__all__ = ["SegmentLimits"]
+__all__ = ["CENTRIPETAL", "CRUISE_JERK", "JERK_NORMAL", "JERK_TANGENTIAL", "SegmentLimits"]
 
-_SQRT_HALF = math.sqrt(0.5)
+CENTRIPETAL = 0.8
+"""Share of the total acceleration A that a curve's speed cap may give the centripetal
+acceleration v²κ (the rest, ≥ √(1 − 0.64)·A = 0.6·A, is the tangential acceleration's: a
+block has one tangential limit, and a whole circle must still get up to speed on it)."""
+CRUISE_JERK = 0.5
+"""Share of the total jerk J that a curve's speed cap may give the jerk of cruising along
+it, v³·√(κ⁴ + κ'²)."""
+JERK_TANGENTIAL, JERK_NORMAL = 0.8, 0.6
+"""The jerk's tangential and normal components are held to these shares of J (their
+squares sum to 1: |j| ≤ J)."""
 
 
 class SegmentLimits:
@@ -101,17 +122,18 @@ class SegmentLimits:
         if my * v > ly.max_velocity:
             v = ly.max_velocity / my
         if kappa > 0.0:
-            v = min(v, math.sqrt(_SQRT_HALF * a_tot / kappa))
+            v = min(v, math.sqrt(CENTRIPETAL * a_tot / kappa))
             if self.jerk:
-                v = min(v, (0.25 * j_tot / (kappa * kappa + dkappa)) ** (1.0 / 3.0))
+                v = min(v, (CRUISE_JERK * j_tot / math.hypot(kappa * kappa, dkappa))
+                        ** (1.0 / 3.0))
         a_n = v * v * kappa
         a_t = math.sqrt(a_tot * a_tot - a_n * a_n)
         if not self.jerk:
             return v, a_t, j_tot
+        v3 = v * v * v
         if kappa > 0.0:
-            a_t = min(a_t, j_tot / (6.0 * v * kappa))
-        j_t = j_tot - v**3 * (kappa * kappa + dkappa) - 3.0 * v * a_t * kappa
-        return v, a_t, j_t
+            a_t = min(a_t, (JERK_NORMAL * j_tot - v3 * dkappa) / (3.0 * v * kappa))
+        return v, a_t, JERK_TANGENTIAL * j_tot - v3 * kappa * kappa
 
 
 def _max_abs_sin(a: float, b: float) -> float:

@@ -40,7 +40,6 @@ from twin.drive.layout import (
     P_KC,
     P_KPC,
     P_KPS,
-    P_OVERLOAD,
     P_T1,
     P_TF,
     P_TFI,
@@ -50,17 +49,14 @@ from twin.drive.layout import (
     P_VLO,
     S_BRIDGE,
     S_CINT,
-    S_FAULT,
     S_IF,
     S_IFA,
-    S_IREF,
     S_QA,
     S_REF,
-    S_SAT,
     S_SINT,
     S_TACHO,
 )
-from twin.drive.loops import advance_filters, ripple_factor
+from twin.drive.loops import advance_filters, current_reference, ripple_factor
 
 __all__ = ["advance", "filter_current", "speed_output"]
 
@@ -154,9 +150,4 @@ def speed_output(pa, st, tacho, interval):
     False if the drive just tripped."""
     i_lim = pa[P_ILIM]
     i_ref = _clamp(pa[P_KPS] * (st[S_REF] - tacho) + st[S_SINT], -i_lim, i_lim)
-    st[S_IREF] = i_ref
-    st[S_SAT] = st[S_SAT] + interval if abs(i_ref) >= i_lim else 0.0
-    if st[S_SAT] >= pa[P_OVERLOAD]:
-        st[S_FAULT] = 1.0
-        return False
-    return True
+    return current_reference(pa, st, i_ref, interval)

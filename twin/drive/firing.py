@@ -60,10 +60,8 @@ from twin.drive.layout import (
     S_IREF,
     S_MODE,
     S_PAUSE_END,
-    S_SAT,
-    S_SINT,
 )
-from twin.drive.loops import pi_step
+from twin.drive.loops import pi_step, reset_regulators
 
 __all__ = ["analog_current_regulator", "block", "bridge_logic", "current_regulator",
            "firing_angle"]
@@ -113,14 +111,21 @@ def bridge_logic(pa, st, t, e_est):
 
 
 @numba.njit(cache=True)
+def _select(pa, st, t, tacho):
+    """Bridge logic at a sample from the tacho sample (V): (the bridge, 0 if blocked; the
+    EMF compensation in its conducting sense (V))."""
+    e_est = pa[P_K] / pa[P_KC] * tacho
+    b = bridge_logic(pa, st, t, e_est)
+    return b, (b * e_est if pa[P_EMFC] != 0.0 else 0.0)
+
+
+@numba.njit(cache=True)
 def analog_current_regulator(pa, st, t, tacho):
     """Bridge logic and the analog current regulator's output now: the control voltage
     (V, conducting sense) from the filtered current, or NaN with the bridge blocked."""
-    e_est = pa[P_K] / pa[P_KC] * tacho
-    b = bridge_logic(pa, st, t, e_est)
+    b, ff = _select(pa, st, t, tacho)
     if b == 0.0:
         return math.nan
-    ff = b * e_est if pa[P_EMFC] != 0.0 else 0.0
     v = ff + pa[P_KPC] * b * (st[S_IREF] - st[S_IF]) + st[S_CINT]
     return min(max(v, pa[P_VLO]), pa[P_VHI])
 
@@ -130,12 +135,10 @@ def current_regulator(pa, st, t, i_meas, dcm, interval, tacho):
     """Bridge logic and current regulator; returns the mean-voltage demand (V, conducting
     sense of the selected bridge) or NaN with the bridge blocked."""
     i_ref = st[S_IREF]
-    e_est = pa[P_K] / pa[P_KC] * tacho
-    b = bridge_logic(pa, st, t, e_est)
+    b, ff = _select(pa, st, t, tacho)
     if b == 0.0:
         return math.nan
     lo, hi = pa[P_VLO], pa[P_VHI]
-    ff = b * e_est if pa[P_EMFC] != 0.0 else 0.0
     err = b * (i_ref - i_meas)
     r = pa[P_R]
     mode = 1.0 if (dcm and pa[P_DCMC] != 0.0) else 0.0
@@ -168,10 +171,7 @@ def current_regulator(pa, st, t, i_meas, dcm, interval, tacho):
 def block(pa, st):
     """Disabled or tripped: regulators reset, a flowing current driven to zero at the
     inverter end stop; returns the angle (NaN: pulses removed)."""
-    st[S_SINT] = 0.0
-    st[S_CINT] = 0.0
-    st[S_IREF] = 0.0
-    st[S_SAT] = 0.0
+    reset_regulators(st)
     if st[S_I] == 0.0:
         st[S_BRIDGE] = 0.0
         return math.nan

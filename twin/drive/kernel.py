@@ -68,8 +68,6 @@ from twin.drive.layout import (
     S_I,
     S_IREF,
     S_PAUSE_END,
-    S_SAT,
-    S_SINT,
     S_TACHO,
     S_TORQUE,
     S_V,
@@ -77,7 +75,7 @@ from twin.drive.layout import (
     S_WPREV,
     empty_state,
 )
-from twin.drive.loops import advance_filters, pi_step, speed_regulator
+from twin.drive.loops import advance_filters, pi_step, reset_regulators, speed_regulator
 from twin.drive.pulse import advance_pulse
 
 __all__ = [
@@ -103,10 +101,7 @@ _EPS = 1e-12
 @numba.njit(cache=True)
 def _block(st):
     """Converter disabled: regulators reset; a flowing current is forced to zero."""
-    st[S_SINT] = 0.0
-    st[S_CINT] = 0.0
-    st[S_IREF] = 0.0
-    st[S_SAT] = 0.0
+    reset_regulators(st)
     i = st[S_I]
     if i == 0.0:
         st[S_BRIDGE] = 0.0

@@ -20,6 +20,7 @@ from twin.drive.layout import (
     P_T1,
     P_TF,
     P_TIS,
+    S_CINT,
     S_FAULT,
     S_IREF,
     S_REF,
@@ -28,7 +29,8 @@ from twin.drive.layout import (
     S_TACHO,
 )
 
-__all__ = ["advance_filters", "pi_step", "ripple_factor", "speed_regulator"]
+__all__ = ["advance_filters", "current_reference", "pi_step", "reset_regulators",
+           "ripple_factor", "speed_regulator"]
 
 
 @numba.njit(cache=True)
@@ -60,12 +62,30 @@ def speed_regulator(pa, st, tacho, interval):
     i_lim = pa[P_ILIM]
     i_ref, st[S_SINT] = pi_step(st[S_REF] - tacho, st[S_SINT], pa[P_KPS], interval / pa[P_TIS],
                                 -i_lim, i_lim, False)
+    return current_reference(pa, st, i_ref, interval)
+
+
+@numba.njit(cache=True)
+def current_reference(pa, st, i_ref, interval):
+    """Set the current reference ``i_ref`` (A, already limited) and count the time it has
+    been at the current limit; trips the overload fault and returns False once that has
+    lasted ``overload_time``."""
     st[S_IREF] = i_ref
-    st[S_SAT] = st[S_SAT] + interval if abs(i_ref) >= i_lim else 0.0
+    st[S_SAT] = st[S_SAT] + interval if abs(i_ref) >= pa[P_ILIM] else 0.0
     if st[S_SAT] >= pa[P_OVERLOAD]:
         st[S_FAULT] = 1.0
         return False
     return True
+
+
+@numba.njit(cache=True)
+def reset_regulators(st):
+    """Disabled or tripped: both regulators' integrators, the current reference and the
+    time at the limit back to zero."""
+    st[S_SINT] = 0.0
+    st[S_CINT] = 0.0
+    st[S_IREF] = 0.0
+    st[S_SAT] = 0.0
 
 
 @numba.njit(cache=True)

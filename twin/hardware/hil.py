@@ -46,7 +46,9 @@ registers feeds first, so a controller's first tick, references and life counter
 request, is taken). While a client owns the outputs, another client's writes of outputs
 (references, watchdog, enable) get exception 6, device busy; reads stay open to everybody.
 When the owner disconnects, nobody owns the outputs; they stay as they are, guarded by
-the watchdog, so a controller that reconnects (and feeds in time) carries on.
+the watchdog, so a controller that reconnects (and feeds in time) carries on. Who may claim
+them is first come unless an access list says otherwise (``twin.hardware.owners``): a
+client it does not list gets exception 1 (illegal function) on every output write.
 
 ``twin.hardware.hil_server`` serves the module over Modbus/TCP.
 """
@@ -65,6 +67,7 @@ from pymodbus.constants import ExcCodes
 from twin.config import AXES
 from twin.controller.io import Inputs
 from twin.errors import ConfigError, SimulationError
+from twin.hardware.owners import Owners, client_host
 from twin.hardware.register_map import (
     RegisterMap,
     check_dacs,
@@ -161,6 +164,8 @@ class HilModule:
         read's boundary (s, 0 … 0.05; see the module docstring).
     clock : callable
         Wall clock (s); injected for tests.
+    owners : Owners, optional
+        The clients that may claim the outputs (default: any, first come).
 
     Attributes
     ----------
@@ -175,7 +180,8 @@ class HilModule:
     def __init__(self, plant: Plant, register_map: RegisterMap, *, watchdog: float = 0.1,
                  sync_phase: float | None = 0.25, sync_gain: float = 0.2,
                  output_window: float = OUTPUT_WINDOW,
-                 clock: Callable[[], float] = time.perf_counter):
+                 clock: Callable[[], float] = time.perf_counter,
+                 owners: Owners | None = None):
         if not (math.isfinite(watchdog) and watchdog > 0):
             raise ConfigError("watchdog", f"must be > 0 s, got {watchdog}")
         if sync_phase is not None and not 0.0 <= sync_phase < 1.0:
@@ -205,6 +211,8 @@ class HilModule:
         self.enabled = False
         self.tripped = False
         self.fault: str | None = None
+        self.owners = owners or Owners()
+        """The clients that may claim the outputs."""
         self.owner: object = _NOBODY
         """The connection that owns the outputs (``_NOBODY``: none; see the module
         docstring)."""
@@ -303,8 +311,14 @@ class HilModule:
             self.owner = _NOBODY
 
     def _claim(self, what: str) -> None:
-        """Refuse an output write of a client other than the owner."""
-        if self.owner is not _NOBODY and self.owner is not CLIENT.get():
+        """Refuse an output write of a client the access list does not name, or of a
+        client other than the owner."""
+        client = CLIENT.get()
+        if not self.owners.allows(client_host(client)):
+            self.refused += 1
+            raise Refused(ExcCodes.ILLEGAL_FUNCTION, f"{what}: this client may not drive "
+                          f"the outputs (owners: {self.owners.describe()})")
+        if self.owner is not _NOBODY and self.owner is not client:
             self.refused += 1
             raise Refused(ExcCodes.DEVICE_BUSY, f"{what}: the outputs are held by another "
                           "client")

@@ -59,6 +59,15 @@ class HilProcess:
         return None
 
 
+def _ready(line: str) -> dict[str, Any] | None:
+    """The server's ready object, or None (nothing, or a refusal: no port)."""
+    try:
+        info = json.loads(line) if line else None
+    except ValueError:
+        return None
+    return info if isinstance(info, dict) and "port" in info else None
+
+
 @contextlib.contextmanager
 def spawn_hil_server(*args: str, ready_timeout: float = 60.0,
                      unread_stderr: bool = False) -> Iterator[HilProcess]:
@@ -82,13 +91,17 @@ def spawn_hil_server(*args: str, ready_timeout: float = 60.0,
             with selectors.DefaultSelector() as sel:
                 sel.register(proc.stdout, selectors.EVENT_READ)  # type: ignore[arg-type]
                 line = proc.stdout.readline() if sel.select(ready_timeout) else ""  # type: ignore[union-attr]
-            if not line:
+            info = _ready(line)
+            if info is None:        # no line, or the refusal object --json prints instead
+                with contextlib.suppress(subprocess.TimeoutExpired):
+                    proc.wait(timeout=10.0)
                 proc.kill()
                 proc.wait()
                 log.seek(0)
+                said = log.read().strip() if proc.stderr is None else ""
                 raise RuntimeError(f"twin hil-server did not start (exit {proc.returncode})"
-                                   f": {log.read().strip()}")
-            yield HilProcess(proc, json.loads(line), log)
+                                   f": {said or line.strip()}")
+            yield HilProcess(proc, info, log)
         finally:
             stop_process(proc)
             proc.stdout.close()  # type: ignore[union-attr]

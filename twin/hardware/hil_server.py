@@ -4,8 +4,9 @@ physics between requests. ``sim_device`` and ``access`` are the pymodbus glue; a
 requests are answered without it (``tick_answer``). It binds 127.0.0.1 unless told
 otherwise. ``hil_plant`` makes the plant it serves.
 
-Each connection's requests run with ``hil.CLIENT`` set to that connection, so the module
-knows who owns the outputs, and a connection that closes releases them. pymodbus' own log
+Each connection's requests run with ``hil.CLIENT`` set to that connection (its ``host``: the
+client's address, for the access list of ``twin.hardware.owners``), so the module knows who
+owns the outputs, and a connection that closes releases them. pymodbus' own log
 goes through ``RateLimitedLog``: at most one line per connection and kind of fault per
 ``LOG_INTERVAL``, without tracebacks or frame dumps, queued to a thread that writes it, so
 a flood of bad frames, or a stderr pipe that nobody reads, never stalls the serving loop.
@@ -33,6 +34,7 @@ from pymodbus.simulator import DataType, SimData, SimDevice
 
 from twin.config import MachineConfig
 from twin.hardware.hil import CLIENT, OUTPUT_WINDOW, HilModule, HilStats, Refused
+from twin.hardware.owners import Owners
 from twin.hardware.register_map import RegisterMap
 from twin.plant import Plant
 
@@ -62,11 +64,19 @@ class RateLimitedLog(logging.Filter):
         if len(self._last) > 4096:   # many connections come and go: forget the old ones
             self._last = {k: t for k, t in self._last.items() if now - t < self.interval}
         self._last[key] = now
-        message = record.getMessage()
+        message = _first_line(record.getMessage())
         record.msg = message if len(message) <= self.width else message[:self.width] + " …"
         record.args = None
         record.exc_info = record.exc_text = record.stack_info = None
         return True
+
+
+def _first_line(message: str) -> str:
+    """A log message without the traceback pymodbus writes into some of its texts
+    (``Datastore unable to fulfill request: 22; Traceback (most recent call last): …``)."""
+    message = message.split("Traceback (most recent call last)", 1)[0]
+    lines = message.strip().splitlines()
+    return lines[0].rstrip(" ;:") if lines else ""
 
 
 class _DroppingQueueHandler(logging.handlers.QueueHandler):
@@ -106,7 +116,8 @@ def _quiet_log(level: int = logging.WARNING) -> Iterator[None]:
 
 _READ_BITS = {1: "coils", 5: "coils", 15: "coils", 2: "discrete_inputs"}
 _READ_WORDS = {3: "holding_registers", 6: "holding_registers", 16: "holding_registers",
-               23: "holding_registers", 4: "input_registers"}
+               22: "holding_registers", 23: "holding_registers", 4: "input_registers"}
+"""The table each function code reads or writes (22, mask write: read, then written)."""
 
 
 def sim_device(module: HilModule) -> SimDevice:
@@ -134,6 +145,8 @@ def access(module: HilModule, function_code: int, start: int, address: int,
     """pymodbus' hook before every access: ``HilModule.begin``, then apply a write or
     refresh the registers a read returns from the image (``registers`` is the table's block
     from ``start``; bit tables pack 16 bits per entry, bit 0 first)."""
+    if function_code not in _READ_BITS and function_code not in _READ_WORDS:
+        return ExcCodes.ILLEGAL_FUNCTION     # no table of this module answers it
     refused = module.begin(function_code)
     if refused is not None:
         return refused
@@ -222,6 +235,14 @@ class _Connection(ServerRequestHandler):
     tables: dict[int, tuple[int, int]]
     fast = True
 
+    host: str | None = None
+    """The client's address (``twin.hardware.owners``)."""
+
+    def callback_connected(self) -> None:
+        super().callback_connected()
+        peer = self.transport.get_extra_info("peername") if self.transport else None
+        self.host = str(peer[0]) if peer else None
+
     def data_received(self, data: bytes) -> None:
         if self.fast and not self.recv_buffer:
             token = CLIENT.set(self)
@@ -300,7 +321,7 @@ def serve_hil(plant: Plant, register_map: RegisterMap, *, host: str = "127.0.0.1
               port: int = 5020, watchdog: float = 0.1, sync_phase: float | None = 0.25,
               output_window: float = OUTPUT_WINDOW,
               on_ready: Callable[[str, int], None] | None = None,
-              fast: bool = True) -> HilStats:
+              fast: bool = True, owners: Owners | None = None) -> HilStats:
     """Serve ``plant`` as a Modbus/TCP I/O module until SIGINT or SIGTERM.
 
     Parameters
@@ -324,13 +345,15 @@ def serve_hil(plant: Plant, register_map: RegisterMap, *, host: str = "127.0.0.1
     fast : bool
         Answer a tick's requests without pymodbus (``tick_answer``); False: pymodbus
         serves every request (the reference the fast answers are tested against).
+    owners : Owners, optional
+        The clients that may claim the outputs (default: first come).
 
     Returns
     -------
     HilStats
     """
     module = HilModule(plant, register_map, watchdog=watchdog, sync_phase=sync_phase,
-                       output_window=output_window)
+                       output_window=output_window, owners=owners)
     with _quiet_log():
         asyncio.run(_serve(module, host, port, on_ready, fast))
     return module.stats()

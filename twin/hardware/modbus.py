@@ -35,6 +35,7 @@ from __future__ import annotations
 import contextlib
 import logging
 import math
+import socket
 import time
 from collections.abc import Callable, Iterator, Sequence
 from typing import Any, NoReturn
@@ -141,6 +142,7 @@ class ModbusDriver:
             if count < 0:
                 raise ConfigError(name, f"must be >= 0, got {count}")
         self.url = f"modbus://{host}:{port}"
+        self._address = (host, port)
         self.map = register_map or load_register_map()
         dacs = list(dacs) if dacs is not None else [DacConfig(), DacConfig()]
         check_dacs(dict(zip(AXES, dacs, strict=True)))
@@ -275,6 +277,12 @@ class ModbusDriver:
                          for start, names in rmap.holding_runs()]
 
     def _connect(self, patience: float) -> None:
+        host, port = self._address
+        try:        # a name that does not resolve is said as such, not as a timeout
+            socket.getaddrinfo(host, port, type=socket.SOCK_STREAM)
+        except socket.gaierror as exc:
+            raise DriverError(f"cannot connect to {self.url}: host {host!r} not found "
+                              f"({exc.strerror})") from None
         deadline = time.monotonic() + patience
         with _quiet_pymodbus():
             while not self._client.connect():

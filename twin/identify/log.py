@@ -21,7 +21,7 @@ import numpy as np
 from twin.config import AXES, MachineConfig
 from twin.errors import ConfigError
 from twin.identify.plan import EXPERIMENTS, Piece
-from twin.system.jsonio import write_json_atomic
+from twin.system.jsonio import load_json, write_json_atomic
 
 __all__ = ["COLUMNS", "FORMAT", "IdentLog", "io_signature"]
 
@@ -112,7 +112,7 @@ class IdentLog:
         if not p.is_file():
             raise ConfigError("from_log", f"no identification log at {p}")
         try:
-            doc = json.loads(p.read_text(encoding="utf-8"))
+            doc = load_json(p.read_text(encoding="utf-8"), str(p))   # nesting bounded
         except (UnicodeDecodeError, json.JSONDecodeError) as exc:
             raise ConfigError(str(p), f"not a JSON identification log: {exc}") from None
         if not isinstance(doc, dict) or doc.get("format") != FORMAT:

@@ -11,7 +11,8 @@ bit-identical to the Python loop (``tests/plant/test_fast_paths.py``).
 Forces MuJoCo's passive elements cannot give are applied before every physics step
 (:func:`passive_forces`, shared with the Python loop): the Stribeck part of break-away
 friction, and the damping of a screw with lost motion, which acts only while the dead band
-is closed.
+is closed. Before them, the stiffness and damping of an axial spring that varies with the
+nut position are written into the model's tendon arrays (:func:`chain_springs`).
 
 If the shared library cannot be found, or the bindings do not expose the structs' addresses
 (``_address``, present in MuJoCo 3 and 4), ``available()`` is False and the plant keeps its
@@ -32,8 +33,9 @@ import numpy as np
 from twin.drive.kernel import drive_step
 from twin.drive.layout import S_ADC, S_CONDUCT, S_FAULT, S_I, S_VOUT
 
-__all__ = ["NPASSIVE", "NREADOUT", "addresses", "apply_forces", "available",
-           "passive_forces", "quantise", "readout", "record_interval", "step_intervals"]
+__all__ = ["NCHAIN", "NPASSIVE", "NREADOUT", "addresses", "apply_forces", "available",
+           "chain_springs", "passive_forces", "quantise", "readout", "record_interval",
+           "step_intervals"]
 
 NREADOUT = 8
 """The drive state a period's readers need, per axis pair: tacho as the ADC reads it (V),
@@ -42,7 +44,15 @@ the fault flag, the armature current (A), the interval's mean converter voltage 
 NPASSIVE = 7
 """Columns of the per-axis passive-force parameters: slide break-away excess F_s − F_c (N),
 slide Stribeck speed (m/s), rotor excess (N·m), rotor Stribeck speed (rad/s), half the lost
-motion (m), screw damping (N·s/m), transmission ratio (m/rad)."""
+motion (m), screw damping (N·s/m), the axial spring's ratio (m/rad: r of the rotor, or r_s
+of a screw body)."""
+
+NCHAIN = 14
+"""Columns of the per-axis chain parameters (``model.chain_parameters``): the axial spring
+varies with the nut (1/0), a₀ (m) and s (±1) of the nut distance a = a₀ + s·x, fixed-fixed
+(1/0), screw length L (m), E·A (N), the spring's other compliance (m/N), β (s), the axial
+tendon's id, lost motion (1/0), the travel (min, max) (m), the screw body's qpos and dof
+address (−1: none)."""
 
 
 def _load_mj_step():
@@ -103,30 +113,63 @@ def readout(state, out):
 
 
 @numba.njit(cache=True)
-def apply_forces(passive, has_passive, sub_torque, s, rotor_frc, slide_frc, table_pos,
-                 table_vel, rotor_pos, rotor_vel):
-    """Write the applied forces of physics step ``s`` of the interval: the drive's torque
-    over that step (``sub_torque[:, s]``) on the rotors, plus the passive forces MuJoCo
-    cannot give when the machine has any (:func:`passive_forces`)."""
+def apply_forces(passive, has_passive, chain, has_chain, sub_torque, s, rotor_frc, slide_frc,
+                 table_pos, table_vel, rotor_pos, rotor_vel, qpos, qvel, qfrc, ten_stiffness,
+                 ten_damping):
+    """Prepare physics step ``s`` of the interval: the axial springs that vary with the
+    nut position when the machine has any (:func:`chain_springs`), the drive's torque over
+    that step (``sub_torque[:, s]``) on the rotors, plus the passive forces MuJoCo cannot
+    give when the machine has any (:func:`passive_forces`)."""
+    if has_chain:
+        chain_springs(chain, table_pos, ten_stiffness, ten_damping, passive)
     if has_passive:
-        passive_forces(passive, sub_torque[:, s], rotor_frc, slide_frc, table_pos, table_vel,
-                       rotor_pos, rotor_vel)
+        passive_forces(passive, chain, sub_torque[:, s], rotor_frc, slide_frc, table_pos,
+                       table_vel, rotor_pos, rotor_vel, qpos, qvel, qfrc)
     else:
         for k in range(rotor_frc.shape[0]):
             rotor_frc[k] = sub_torque[k, s]
 
 
 @numba.njit(cache=True)
-def passive_forces(passive, drive_torque, rotor_frc, slide_frc, table_pos, table_vel,
-                   rotor_pos, rotor_vel):
+def chain_springs(chain, table_pos, ten_stiffness, ten_damping, passive):
+    """Write each varying axial spring's stiffness and damping for the nut's position now.
+
+    Per axis (a row of ``chain``, ``NCHAIN`` columns, ``model.chain_parameters``) the nut
+    is at a = a₀ + s·x from the drive-end bearing (x clamped to the travel: the end stops
+    give way by micrometres); the screw's compliance is g(a)/(E·A), g = a (fixed-free) or
+    a·(L − a)/L (fixed-fixed), in series with the spring's other components; the damping is
+    β times the stiffness: into the tendon, or into ``passive`` when lost motion makes the
+    plant apply it (:func:`passive_forces`).
+    """
+    for k in range(chain.shape[0]):
+        p = chain[k]
+        if p[0] == 0.0:
+            continue
+        x = min(max(table_pos[k], p[10]), p[11])
+        a = p[1] + p[2] * x
+        g = a * (p[4] - a) / p[4] if p[3] != 0.0 else a
+        stiffness = 1.0 / (g / p[5] + p[6])
+        t = int(p[8])
+        ten_stiffness[t] = stiffness
+        if p[9] != 0.0:
+            passive[k, 5] = p[7] * stiffness
+        else:
+            ten_damping[t] = p[7] * stiffness
+
+
+@numba.njit(cache=True)
+def passive_forces(passive, chain, drive_torque, rotor_frc, slide_frc, table_pos, table_vel,
+                   rotor_pos, rotor_vel, qpos, qvel, qfrc):
     """Write the applied forces of one physics step: the drive torque plus the extra passive
-    forces on the rotors, the extra passive forces on the slides.
+    forces on the rotors, the extra passive forces on the slides (and screw bodies).
 
     Break-away friction: MuJoCo's dof friction holds the break-away value F_s (it is what a
     standing axis must overcome); the excess F_s − F_c is given back while sliding,
     f = sign(v)·(F_s − F_c)·(1 − exp(−(v/v_s)²)), so the kinetic friction is the Stribeck
-    curve F_c + (F_s − F_c)·exp(−(v/v_s)²). Lost motion: the screw tendon's spring has a
-    dead band of width b; its damping c is applied here, only outside the dead band.
+    curve F_c + (F_s − F_c)·exp(−(v/v_s)²). Lost motion: the axial (screw) tendon's spring
+    has a dead band of width b; its damping c is applied here, only outside the dead band,
+    between the table and the spring's driver: the rotor, or the screw body whose qpos and
+    dof addresses are ``chain[k, 12:14]`` (−1: none) in ``qpos``, ``qvel``, ``qfrc``.
     """
     for k in range(rotor_frc.shape[0]):
         p = passive[k]
@@ -140,21 +183,34 @@ def passive_forces(passive, drive_torque, rotor_frc, slide_frc, table_pos, table
             f_rotor += math.copysign(p[2] * -math.expm1(-(w / p[3]) ** 2), w)
         if p[4] > 0.0:
             r = p[6]
-            length = r * rotor_pos[k] - table_pos[k]
-            if abs(length) > p[4]:
-                f_t = -p[5] * (r * rotor_vel[k] - table_vel[k])  # the tendon's damper
-                f_rotor += r * f_t
-                f_slide -= f_t
+            shaft = int(chain[k, 12])
+            if shaft >= 0:
+                dof = int(chain[k, 13])
+                f_shaft = 0.0
+                length = r * qpos[shaft] - table_pos[k]
+                if abs(length) > p[4]:
+                    f_t = -p[5] * (r * qvel[dof] - table_vel[k])  # the tendon's damper
+                    f_shaft = r * f_t
+                    f_slide -= f_t
+                qfrc[dof] = f_shaft
+            else:
+                length = r * rotor_pos[k] - table_pos[k]
+                if abs(length) > p[4]:
+                    f_t = -p[5] * (r * rotor_vel[k] - table_vel[k])  # the tendon's damper
+                    f_rotor += r * f_t
+                    f_slide -= f_t
         rotor_frc[k] = drive_torque[k] + f_rotor
         slide_frc[k] = f_slide
 
 
 @numba.njit(cache=True)
-def record_interval(i, t, state, table_pos, rotor_pos, ratio, samples, extent, ring, ring_n):
+def record_interval(i, t, state, table_pos, qpos, spring_adr, spring_ratio, samples, extent,
+                    ring, ring_n):
     """Row i of the drive-rate samples (``plant_records.FINE_FIELDS``, at plant time t),
     also written to row ``ring_n + i`` (modulo its length) of the ring buffer ``ring``, and
     the running extent of the table position (x lo, x hi, y lo, y hi; NaN if a sample was
-    NaN)."""
+    NaN). The screw deflection is the axial spring's, ``spring_ratio[k]·qpos[spring_adr[k]]
+    − x``: its driver (the rotor, or the screw body) at ``spring_adr``."""
     r = (ring_n + i) % ring.shape[0]
     samples[i, 10] = t
     ring[r, 10] = t
@@ -164,7 +220,7 @@ def record_interval(i, t, state, table_pos, rotor_pos, ratio, samples, extent, r
         samples[i, 2 + k] = state[k, S_I]
         samples[i, 4 + k] = state[k, S_VOUT]
         samples[i, 6 + k] = state[k, S_CONDUCT]
-        samples[i, 8 + k] = ratio[k] * rotor_pos[k] - x
+        samples[i, 8 + k] = spring_ratio[k] * qpos[spring_adr[k]] - x
         for c in range(k, 10, 2):
             ring[r, c] = samples[i, c]
         if i == 0:
@@ -181,9 +237,10 @@ if _MJ_STEP is not None:
 
     @numba.njit
     def _intervals(m_addr, d_addr, n, substeps, params, state, tables, dac_in, dac, u, noise,
-                   log, n0, dt, enabled, passive, has_passive, torque, sub_torque, scratch,
-                   rotor_frc, slide_frc, table_pos, table_vel, rotor_pos, rotor_vel, ratio,
-                   samples, extent, ring, ring_n, out):
+                   log, n0, dt, enabled, passive, has_passive, chain, has_chain, torque,
+                   sub_torque, scratch, rotor_frc, slide_frc, table_pos, table_vel, rotor_pos,
+                   rotor_vel, qpos, qvel, qfrc, ten_stiffness, ten_damping, spring_adr,
+                   spring_ratio, samples, extent, ring, ring_n, out):
         clipped = quantise(dac_in, dac, u)
         if clipped < 0:
             return 0, 0, clipped
@@ -195,11 +252,12 @@ if _MJ_STEP is not None:
                 readout(state, out)
                 return i, status, clipped
             for s in range(substeps):
-                apply_forces(passive, has_passive, sub_torque, s, rotor_frc, slide_frc,
-                             table_pos, table_vel, rotor_pos, rotor_vel)
+                apply_forces(passive, has_passive, chain, has_chain, sub_torque, s,
+                             rotor_frc, slide_frc, table_pos, table_vel, rotor_pos, rotor_vel,
+                             qpos, qvel, qfrc, ten_stiffness, ten_damping)
                 _c_mj_step(m_addr, d_addr)
-            record_interval(i, (n0 + i + 1) * dt, state, table_pos, rotor_pos, ratio, samples,
-                            extent, ring, ring_n)
+            record_interval(i, (n0 + i + 1) * dt, state, table_pos, qpos, spring_adr,
+                            spring_ratio, samples, extent, ring, ring_n)
         readout(state, out)
         return n, 0, clipped
 
@@ -214,11 +272,14 @@ def step_intervals(m_addr: int, d_addr: int, n: int, substeps: int, params: np.n
                    state: np.ndarray, tables: np.ndarray, dac_in: np.ndarray,
                    dac: np.ndarray, u: np.ndarray, noise: np.ndarray,
                    log: np.ndarray, n0: int, dt: float, enabled: bool, passive: np.ndarray,
-                   has_passive: bool, torque: np.ndarray, sub_torque: np.ndarray,
+                   has_passive: bool, chain: np.ndarray, has_chain: bool,
+                   torque: np.ndarray, sub_torque: np.ndarray,
                    scratch: np.ndarray, rotor_frc: np.ndarray, slide_frc: np.ndarray,
                    table_pos: np.ndarray, table_vel: np.ndarray, rotor_pos: np.ndarray,
-                   rotor_vel: np.ndarray,
-                   ratio: np.ndarray, samples: np.ndarray, extent: np.ndarray,
+                   rotor_vel: np.ndarray, qpos: np.ndarray, qvel: np.ndarray,
+                   qfrc: np.ndarray, ten_stiffness: np.ndarray, ten_damping: np.ndarray,
+                   spring_adr: np.ndarray, spring_ratio: np.ndarray, samples: np.ndarray,
+                   extent: np.ndarray,
                    ring: np.ndarray, ring_n: int, out: np.ndarray) -> tuple[int, int, int]:
     """Quantise the DAC requests ``dac_in`` into ``u`` (:func:`quantise`), then run ``n``
     drive intervals: drive kernel, then ``substeps`` × (applied forces,
@@ -227,16 +288,19 @@ def step_intervals(m_addr: int, d_addr: int, n: int, substeps: int, params: np.n
     table position of each axis.
 
     ``m_addr``, ``d_addr`` are :func:`addresses`; the ``*_frc``, ``*_pos`` and ``*_vel``
-    arrays are views of the data. ``noise`` is (n, axes, m) standard normal samples (or one
-    (1, axes, m) block reused). ``torque`` (axes,) and ``sub_torque`` (axes, substeps) are
-    the drive's outputs (interval and per-physics-step averages), ``scratch`` its work
-    space; ``out`` receives the :func:`readout`. Returns (intervals done, kernel status,
-    DAC clip mask): a non-zero status stops before the interval it refers to, with nothing
-    of it applied; a negative clip mask (−1 − axis: a request not finite) stops before
-    anything.
+    arrays are views of the data, ``qpos``, ``qvel``, ``qfrc`` (applied) the whole of them,
+    ``ten_stiffness``, ``ten_damping`` the model's tendon arrays (:func:`chain_springs`
+    writes them when ``has_chain``); ``spring_adr``, ``spring_ratio`` locate each axial
+    spring's driver for the samples (:func:`record_interval`). ``noise`` is (n, axes, m)
+    standard normal samples (or one (1, axes, m) block reused). ``torque`` (axes,) and
+    ``sub_torque`` (axes, substeps) are the drive's outputs (interval and per-physics-step
+    averages), ``scratch`` its work space; ``out`` receives the :func:`readout`. Returns
+    (intervals done, kernel status, DAC clip mask): a non-zero status stops before the
+    interval it refers to, with nothing of it applied; a negative clip mask (−1 − axis: a
+    request not finite) stops before anything.
     """
     return _intervals(m_addr, d_addr, n, substeps, params, state, tables, dac_in, dac, u,
-                      noise, log, n0,
-                      dt, enabled, passive, has_passive, torque, sub_torque, scratch,
-                      rotor_frc, slide_frc, table_pos, table_vel, rotor_pos, rotor_vel, ratio,
-                      samples, extent, ring, ring_n, out)
+                      noise, log, n0, dt, enabled, passive, has_passive, chain, has_chain,
+                      torque, sub_torque, scratch, rotor_frc, slide_frc, table_pos, table_vel,
+                      rotor_pos, rotor_vel, qpos, qvel, qfrc, ten_stiffness, ten_damping,
+                      spring_adr, spring_ratio, samples, extent, ring, ring_n, out)

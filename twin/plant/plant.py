@@ -38,7 +38,12 @@ from twin.controller.io import Inputs
 from twin.drive import Drives
 from twin.errors import ConfigError, SimulationError
 from twin.plant import loop as plant_loop
-from twin.plant.model import load_model, passive_parameters, resolve_machine
+from twin.plant.model import (
+    chain_parameters,
+    load_model,
+    passive_parameters,
+    resolve_machine,
+)
 from twin.plant.records import (
     FINE_FIELDS,
     FINE_WIDTH,
@@ -132,9 +137,23 @@ class Plant:
         self._ring_read = 0   # rows drained
         self._passive = passive_parameters(config)
         self._has_passive = bool(np.any(self._passive))
+        self._chain = chain_parameters(config, self.model)
+        self._has_chain = bool(self._chain[:, 0].any())
+        """An axial spring varies with the nut: written before every physics step."""
+        self._mj_arrays = (d.qpos, d.qvel, d.qfrc_applied, m.tendon_stiffness,
+                           m.tendon_damping)
+        shafts = self._chain[:, 12].astype(np.int64)
+        self._spring_adr = np.where(shafts >= 0, shafts, m.jnt_qposadr[[m.joint(
+            f"{a}_rotor").id for a in AXES]]).astype(np.int64)
+        self._spring_ratio = np.array([ax.transmission.screw_ratio if s >= 0 else r
+                                       for ax, s, r in zip(axes, shafts.tolist(),
+                                                           self._ratio.tolist(), strict=True)])
+        """Where the axial (screw) spring's driver sits in qpos (the rotor, or the screw
+        body), and its ratio (m/rad): the screw deflection is ratio·qpos − x."""
         self._drive_torque = np.zeros(2)  # the drives' interval-average torque
         self._noise_block = np.zeros((1, *self.drives.kernel_arrays()[3].shape))
-        self._ratio_f = tuple(self._ratio.tolist())   # the constants as floats, for rows
+        self._spring_f = (*self._spring_ratio.tolist(), *self._spring_adr.tolist())
+        """The axial springs' ratios and qpos addresses as Python numbers, for rows."""
         self._out = np.zeros(plant_loop.NREADOUT)
         self._ro: list[float] = [0.0] * plant_loop.NREADOUT
         """The drive state this period's readers need (``plant_loop.readout``), as floats."""
@@ -159,10 +178,11 @@ class Plant:
         plant_loop.step_intervals(
             *self._addresses, 0, self._substeps, params, state, tables, np.zeros(2), self._dac,
             self._u, self._noise_block, log, self.drives.n_step, self.drives.dt,
-            self.drives.enabled, self._passive, self._has_passive, self._drive_torque, sub,
-            scratch, self._torque, self._slide_force, self._table_pos, self._table_vel,
-            self._rotor_pos, self._rotor_vel, self._ratio, self._samples[:0], self._extent,
-            self._ring, self._ring_n, self._out)
+            self.drives.enabled, self._passive, self._has_passive, self._chain,
+            self._has_chain, self._drive_torque, sub, scratch, self._torque,
+            self._slide_force, self._table_pos, self._table_vel, self._rotor_pos,
+            self._rotor_vel, *self._mj_arrays, self._spring_adr, self._spring_ratio,
+            self._samples[:0], self._extent, self._ring, self._ring_n, self._out)
         self._u[:] = 0.0
 
     @classmethod
@@ -212,7 +232,14 @@ class Plant:
                                   f"got {got} mm")
             self._table_pos[:] = x
             self._rotor_pos[:] = x / self._ratio
+            for k, axis in enumerate(AXES):  # the screw bodies, springs relaxed
+                shaft = int(self._chain[k, 12])
+                if shaft >= 0:
+                    d.qpos[shaft] = x[k] / self.config.axes[axis].transmission.screw_ratio
             d.qvel[:] = 0.0
+        if self._has_chain:
+            plant_loop.chain_springs(self._chain, self._table_pos, *self._mj_arrays[3:],
+                                     self._passive)
         mujoco.mj_forward(m, d)
         if seed is not None:
             self._rng.bit_generator.state = np.random.default_rng(seed).bit_generator.state
@@ -277,9 +304,10 @@ class Plant:
             done, status, clip = plant_loop.step_intervals(
                 *self._addresses, n, k, params, state, tables, dac_in, self._dac, u, block,
                 log, drives.n_step, drives.dt, drives.enabled, self._passive,
-                self._has_passive, self._drive_torque, sub, scratch, self._torque,
-                self._slide_force, x, self._table_vel, theta, omega, self._ratio, samples,
-                extent, self._ring, self._ring_n, self._out)
+                self._has_passive, self._chain, self._has_chain, self._drive_torque, sub,
+                scratch, self._torque, self._slide_force, x, self._table_vel, theta, omega,
+                *self._mj_arrays, self._spring_adr, self._spring_ratio, samples, extent,
+                self._ring, self._ring_n, self._out)
             if clip < 0:
                 self._not_finite(dac_in)
             drives.advance(done)
@@ -294,11 +322,13 @@ class Plant:
             for i in range(n):
                 drives.step_into(u, omega, self._drive_torque, theta)
                 for s in range(k):
-                    plant_loop.apply_forces(self._passive, self._has_passive, sub, s,
-                                            self._torque, self._slide_force, x,
-                                            self._table_vel, theta, omega)
+                    plant_loop.apply_forces(self._passive, self._has_passive, self._chain,
+                                            self._has_chain, sub, s, self._torque,
+                                            self._slide_force, x, self._table_vel, theta,
+                                            omega, *self._mj_arrays)
                     mj_step(m, d)
-                plant_loop.record_interval(i, drives.time, state, x, theta, self._ratio,
+                plant_loop.record_interval(i, drives.time, state, x, d.qpos, self._spring_adr,
+                                           self._spring_ratio,
                                            samples, extent, self._ring, self._ring_n)
             self._ring_n += n
             plant_loop.readout(state, self._out)
@@ -389,9 +419,9 @@ class Plant:
     def truth_row(self) -> tuple[float, ...]:
         """The ``TRUTH_FIELDS`` of now as one flat row of floats (cheap: for per-tick
         recording)."""
-        x, v, th = self._table_pos.tolist(), self._table_vel.tolist(), self._rotor_pos.tolist()
-        r, ro = self._ratio_f, self._ro
-        return (x[0], x[1], v[0], v[1], r[0] * th[0] - x[0], r[1] * th[1] - x[1],
+        x, v, q = self._table_pos.tolist(), self._table_vel.tolist(), self.data.qpos
+        (r0, r1, a0, a1), ro = self._spring_f, self._ro
+        return (x[0], x[1], v[0], v[1], r0 * float(q[a0]) - x[0], r1 * float(q[a1]) - x[1],
                 ro[4], ro[5], ro[6], ro[7])
 
     def truth(self) -> Truth:
@@ -400,7 +430,8 @@ class Plant:
         return Truth(table_position=self._table_pos.copy(),
                      table_velocity=self._table_vel.copy(),
                      rotor_angle=self._rotor_pos.copy(), rotor_speed=self._rotor_vel.copy(),
-                     screw_deflection=self._ratio * self._rotor_pos - self._table_pos,
+                     screw_deflection=self._spring_ratio * self.data.qpos[self._spring_adr]
+                     - self._table_pos,
                      armature_current=dr.current, converter_voltage=dr.output_voltage,
                      firing_angle=dr.firing_angle, bridge=dr.bridge,
                      speed_reference=dr.speed_reference, time=self.time)

@@ -90,7 +90,10 @@ class Truth:
     rotor_angle, rotor_speed : ndarray
         Motor shaft angle (rad) and speed (rad/s).
     screw_deflection : ndarray
-        r·θ − x (m): positive when the screw pushes the table forward.
+        Deflection of the axial (screw) spring referred to the table (m), positive when
+        the screw pushes the table forward: r·θ − x of the two-mass chain (the whole
+        transmission), r_s·θ_s − x of the three-mass one (screw shaft, nut and bearing;
+        the gear's twist r·θ − r_s·θ_s is not in it).
     armature_current, converter_voltage, speed_reference : ndarray
         Motor current (A), converter voltage averaged over the last drive interval (the
         motor terminal voltage, V), filtered speed reference (V).

@@ -26,7 +26,7 @@ from twin.controller.interpolator import InterpolatorStatus
 from twin.session.record import make_sink, parse_command
 from twin.session.setup import RunSpec, prepare
 from twin.system.jsonio import output_dir, record_id, write_json_atomic
-from twin.telemetry.channels import programmed_polyline
+from twin.telemetry.channels import programmed_polyline, style_series, to_shown
 from twin.units import MM_PER_MIN
 
 __all__ = ["dry_run"]
@@ -88,8 +88,10 @@ def dry_run(spec: RunSpec, *, out_dir: str | Path = "runs", run_id: str | None =
     ticks = 0
     ref = interp.reference
     try:
+        style_series(sink, ["feed/commanded", *(f"axes/{ax}/{q}/reference" for ax in AXES
+                                                 for q in ("position", "velocity"))])
         if p.path:
-            sink.static_path("path/programmed", programmed_polyline(p.path))
+            sink.static_path("path/programmed", to_shown("mm", programmed_polyline(p.path)))
         buf = np.empty((_CHUNK, 9))
         n = 0
         status = interp.status
@@ -120,12 +122,12 @@ def dry_run(spec: RunSpec, *, out_dir: str | Path = "runs", run_id: str | None =
 def _flush(sink: Any, peaks: _Peaks, rows: np.ndarray, period: float) -> None:
     t, pos, vel = rows[:, 0], rows[:, 1:3], rows[:, 3:5]
     peaks.add(pos, vel, rows[:, 5:7], rows[:, 7:9], period)
-    cols = {"feed/commanded": np.hypot(*vel.T) / MM_PER_MIN}
+    cols = {"feed/commanded": to_shown("mm/min", np.hypot(*vel.T))}
     for k, ax in enumerate(AXES):
-        cols[f"axes/{ax}/position/reference"] = pos[:, k]
-        cols[f"axes/{ax}/velocity/reference"] = vel[:, k]
+        cols[f"axes/{ax}/position/reference"] = to_shown("mm", pos[:, k])
+        cols[f"axes/{ax}/velocity/reference"] = to_shown("mm/min", vel[:, k])
     sink.scalars(t, cols)
-    sink.points(t, {"path/reference": pos})
+    sink.points(t, {"path/reference": to_shown("mm", pos)})
 
 
 def _ratio(value: float, limit: float) -> float:

@@ -22,6 +22,8 @@ from __future__ import annotations
 
 import math
 from dataclasses import asdict, dataclass
+from pathlib import Path
+from typing import Any
 
 import numpy as np
 
@@ -31,12 +33,15 @@ from twin.controller.io import Inputs, Outputs
 from twin.controller.signals import SIGNALS
 from twin.errors import ConfigError
 from twin.plant import FINE_FIELDS, TRUTH_FIELDS
+from twin.plant.model import axis_mechanics
 from twin.session.loop import TickLoop
 from twin.session.setup import wire
+from twin.system.jsonio import output_dir, record_id, write_json_atomic
+from twin.telemetry.channels import style_series, to_shown
 from twin.telemetry.sink import NullSink, Sink
 
-__all__ = ["ExperimentResult", "converter_lines", "dominant_frequency", "response_figures",
-           "run_experiment"]
+__all__ = ["ExperimentResult", "converter_lines", "describe", "dominant_frequency",
+           "elastic_band", "record_experiment", "response_figures", "run_experiment"]
 
 FINE_FIELDS_INDEX = tuple((name, k) for k, (name, _) in enumerate(FINE_FIELDS))
 """(field, index of its x column / 2) of the plant's drive-rate samples."""
@@ -122,7 +127,8 @@ class ExperimentResult:
 
 
 def dominant_frequency(t: np.ndarray, signal: np.ndarray, *, f_min: float = 8.0,
-                       exclude: tuple[float, ...] = (), width: float = 5.0) -> float:
+                       exclude: tuple[float, ...] = (), width: float = 5.0,
+                       f_max: float = math.inf) -> float:
     """Frequency (Hz) of the largest spectral peak above ``f_min`` of a uniformly sampled
     signal's derivative (detrended), refined by parabolic interpolation of the
     log-magnitude.
@@ -131,7 +137,8 @@ def dominant_frequency(t: np.ndarray, signal: np.ndarray, *, f_min: float = 8.0,
     presets' first elastic modes (16 Hz belt, 90-160 Hz screws) lie well above it. Lines of
     a known forced excitation are left out within ``width`` (Hz) of each frequency in
     ``exclude``: a thyristor converter's torque pulses at p·f_mains and its harmonics drive
-    the screw harder than the ringing of its mode, but they are not the mode."""
+    the screw harder than the ringing of its mode, but they are not the mode. ``f_max``
+    (Hz) bounds the search from above (:func:`elastic_band`)."""
     dt = float(t[1] - t[0])
     x = np.diff(signal) / dt     # weights the spectrum by f: the slow loop response fades
     x = x - np.polyval(np.polyfit(t[1:], x, 1), t[1:])
@@ -139,7 +146,7 @@ def dominant_frequency(t: np.ndarray, signal: np.ndarray, *, f_min: float = 8.0,
     n = 1 << (math.ceil(math.log2(len(x))) + 2)
     spec = np.abs(np.fft.rfft(x, n))
     freqs = np.fft.rfftfreq(n, dt)
-    band = freqs >= f_min
+    band = (freqs >= f_min) & (freqs <= f_max)
     for f in exclude:
         band &= np.abs(freqs - f) > width
     k = int(np.argmax(np.where(band, spec, 0.0)))
@@ -148,6 +155,21 @@ def dominant_frequency(t: np.ndarray, signal: np.ndarray, *, f_min: float = 8.0,
         shift = 0.5 * (a - c) / (a - 2 * b + c) if (a - 2 * b + c) != 0 else 0.0
         return float((k + shift) * (freqs[1] - freqs[0]))
     return float(freqs[k])
+
+
+def elastic_band(cfg: MachineConfig, axis: str) -> tuple[float, float]:
+    """Where to look for the first elastic mode of ``axis`` (Hz): from half the machine
+    file's lowest first mode over the travel (rotor locked, as the speed loop tends to hold
+    it), but not below 8 Hz, to 1.5 times its highest (rotor free)
+    (``twin.plant.model.axis_mechanics``; the screw stiffens towards the motor). A
+    three-mass axis' second mode (the screw between gear and nut, 2.2 krad/s on tomsk_xy)
+    lies above it, and so, on tomsk_xy, do the converter's 300 Hz torque pulses, whose
+    skirt that mode amplifies beyond the lines' ±5 Hz."""
+    travel = cfg.axes[axis].mechanics.travel
+    chains = [axis_mechanics(cfg, axis, p) for p in (None, *travel)]
+    low = min(c.locked_rotor_frequency for c in chains)
+    high = max(c.free_rotor_frequency for c in chains)
+    return max(8.0, 0.25 * low / math.pi), 0.75 * high / math.pi
 
 
 def converter_lines(cfg: MachineConfig, axis: str, dt: float) -> tuple[float, ...]:
@@ -241,8 +263,9 @@ def run_experiment(cfg: MachineConfig, *, kind: str, axis: str, amplitude: float
     if not open_loop:
         far = start[k] + (amplitude if kind == "step" else amplitude * (n - 1) * period)
         if not lo < far < hi:
-            raise ConfigError("amplitude", f"the reference leaves the travel between the "
-                              f"limit switches ({lo} … {hi} m)")
+            raise ConfigError("amplitude", f"the reference would reach {far * 1e3:.4g} mm, "
+                              f"outside the travel between the limit switches "
+                              f"({lo * 1e3:.4g} … {hi * 1e3:.4g} mm)")
     wired = wire(cfg, None, belief=belief, start=start)
     plant = wired.plant
     assert plant is not None
@@ -291,17 +314,67 @@ def run_experiment(cfg: MachineConfig, *, kind: str, axis: str, amplitude: float
     else:
         ref_speed = rec["reference"]
     figs = response_figures(rec["t"], response, ref_speed, kind=kind)
-    mode = dominant_frequency(rec["fine_t"], rec["screw_deflection"],
+    low, high = elastic_band(cfg, axis)
+    mode = dominant_frequency(rec["fine_t"], rec["screw_deflection"], f_min=low, f_max=high,
                               exclude=converter_lines(cfg, axis, plant.drive_dt))
     result = ExperimentResult(kind=kind, axis=axis, open_loop=open_loop,
                               amplitude=float(amplitude), elastic_mode=mode, **figs)
     if sink is not None and not isinstance(sink, NullSink):
-        base = f"axes/{axis}"
-        sink.scalars(rec["t"], {
-            f"{base}/position/reference": rec["reference"], f"{base}/position/actual":
-            rec["position"], f"{base}/velocity/actual": rec["velocity"],
-            f"{base}/drive/dac_volts": rec["dac_volts"], f"{base}/drive/armature_current":
-            rec["armature_current"]})
-        sink.scalars(rec["fine_t"], {f"{base}/screw_deflection_um":
-                                     rec["screw_deflection"] * 1e6})
+        _record(sink, axis, rec, open_loop)
     return result, rec
+
+
+def _record(sink: Sink, axis: str, rec: dict, open_loop: bool) -> None:
+    """Send an experiment's record to ``sink`` in the recorded units (``SERIES``): closed
+    loop, the reference and the position (mm from the start); the table's velocity, the
+    DAC volts (open loop: the input) and armature current, the screw deflection."""
+    base = f"axes/{axis}"
+    cols = {f"{base}/velocity/actual": to_shown("mm/min", rec["velocity"]),
+            f"{base}/drive/dac_volts": np.asarray(rec["dac_volts"], dtype=np.float64),
+            f"{base}/drive/armature_current": np.asarray(rec["armature_current"])}
+    if not open_loop:      # open loop, the record's "position" is the response: a speed
+        cols[f"{base}/position/reference"] = to_shown("mm", rec["reference"])
+        cols[f"{base}/position/actual"] = to_shown("mm", rec["position"])
+    style_series(sink, [*cols, f"{base}/screw_deflection_um"])
+    sink.scalars(rec["t"], cols)
+    sink.scalars(rec["fine_t"], {f"{base}/screw_deflection_um":
+                                 to_shown("µm", rec["screw_deflection"])})
+
+
+def describe(kind: str, axis: str, amplitude: float, open_loop: bool) -> str:
+    """The experiment in the words of the command line: ``step x 1 mm, closed loop``
+    (``amplitude`` in SI: m or m/s closed loop, V or V/s open loop)."""
+    if open_loop:
+        return f"{kind} {axis} {amplitude:.6g} V{'/s' if kind == 'ramp' else ''}, open loop"
+    return f"{kind} {axis} {amplitude * 1e3:.6g} mm{'/s' if kind == 'ramp' else ''}, closed loop"
+
+
+def record_experiment(cfg: MachineConfig, *, out_dir: str | Path, rerun: str = "file",
+                      run_id: str | None = None, belief: MachineConfig | None = None,
+                      **experiment: Any) -> tuple[ExperimentResult, dict[str, Any]]:
+    """``run_experiment`` with its records, as every command leaves them: ``<run_id>.json``
+    (the figures, in ``to_report``'s units) and the ``.rrd`` that ``rerun`` names (file:
+    ``out_dir/<run_id>.rrd``, with the experiment's layout). An experiment refused (an
+    amplitude outside the travel, a trip) writes nothing. Returns (result, summary)."""
+    from twin.session.record import make_sink
+    from twin.telemetry.blueprint import experiment_blueprint
+
+    result, rec = run_experiment(cfg, belief=belief, **experiment)   # refused: no file
+    run_id = run_id or record_id()
+    out = output_dir(out_dir)
+    axis = experiment["axis"]
+    open_loop = experiment.get("open_loop", False)
+    sink, recording = make_sink(rerun, out, run_id,
+                                blueprint=lambda extents: experiment_blueprint(axis, extents))
+    what = describe(experiment["kind"], axis, experiment["amplitude"], open_loop)
+    _record(sink, axis, rec, open_loop)
+    summary = {"run_id": run_id, "status": "FINISHED", "experiment": what,
+               "machine": cfg.name, "controller_model": (belief or cfg).name,
+               "recording": recording, **result.to_report(),
+               "spec": {"program": None, "builtin": None, "experiment": what}}
+    finish = getattr(sink, "finish", None)
+    if finish is not None:
+        finish()
+    write_json_atomic(out / f"{run_id}.json", summary)   # the summary first, then the .rrd
+    sink.close()
+    return result, summary

@@ -20,6 +20,9 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
+from twin.errors import ConfigError
+from twin.system.jsonio import load_json
+
 __all__ = ["LIVE_S", "Inventory", "RunEntry", "clean", "inventory"]
 
 LIVE_S = 60.0
@@ -58,8 +61,9 @@ class RunEntry:
         """The figures ``twin runs`` shows (JSON-ready)."""
         s = self.summary or {}
         spec = s.get("spec") or {}
-        program = spec.get("program") or (f"builtin {spec['builtin']}"
-                                          if spec.get("builtin") else None)
+        program = spec.get("program") or spec.get("experiment") or (
+            " then ".join(spec["commands"]) if spec.get("commands") else None) or (
+            f"builtin {spec['builtin']}" if spec.get("builtin") else None)
         return {"run_id": self.run_id, "program": program, "machine": s.get("machine"),
                 "status": s.get("status"), "reason": s.get("fault") or s.get("aborted")
                 or s.get("timeout"), "cycle_time_s": s.get("cycle_time_s"),
@@ -92,8 +96,8 @@ class Inventory:
 def _run_summary(path: Path) -> dict[str, Any] | None:
     """The file's summary if it is a run summary (other JSON files are not runs)."""
     try:
-        doc = json.loads(path.read_text(encoding="utf-8"))
-    except (OSError, UnicodeDecodeError, json.JSONDecodeError):
+        doc = load_json(path.read_text(encoding="utf-8"), str(path))   # nesting bounded
+    except (OSError, UnicodeDecodeError, json.JSONDecodeError, ConfigError):
         return None
     if isinstance(doc, dict) and "run_id" in doc and "status" in doc and "spec" in doc:
         return doc

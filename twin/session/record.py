@@ -23,11 +23,11 @@ __all__ = ["RunSummary", "make_sink", "parse_command", "recording_path", "run_su
 
 def make_sink(rerun: str, out: Path, run_id: str,
               notice: Callable[[str], None] | None = None,
-              port: int = 9876) -> tuple[Sink, str | None]:
+              port: int = 9876, blueprint: Any = True) -> tuple[Sink, str | None]:
     """The sink ``--rerun`` names: spawn, serve, none, file (``out/<run_id>.rrd``) or a path
     ending in ``.rrd``; spawn and serve also write the file. Returns (sink, .rrd path).
     ``notice`` is told when the live view is given up (``RerunSink``); ``port`` is the live
-    viewer's or server's."""
+    viewer's or server's; ``blueprint`` the layout (``RerunSink``'s; default a run's)."""
     path = recording_path(rerun, out, run_id)
     if path is None:
         return NullSink(), None
@@ -35,7 +35,7 @@ def make_sink(rerun: str, out: Path, run_id: str,
 
     live = rerun if rerun in ("spawn", "serve") else None
     return RerunSink(path, live=live, recording_id=run_id, recording_name=run_id,
-                     notice=notice, port=port), str(path)
+                     notice=notice, port=port, blueprint=blueprint), str(path)
 
 
 def recording_path(rerun: str, out: Path, run_id: str) -> Path | None:
@@ -174,14 +174,19 @@ def run_summary(rec: Mapping[str, np.ndarray], path: list) -> dict[str, Any]:
 
 
 def parse_command(text: str) -> Callable[[Controller], None]:
-    """A manual-mode command: ``home AXIS``, ``jog AXIS DISTANCE`` (m, relative),
-    ``goto X Y`` (m, absolute). Raises ``ConfigError`` naming the command if malformed."""
+    """A manual-mode command: ``home AXIS``, ``jog AXIS DISTANCE`` (relative) or ``goto X
+    Y`` (absolute), the lengths in metres, or in millimetres with a trailing ``mm``
+    (``jog x 10 mm``, ``goto 50 20 mm``: what a person reads in the run record). Raises
+    ``ConfigError`` naming the command if malformed."""
     words = text.split()
+    scale = 1.0
+    if len(words) > 1 and words[-1] == "mm":
+        words, scale = words[:-1], 1e-3
     try:
-        if words[0] == "home" and len(words) == 2 and words[1] in AXES:
+        if words[0] == "home" and len(words) == 2 and words[1] in AXES and scale == 1.0:
             return lambda c: c.home(words[1])
         if words[0] == "jog" and len(words) == 3 and words[1] in AXES:
-            k, dist = AXES.index(words[1]), float(words[2])
+            k, dist = AXES.index(words[1]), float(words[2]) * scale
 
             def jog(c: Controller) -> None:
                 target = list(c.position_reference)
@@ -190,9 +195,9 @@ def parse_command(text: str) -> Callable[[Controller], None]:
 
             return jog
         if words[0] == "goto" and len(words) == 3:
-            target = [float(words[1]), float(words[2])]
+            target = [float(words[1]) * scale, float(words[2]) * scale]
             return lambda c: c.jog(target)
     except (IndexError, ValueError):
         pass
     raise ConfigError("commands", f"bad command {text!r}; expected 'home x|y', "
-                      "'jog x|y DISTANCE_M' or 'goto X_M Y_M'")
+                      "'jog x|y DISTANCE mm' or 'goto X Y mm' (without mm: metres)")

@@ -101,8 +101,10 @@ def run(spec: RunSpec, *, out_dir: str | Path = "runs", rerun: str = "file",
         Use this sink instead of the one ``rerun`` describes (it is closed at the end).
     rerun_port : int
         Port of the live viewer or server (spawn, serve), on 127.0.0.1.
-    progress : callable(sim_time, max_time), optional
-        Called about every simulated second.
+    progress : callable(sim_time, done), optional
+        Called a few times a wall-clock second with the simulated time (s) and the share of
+        the program done (0 … 1: the programmed path's length up to the block running; for
+        manual commands, the commands started; NaN when unknown).
     prepared : Prepared, optional
         An already wired run (``prepare(spec)``), e.g. with a custom controller.
     commands : sequence of callables(controller)
@@ -139,11 +141,16 @@ def run(spec: RunSpec, *, out_dir: str | Path = "runs", rerun: str = "file",
             ours = sink is None         # the sink this run makes (and drops if it stops)
             try:
                 pending = [*(parse_command(c) for c in spec.commands), *commands]
+                total = len(pending)
+                if pending and p.controller.status in READY:
+                    # the first command is planned here, as a program is: one the work
+                    # zone refuses is refused before anything is written
+                    pending.pop(0)(p.controller)
                 if ours:
                     sink, recording = make_sink(rerun, out, run_id, notice=warn,
                                                 port=rerun_port)
                 loop = _Loop(p, sink, spec.time_limit(p.cfg), pending, progress,
-                             spec.rt_priority, keep_fine, warn, keep_record, caught)
+                             spec.rt_priority, keep_fine, warn, keep_record, caught, total)
             except BaseException:
                 p.driver.close()        # whatever fails once the driver is open closes it
                 if ours:
@@ -194,7 +201,8 @@ class _Loop:
                  pending: list[Callable[[Controller], None]],
                  progress: Callable[[float, float], None] | None, rt_priority: int = 0,
                  keep_fine: bool = False, warn: Callable[[str], None] | None = None,
-                 keep_record: bool = True, caught: list[int] | None = None):
+                 keep_record: bool = True, caught: list[int] | None = None,
+                 commands: int = 0):
         self.p, self.sink, self.pending, self.progress = p, sink, pending, progress
         self.rt_priority = rt_priority
         self.warn = warn
@@ -213,8 +221,13 @@ class _Loop:
                       else None)
         self.keep_record = keep_record
         self.summary = RunSummary(p.path)   # fed as the telemetry goes out
+        lengths = np.array([seg.length for seg in p.path or ()])
+        self._reached = np.concatenate(([0.0], np.cumsum(lengths))) / max(lengths.sum(),
+                                                                           1e-300)
+        self._commands = commands
         self.writer = TelemetryWriter(
-            sink, p.path, truth_record=self.truth, fine_fields=FINE_FIELDS,
+            sink, p.path, truth_record=self.truth,
+            fine_fields=FINE_FIELDS if p.plant is not None else (),
             feeds={item.line: item.feed for item in p.items or ()
                    if isinstance(item, Move | MotionBlock)},
             motor_ratio=[p.cfg.axes[ax].transmission.ratio for ax in AXES],
@@ -288,8 +301,18 @@ class _Loop:
         self._next_batch = now + BATCH_WALL
         self._flush()
         if self.progress is not None:
-            self.progress(self.ticks * self.period, self.max_time)
+            self.progress(self.ticks * self.period, self._done())
         return True
+
+    def _done(self) -> float:
+        """The share of the program done: the path's length to the end of the block
+        running (the last one sent); the manual commands started."""
+        if self._commands:
+            return (self._commands - len(self.pending)) / self._commands
+        if len(self._reached) < 2:
+            return math.nan
+        return float(self._reached[min(max(self.writer.block, 0) + 1,
+                                       len(self._reached) - 1)])
 
     def _flush(self) -> None:
         """Send the rows recorded since the last flush to the telemetry and the running
@@ -383,7 +406,8 @@ class _Loop:
                                    "driver": spec.driver,
                                    "machine_file": machine_identity(p.cfg),
                                    "controller_model_file": machine_identity(p.belief or p.cfg)}
-        summary.update(self.summary.result())
+        if self.summary.samples:    # a run stopped before its first tick has no metrics
+            summary.update(self.summary.result())
         if self.events:
             summary["events"] = dict(sorted(self.events.items()))
         if self.meter is not None:

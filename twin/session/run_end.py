@@ -12,6 +12,7 @@ from collections.abc import Callable, Iterator
 from typing import TYPE_CHECKING, Any
 
 from twin.controller.controller import ControllerStatus
+from twin.system import interrupts
 
 if TYPE_CHECKING:
     from twin.session.setup import RunResult
@@ -94,17 +95,25 @@ def _handling(signals: tuple[int, ...], handler: Callable[[int, Any], None]
             signal.signal(s, old)
 
 
-def stop_signals(caught: list[int]) -> contextlib.AbstractContextManager[None]:
+@contextlib.contextmanager
+def stop_signals(caught: list[int]) -> Iterator[None]:
     """While the loop runs: a stop signal is appended to ``caught`` and raised as
     ``Terminated``. The exception can be lost: a handler runs wherever the main thread is,
     and an exception raised inside a C callback (numba compiling a kernel and writing its
     cache through an LLVM callback, say) is printed and dropped. So the loop also checks
-    ``caught`` at its checkpoints (``raise_caught``) and the signal is never lost."""
+    ``caught`` at its checkpoints (``raise_caught``) and the signal is never lost. A Ctrl-C
+    the command recorded while it started, whose exception was dropped
+    (``twin.system.interrupts``), is raised here at once."""
     def stop(signum: int, _frame: Any) -> None:
         caught.append(signum)
         raise Terminated(signum)
 
-    return _handling(STOP_SIGNALS, stop)
+    with _handling(STOP_SIGNALS, stop):
+        dropped = interrupts.take()
+        if dropped is not None:
+            caught.append(dropped)
+            raise Terminated(dropped)
+        yield
 
 
 def raise_caught(caught: list[int]) -> None:

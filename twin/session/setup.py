@@ -68,8 +68,9 @@ class RunSpec:
     start : (float, float) or None
         Table position at the start (m); None: the home keyframe.
     commands : tuple of str
-        Manual mode instead of a program (``builtin="none"``): ``"home x"``, ``"jog x 0.01"``
-        (relative, m), ``"goto 0.05 0.02"`` (absolute, m), run one after the other.
+        Manual mode instead of a program (``builtin="none"``): ``"home x"``, ``"jog x 10
+        mm"`` (relative), ``"goto 50 20 mm"`` (absolute; without ``mm``: metres), run one
+        after the other.
     driver : str
         ``"sim"``: the twin in lock-step; or a URL of real I/O such as
         ``modbus://127.0.0.1:5020`` (``twin.hardware.drivers.open_driver``), paced in real
@@ -160,7 +161,8 @@ class RunResult:
 
 
 def axis_models(cfg: MachineConfig) -> list[LinearAxisModel]:
-    """The linear reference → position model of each axis, from the drive model.
+    """The linear reference → position model of each axis, from the drive model; the X
+    axis moves the Y carriage too (``MachineConfig.moving_masses``), as the plant's drives do.
 
     Raises
     ------
@@ -168,9 +170,11 @@ def axis_models(cfg: MachineConfig) -> list[LinearAxisModel]:
         Naming the axis, when its motor, converter, tacho and speed-loop settings give a
         model the controller cannot derive its gains from (an unstable speed loop)."""
     models = []
+    masses = cfg.moving_masses()
     for a in AXES:
         try:
-            models.append(LinearAxisModel(*axis_transfer_function(cfg.axes[a])))
+            models.append(LinearAxisModel(*axis_transfer_function(cfg.axes[a],
+                                                                  moving_mass=masses[a])))
         except ConfigError as exc:
             raise ConfigError(f"axes.{a}", f"the drive these motor, converter, tacho and "
                               f"speed_loop settings give is not a stable linear model "
@@ -227,11 +231,17 @@ def shipped_program(name: str) -> Path:
 
 
 def reader_options(cfg: MachineConfig) -> ReaderOptions:
-    """The G-code reader's options from the machine's ``controller.gcode`` section."""
+    """The G-code reader's options from the machine's ``controller.gcode`` section; its
+    relative subroutine folders are taken from the machine file's folder (the working
+    folder for a machine built in memory)."""
     g = cfg.controller.gcode
+    home = Path(cfg.source).parent if cfg.source and Path(cfg.source).is_file() else Path()
     return ReaderOptions(z=g.z, tool_z=g.tool_z,
                          limits=Limits(loop_iterations=int(g.loop_iterations),
-                                       call_depth=int(g.call_depth)),
+                                       call_depth=int(g.call_depth),
+                                       subroutine_path=tuple(
+                                           str(home / folder) for folder in
+                                           g.subroutine_path)),
                          work_offsets={WORK_SYSTEMS.index(name) + 1: offset
                                        for name, offset in g.work_offsets.items()})
 

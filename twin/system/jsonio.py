@@ -19,9 +19,10 @@ from pathlib import Path
 from typing import Any
 
 from twin.errors import ConfigError
+from twin.nesting import MAX_DEPTH, json_too_deep
 
-__all__ = ["LOCK_NAME", "folder_lock", "json_text", "output_dir", "partial_path", "plain",
-           "record_id", "write_json_atomic", "write_text_atomic"]
+__all__ = ["LOCK_NAME", "folder_lock", "json_text", "load_json", "output_dir", "partial_path",
+           "plain", "record_id", "write_json_atomic", "write_text_atomic"]
 
 LOCK_NAME = ".job.lock"
 """The lock file a job holds in its output folder (``folder_lock``)."""
@@ -52,6 +53,10 @@ def output_dir(path: str | Path, field: str = "out") -> Path:
     folder = Path(path)
     if folder.exists() and not folder.is_dir():
         raise ConfigError(field, f"{folder} is not a folder")
+    dangling = _dangling_link(folder)
+    if dangling is not None:   # mkdir would say "File exists", naming nothing
+        raise ConfigError(field, f"{dangling} is a symlink to {os.readlink(dangling)}, which "
+                          "does not exist: point it at a folder or remove it")
     probe = folder / f".write-check-{os.getpid()}"
     try:
         folder.mkdir(parents=True, exist_ok=True)
@@ -63,6 +68,16 @@ def output_dir(path: str | Path, field: str = "out") -> Path:
     except OSError as exc:
         raise ConfigError(field, f"cannot write in {folder}: {exc.strerror or exc}") from None
     return folder
+
+
+def _dangling_link(folder: Path) -> Path | None:
+    """The first part of ``folder`` (from the root down) that is a symlink to nothing."""
+    for part in (*reversed(folder.parents), folder):
+        if part.is_symlink() and not part.exists():
+            return part
+        if not part.exists():
+            return None
+    return None
 
 
 @contextlib.contextmanager
@@ -124,6 +139,40 @@ def json_text(obj: Any, *, indent: int | None = None) -> str:
     would write ``NaN``, which strict parsers refuse); numpy scalars and arrays, dataclasses
     and paths become plain values; anything else its ``str``."""
     return json.dumps(plain(obj), indent=indent, allow_nan=False, ensure_ascii=False)
+
+
+def load_json(text: str, where: str, *, first_line: int = 1, max_depth: int = MAX_DEPTH
+              ) -> Any:
+    """``json.loads(text)`` with its nesting bounded: a text that nests more than
+    ``max_depth`` arrays and objects is refused before it is parsed (Python's parser would
+    recurse into it and end in a ``RecursionError``).
+
+    Parameters
+    ----------
+    text : str
+        The JSON text.
+    where : str
+        The file (or file and line) it comes from, for the message.
+    first_line : int
+        Line number of the text's first line in that file.
+
+    Raises
+    ------
+    ConfigError
+        Naming ``where``, the line and the column where the nesting passes the limit.
+    json.JSONDecodeError
+        Not JSON (as ``json.loads``).
+    """
+    deep = json_too_deep(text, max_depth)
+    if deep is None:
+        try:
+            return json.loads(text)
+        except RecursionError:      # cannot happen below MAX_DEPTH; never a traceback
+            deep = None
+    place = "" if deep is None else (f"line {deep.line + first_line - 1}, column "
+                                     f"{deep.column}: ")
+    raise ConfigError(where, f"{place}nested deeper than {max_depth} levels of arrays and "
+                      "objects (no record of xy-twin nests more than 5)")
 
 
 def plain(obj: Any) -> Any:

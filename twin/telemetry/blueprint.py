@@ -1,156 +1,283 @@
-"""The default rerun layout, built for feed-drive engineers: the analogues of LinuxCNC's Axis
+"""The rerun layouts, built for feed-drive engineers: the analogues of LinuxCNC's Axis
 preview (the path) and halscope (the loop's signals, one unit per plot).
 
-The first tab, "Run", is what a run is judged by:
-- the path in machine orientation (X right, Y up, mm): the programmed path whole, and the
-  actual path up to the time cursor coloured by its contour error (``error_colors``: green
-  at 0, yellow at the contour tolerance, red from twice it);
+The first tab of a run's layout, "Run", is what a run is judged by:
+- the path in machine orientation (X right, Y up, mm, on a labelled grid with a scale bar):
+  the programmed path whole, and the actual path up to the time cursor coloured by its
+  contour error (``error_colors``: green at 0, yellow at the contour tolerance, red from
+  twice it);
 - the contour error (µm) and the feed (mm/min: programmed F, commanded, actual);
 - per axis, the following error (µm) above the regulator's terms (V: p, i, d, FF, DCU);
 - the event log (blocks, status changes, tool on/off).
 
-Then one drive tab per axis, split by unit (control voltages ±10 V, converter voltage V,
-armature current A, motor speed rad/s, conduction), and one motion tab per axis (position
-m, velocity m/s, screw deflection µm).
+Then one drive tab per axis, split by unit (DAC and tacho V, converter voltage V, armature
+current A, motor speed rpm, conduction), and one motion tab per axis (position mm, velocity
+mm/min, screw deflection µm).
+
+Every plot is framed on the data: the time axis on the recording's time span, the y axis on
+the range of what it shows (``twin.telemetry.extent.tick_range``: at least two labelled
+ticks), the path view on the whole path. A layout is built from an ``Extents`` (what the
+sink was given); before any data it leaves the ranges to the viewer. The plots carry no
+legend box over the traces: each title names its series and their colours.
 """
 
 from __future__ import annotations
 
-from collections.abc import Sequence
+import math
+from collections.abc import Mapping, Sequence
 
 import numpy as np
 import rerun as rr
 import rerun.blueprint as rrb
 import rerun.encodings as rrd
 
+from twin.config import AXES
+from twin.telemetry.channels import SERIES
+from twin.telemetry.extent import Extents, tick_range
 from twin.telemetry.sink import PROGRAMMED
 
-__all__ = ["PATH_TRANSFORM", "default_blueprint", "overlay_blueprint", "path_bounds"]
+__all__ = ["PATH_TRANSFORM", "PathGrid", "default_blueprint", "experiment_blueprint",
+           "frame_bounds", "overlay_blueprint", "path_view"]
 
-PATH_TRANSFORM = rr.Transform3D(mat3x3=[[1e3, 0.0, 0.0], [0.0, -1e3, 0.0], [0.0, 0.0, 1.0]])
-"""Logged on ``/path``: metres to millimetres, and Y up (rerun's 2-D views draw Y down). The
-data stay in metres; only the view is in machine orientation."""
+PATH_TRANSFORM = rr.Transform3D(mat3x3=[[1.0, 0.0, 0.0], [0.0, -1.0, 0.0], [0.0, 0.0, 1.0]])
+"""Logged on ``/path``: Y up (rerun's 2-D views draw Y down). The data are in mm."""
 
 _WHOLE_RUN = [rrb.VisibleTimeRange("sim_time", start=rrb.TimeRangeBoundary.infinite(),
                                    end=rrb.TimeRangeBoundary.cursor_relative())]
 """Everything from the start up to the time cursor (the path drawn whole, not a dot)."""
 
-
-_ALL_TIME = rrb.TimeAxis(view_range=rrd.TimeRange(start=rrb.TimeRangeBoundary.infinite(),
-                                                   end=rrb.TimeRangeBoundary.infinite()))
-"""The plots' time axis: the whole run (rerun's default follows the last minute)."""
+_NO_LEGEND = rrb.PlotLegend(visible=False)
 
 
-def _series(name: str, *entities: str) -> rrb.TimeSeriesView:
-    return rrb.TimeSeriesView(name=name, origin="/", contents=list(entities), axis_x=_ALL_TIME)
+def _time_axis(extents: Extents | None) -> rrb.TimeAxis:
+    """The plots' time axis: the data's time span (rerun's default follows the last
+    minute); the whole timeline while it is not known yet."""
+    if extents is None or extents.time is None:
+        start = end = rrb.TimeRangeBoundary.infinite()
+    else:
+        t0, t1 = extents.time           # to the nanosecond, outwards: every sample inside
+        start = rrb.TimeRangeBoundary.absolute(nanos=math.floor(t0 * 1e9))
+        end = rrb.TimeRangeBoundary.absolute(nanos=math.ceil(max(t1, t0 + 1e-3) * 1e9))
+    return rrb.TimeAxis(view_range=rrd.TimeRange(start=start, end=end))
 
 
-def _errors(axis: str) -> rrb.Container:
+def _legend(entities: Sequence[str], names: Mapping[str, str] | None = None) -> str:
+    """``": reference grey, actual orange"`` for the series of ``entities`` (``SERIES``),
+    or ``names`` (entity → "name colour") when given; "" for a single series."""
+    if names is not None:
+        parts = [names[e] for e in entities if e in names]
+    else:
+        parts = []
+        for e in entities:
+            entry = next((v for k, v in SERIES.items()
+                          if k.format(a=e.split("/")[2] if e.startswith("/axes/") else "")
+                          == e.lstrip("/")), None)
+            parts += [f"{name} {colour}" for name, colour in (entry[1] if entry else ())]
+    return ": " + ", ".join(parts) if len(parts) > 1 else ""
+
+
+def _series(title: str, entities: Sequence[str], extents: Extents | None, *,
+            names: Mapping[str, str] | None = None) -> rrb.TimeSeriesView:
+    """A plot of ``entities`` titled ``title`` (with its unit) and the colours of its
+    series, on the data's time span and value range."""
+    y = extents.value_range(*entities) if extents is not None else None
+    y_range = tick_range(*y) if y is not None else None
+    return rrb.TimeSeriesView(
+        name=title + _legend(entities, names), origin="/", contents=list(entities),
+        axis_x=_time_axis(extents), plot_legend=_NO_LEGEND,
+        axis_y=rrb.ScalarAxis(range=y_range, zoom_lock=False) if y_range else None)
+
+
+def _errors(axis: str, ext: Extents | None) -> rrb.Container:
     base = f"/axes/{axis}"
     return rrb.Vertical(
-        _series(f"{axis.upper()} following error (µm)", f"{base}/following_error_um"),
-        _series(f"{axis.upper()} regulator terms: p, i, d, FF, DCU (V)", f"{base}/regulator"),
+        _series(f"{axis.upper()} following error (µm)", [f"{base}/following_error_um"], ext),
+        _series(f"{axis.upper()} regulator terms (V)", [f"{base}/regulator"], ext),
     )
 
 
-def _drive(axis: str) -> rrb.Container:
+def _drive(axis: str, ext: Extents | None) -> rrb.Container:
     base = f"/axes/{axis}/drive"
+    a = axis.upper()
     return rrb.Vertical(
-        _series(f"{axis.upper()} DAC and tacho (V)", f"{base}/dac_volts", f"{base}/tacho_volts"),
-        _series(f"{axis.upper()} converter voltage (V)", f"{base}/converter_voltage"),
-        _series(f"{axis.upper()} armature current (A)", f"{base}/armature_current"),
-        _series(f"{axis.upper()} motor speed (rad/s)", f"{base}/motor_speed"),
-        _series(f"{axis.upper()} conduction (share of each drive interval)",
-                f"{base}/conduction"),
-        name=f"{axis.upper()} drive",
+        _series(f"{a} DAC and tacho (V)", [f"{base}/dac_volts", f"{base}/tacho_volts"], ext),
+        _series(f"{a} converter voltage (V)", [f"{base}/converter_voltage"], ext),
+        _series(f"{a} armature current (A)", [f"{base}/armature_current"], ext),
+        _series(f"{a} motor speed (rpm)", [f"{base}/motor_speed"], ext),
+        _series(f"{a} conduction (share of each drive interval)", [f"{base}/conduction"],
+                ext),
+        name=f"{a} drive",
     )
 
 
-def _motion(axis: str) -> rrb.Container:
+def _motion(axis: str, ext: Extents | None) -> rrb.Container:
     base = f"/axes/{axis}"
+    a = axis.upper()
     return rrb.Vertical(
-        _series(f"{axis.upper()} position (m)", f"{base}/position/**"),
-        _series(f"{axis.upper()} velocity (m/s)", f"{base}/velocity/**"),
-        _series(f"{axis.upper()} screw deflection (µm)", f"{base}/screw_deflection_um"),
-        name=f"{axis.upper()} motion",
+        _series(f"{a} position (mm)", [f"{base}/position/reference",
+                                       f"{base}/position/actual"], ext),
+        _series(f"{a} velocity (mm/min)", [f"{base}/velocity/reference",
+                                           f"{base}/velocity/actual"], ext),
+        _series(f"{a} screw deflection (µm)", [f"{base}/screw_deflection_um"], ext),
+        name=f"{a} motion",
     )
 
 
-def path_bounds(points: np.ndarray, margin: float = 0.04) -> tuple[Sequence[float],
-                                                                 Sequence[float]]:
-    """The path view's ranges, (x, y) in the view's coordinates (mm, Y negated as
-    `PATH_TRANSFORM` draws it), holding every point of ``points`` ((n, 2), m) with a
-    ``margin`` (share of the larger extent, at least 1 mm) on each side.
-
-    rerun fits a 2-D view to the data of the first frames it sees; a run's path starts
-    at one point and grows, so the view is told the whole programmed path instead."""
-    pts = np.asarray(points, dtype=np.float64).reshape(-1, 2) * 1e3
-    lo, hi = pts.min(axis=0), pts.max(axis=0)
+def frame_bounds(extents: Extents | None, *patterns: str, margin: float = 0.06
+                 ) -> tuple[np.ndarray, np.ndarray] | None:
+    """The 2-D frame of the points matching ``patterns`` (mm, data coordinates, Y up):
+    (lower left, upper right), a ``margin`` (share of the larger extent, at least 1 mm)
+    on each side; None before any point."""
+    found = extents.point_bounds(*patterns) if extents is not None else None
+    if found is None:
+        return None
+    lo, hi = found
     pad = max(margin * float(np.max(hi - lo)), 1.0)
-    return ((lo[0] - pad, hi[0] + pad), (-hi[1] - pad, -lo[1] + pad))
+    return lo - pad, hi + pad
 
 
-def path_view(points: np.ndarray | None = None) -> rrb.Spatial2DView:
-    """The path in machine orientation (mm, Y up), actual path coloured by contour error;
-    fitted to ``points`` ((n, 2), m: the programmed path) when given."""
-    bounds = None
-    if points is not None and len(points):
-        x_range, y_range = path_bounds(points)
-        bounds = rrb.VisualBounds2D(x_range=x_range, y_range=y_range)
+def _visual_bounds(frame: tuple[np.ndarray, np.ndarray] | None) -> rrb.VisualBounds2D | None:
+    """The view's bounds of a frame: rerun's 2-D view coordinates, Y negated as
+    ``PATH_TRANSFORM`` draws it."""
+    if frame is None:
+        return None
+    lo, hi = frame
+    return rrb.VisualBounds2D(x_range=(float(lo[0]), float(hi[0])),
+                              y_range=(float(-hi[1]), float(-lo[1])))
+
+
+class PathGrid:
+    """The grid and scale bar of a path view framed on (``lo``, ``hi``) (mm, Y up).
+
+    Attributes
+    ----------
+    step : float
+        Grid spacing (mm): 1, 2 or 5 × 10^k.
+    lines : list of ndarray, shape (2, 2)
+        The grid lines, spanning the frame.
+    label_positions : ndarray, shape (n, 2)
+        Where each grid line's coordinate is written: along the lower and the left edge.
+    labels : list of str
+    scale : ndarray, shape (2, 2)
+        The scale bar: one step long, in the lower right corner.
+    scale_label : str
+        Its length, e.g. "20 mm".
+    """
+
+    def __init__(self, lo: np.ndarray, hi: np.ndarray, *, lines_across: int = 8):
+        lo, hi = np.asarray(lo, dtype=float), np.asarray(hi, dtype=float)
+        size = float(np.max(hi - lo))
+        raw = size / lines_across
+        mag = 10.0 ** math.floor(math.log10(raw))
+        self.step = next(m * mag for m in (1.0, 2.0, 5.0, 10.0) if m * mag >= raw)
+        # the view keeps its aspect ratio: the grid reaches a frame's size beyond it
+        far_lo, far_hi = lo - size, hi + size
+        xs, ys = (np.arange(math.ceil(far_lo[k] / self.step),
+                            math.floor(far_hi[k] / self.step) + 1) * self.step
+                  for k in (0, 1))
+        self.lines = ([np.array([[x, far_lo[1]], [x, far_hi[1]]]) for x in xs]
+                      + [np.array([[far_lo[0], y], [far_hi[0], y]]) for y in ys])
+        inset = 0.03 * size
+        xl = xs[(xs >= lo[0]) & (xs <= hi[0])]
+        yl = ys[(ys >= lo[1] + 2 * inset) & (ys <= hi[1])]
+        self.label_positions = np.array([[x, lo[1] + inset] for x in xl]
+                                        + [[lo[0] + inset, y] for y in yl]).reshape(-1, 2)
+        self.labels = [f"{v:g}" for v in (*xl, *yl)]
+        right, bottom = hi[0] - inset, lo[1] + 2.5 * inset
+        self.scale = np.array([[right - self.step, bottom], [right, bottom]])
+        self.scale_label = f"{self.step:g} mm"
+
+
+def path_view(extents: Extents | None = None, *, name: str | None = None,
+              origin: str = "/", contents: Sequence[str] = (f"/{PROGRAMMED}", "/path/actual",
+                                                            "/path/grid/**"),
+              frame: Sequence[str] = (PROGRAMMED, "path/actual")) -> rrb.Spatial2DView:
+    """The path in machine orientation (mm, Y up) on its grid, framed on the points of
+    ``frame`` (the whole programmed and actual path). ``origin`` must lie above the
+    entity that carries ``PATH_TRANSFORM`` (a view's origin frame is its own, untransformed)."""
     return rrb.Spatial2DView(
-        name="Path (mm, Y up): programmed grey; actual green → yellow at the contour "
-             "tolerance → red at twice it",
-        origin="/", contents=[f"/{PROGRAMMED}", "/path/actual"], time_ranges=_WHOLE_RUN,
-        visual_bounds=bounds)
+        name=name or "Path (mm, Y up; grid and scale bar in mm): programmed grey; actual "
+                     "green → yellow at the contour tolerance → red at twice it",
+        origin=origin, contents=list(contents), time_ranges=_WHOLE_RUN,
+        visual_bounds=_visual_bounds(frame_bounds(extents, *frame)))
 
 
-def default_blueprint(path: np.ndarray | None = None) -> rrb.Blueprint:
+def default_blueprint(extents: Extents | None = None) -> rrb.Blueprint:
     """The "Run" tab (path, contour error, feed, following errors with the regulator's
-    terms, events), then the drive and motion tabs per axis. ``path`` ((n, 2), m), the
-    programmed path, fits the path view to it."""
+    terms, events), then the drive and motion tabs per axis, framed on ``extents``."""
+    ext = extents
     run = rrb.Vertical(
         rrb.Horizontal(
-            path_view(path),
+            path_view(ext),
             rrb.Vertical(
-                _series("Contour error (µm)", "/errors/contour_um"),
-                _series("Feed (mm/min): programmed F, commanded, actual", "/feed/**"),
+                _series("Contour error (µm)", ["/errors/contour_um"], ext),
+                _series("Feed (mm/min)", ["/feed/programmed", "/feed/commanded",
+                                          "/feed/actual"], ext),
                 rrb.TextLogView(name="Events", origin="/events"),
                 row_shares=[2, 2, 1],
             ),
             column_shares=[3, 2],
         ),
-        rrb.Horizontal(_errors("x"), _errors("y")),
+        rrb.Horizontal(_errors("x", ext), _errors("y", ext)),
         row_shares=[3, 2],
         name="Run",
     )
     return rrb.Blueprint(
-        rrb.Tabs(run, _drive("x"), _drive("y"), _motion("x"), _motion("y"), active_tab=0),
+        rrb.Tabs(run, *(_drive(a, ext) for a in AXES), *(_motion(a, ext) for a in AXES),
+                 active_tab=0),
         collapse_panels=True,
     )
 
 
-def overlay_blueprint(laws: Sequence[str]) -> rrb.Blueprint:
-    """A rerun blueprint that overlays the laws: the paths, the contour error, the contour
-    speed of each axis and the screw deflection, one entity subtree per law."""
-    def series(entity: str) -> list[str]:
-        return [f"/laws/{law}/{entity}" for law in laws]
+def overlay_blueprint(laws: Mapping[str, str], extents: Extents | None = None
+                      ) -> rrb.Blueprint:
+    """A layout that overlays the laws (``{law: its colour's name}``): the paths, the
+    contour error, the velocity and the screw deflection of each axis, one entity subtree
+    per law (``laws/<law>/...``), framed on ``extents``."""
+    def plot(title: str, entity: str) -> rrb.TimeSeriesView:
+        entities = [f"/laws/{law}/{entity}" for law in laws]
+        names = {e: f"{law} {colour}" for e, (law, colour)
+                 in zip(entities, laws.items(), strict=True)}
+        return _series(title, entities, extents, names=names)
 
+    programmed = ", ".join(f"{law} {colour}" for law, colour in laws.items())
     return rrb.Blueprint(
         rrb.Horizontal(
-            rrb.Spatial2DView(name="Paths (mm, Y up)", origin="/laws"),
             rrb.Vertical(
-                rrb.TimeSeriesView(name="Contour error (µm)",
-                                   contents=series("errors/contour_um")),
-                rrb.TimeSeriesView(name="X velocity (m/s)",
-                                   contents=series("axes/x/velocity/actual")),
-                rrb.TimeSeriesView(name="Y velocity (m/s)",
-                                   contents=series("axes/y/velocity/actual")),
-                rrb.TimeSeriesView(name="Screw deflection (µm)",
-                                   contents=series("axes/x/screw_deflection_um")
-                                   + series("axes/y/screw_deflection_um")),
+                path_view(extents, name=f"Paths (mm, Y up; grid and scale bar in mm): "
+                                        f"programmed grey; {programmed}",
+                          origin="/", contents=["/laws/**"], frame=("laws/**",)),
                 rrb.TextLogView(name="Events", origin="/events"),
+                row_shares=[4, 1],
+            ),
+            rrb.Vertical(
+                plot("Contour error (µm)", "errors/contour_um"),
+                *(plot(f"{a.upper()} velocity (mm/min)", f"axes/{a}/velocity/actual")
+                  for a in AXES),
+                *(plot(f"{a.upper()} screw deflection (µm)", f"axes/{a}/screw_deflection_um")
+                  for a in AXES),
             ),
             column_shares=[2, 3],
+        ),
+        collapse_panels=True,
+    )
+
+
+def experiment_blueprint(axis: str, extents: Extents | None = None) -> rrb.Blueprint:
+    """The layout of a step or ramp experiment on ``axis`` (``twin experiment``): position
+    (closed loop) and velocity above the DAC volts, the armature current and the screw
+    deflection, framed on ``extents``."""
+    base, a = f"/axes/{axis}", axis.upper()
+    return rrb.Blueprint(
+        rrb.Vertical(
+            _series(f"{a} position from the start (mm)", [f"{base}/position/reference",
+                                                          f"{base}/position/actual"],
+                    extents),
+            _series(f"{a} velocity (mm/min)", [f"{base}/velocity/actual"], extents),
+            _series(f"{a} DAC (V)", [f"{base}/drive/dac_volts"], extents),
+            _series(f"{a} armature current (A)", [f"{base}/drive/armature_current"], extents),
+            _series(f"{a} screw deflection (µm)", [f"{base}/screw_deflection_um"], extents),
+            name=f"{a} response",
         ),
         collapse_panels=True,
     )

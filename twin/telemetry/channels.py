@@ -1,4 +1,4 @@
-"""What a run sends to a telemetry sink, and under which entity paths.
+"""What a run sends to a telemetry sink, under which entity paths, in which units.
 
 ``TelemetryWriter`` turns the controller's record, the twin's truth record and the twin's
 drive-rate samples into batches of columns (one ``send_columns`` per entity per batch): per
@@ -9,6 +9,11 @@ ringing lie above the controller's Nyquist rate); the contour error; the program
 actual paths; events (block starts, status changes: trips, limit switches). The live
 contour error is measured against the path densified to chords within 1 nm
 (``PathDistance``); the run summary's is exact.
+
+A recording holds the units an engineer reads (``SERIES`` names each entity's): positions
+and paths in mm, velocities and feeds in mm/min, errors and the screw deflection in µm,
+volts, amperes and the motor speed in rpm. This is the edge where SI becomes them
+(``to_shown``); nothing else converts.
 """
 
 from __future__ import annotations
@@ -21,16 +26,74 @@ import numpy as np
 
 from twin.config import AXES
 from twin.controller.record import Record
-from twin.controller.regulator import TERMS
 from twin.telemetry.sink import PROGRAMMED, Sink
-from twin.units import MM_PER_MIN
+from twin.units import MM, MM_PER_MIN, RPM, UM
 
-__all__ = ["FEED_STYLE", "PathDistance", "TelemetryWriter", "error_colors",
-           "programmed_polyline"]
+__all__ = ["COLOURS", "SERIES", "PathDistance", "TelemetryWriter", "error_colors",
+           "programmed_polyline", "series_for", "style_series", "to_shown"]
 
-FEED_STYLE = {"programmed": (120, 120, 120), "commanded": (40, 120, 220),
-              "actual": (230, 80, 30)}
-"""The feed view's series (``feed/<name>``, mm/min) and their colours."""
+COLOURS = {"grey": (120, 120, 120), "orange": (245, 125, 20), "blue": (40, 120, 220),
+           "green": (40, 160, 60), "purple": (148, 103, 189), "brown": (140, 86, 75),
+           "red": (214, 39, 40), "teal": (23, 160, 170)}
+"""The colours of the recorded series, by the name the layout's titles use for them."""
+
+SERIES: dict[str, tuple[str, tuple[tuple[str, str], ...]]] = {
+    "axes/{a}/position/reference": ("mm", (("reference", "grey"),)),
+    "axes/{a}/position/actual": ("mm", (("actual", "orange"),)),
+    "axes/{a}/velocity/reference": ("mm/min", (("reference", "grey"),)),
+    "axes/{a}/velocity/actual": ("mm/min", (("actual", "orange"),)),
+    "axes/{a}/following_error_um": ("µm", (("following error", "orange"),)),
+    "axes/{a}/regulator": ("V", tuple(zip(("p", "i", "d", "FF", "DCU"),
+                                          ("blue", "green", "brown", "orange", "purple"),
+                                          strict=True))),
+    "axes/{a}/drive/dac_volts": ("V", (("DAC", "blue"),)),
+    "axes/{a}/drive/tacho_volts": ("V", (("tacho", "orange"),)),
+    "axes/{a}/drive/converter_voltage": ("V", (("converter voltage", "purple"),)),
+    "axes/{a}/drive/armature_current": ("A", (("armature current", "red"),)),
+    "axes/{a}/drive/motor_speed": ("rpm", (("motor speed", "blue"),)),
+    "axes/{a}/drive/conduction": ("1", (("conduction", "green"),)),
+    "axes/{a}/screw_deflection_um": ("µm", (("screw deflection", "brown"),)),
+    "errors/contour_um": ("µm", (("contour error", "red"),)),
+    "feed/programmed": ("mm/min", (("programmed F", "grey"),)),
+    "feed/commanded": ("mm/min", (("commanded", "blue"),)),
+    "feed/actual": ("mm/min", (("actual", "orange"),)),
+}
+"""Every scalar entity a run records (``{a}``: the axis): its unit, and the name and colour
+of each of its series (the regulator carries one series per term, in
+``twin.controller.regulator.TERMS`` order)."""
+
+_SHOWN = {"mm": 1.0 / MM, "mm/min": 1.0 / MM_PER_MIN, "µm": 1.0 / UM, "rpm": 1.0 / RPM,
+          "V": 1.0, "A": 1.0, "1": 1.0}
+
+
+def series_for(entity: str) -> tuple[str, tuple[tuple[str, str], ...]] | None:
+    """``SERIES``' entry of a concrete entity (``axes/x/position/actual``), or None."""
+    for pattern, entry in SERIES.items():
+        if any(pattern.format(a=ax) == entity for ax in AXES):
+            return entry
+    return None
+
+
+def style_series(sink: Sink, entities: Sequence[str]) -> None:
+    """Name and colour the series of ``entities`` (``SERIES``) in the sink's legend, when the
+    sink has one (``style``): ``x position actual``, orange."""
+    style = getattr(sink, "style", None)
+    if style is None:
+        return
+    for entity in entities:
+        entry = series_for(entity)
+        if entry is None:
+            continue
+        parts = entity.split("/")
+        axis = f"{parts[1]} " if parts[0] == "axes" else ""
+        style(entity, name=[axis + name for name, _ in entry[1]],
+              color=[COLOURS[colour] for _, colour in entry[1]])
+
+
+def to_shown(unit: str, values: np.ndarray) -> np.ndarray:
+    """SI values (m, m/s, rad/s, V, A, 1) in the recorded ``unit`` (a ``SERIES`` unit)."""
+    return np.asarray(values, dtype=np.float64) * _SHOWN[unit]
+
 
 _GREEN, _YELLOW, _RED = (np.array(c, dtype=np.float64) for c in
                          ((40, 180, 60), (240, 200, 30), (220, 40, 40)))
@@ -167,6 +230,8 @@ class TelemetryWriter:
         """float: wall time spent in telemetry (s)."""
         self._sent = 0
         self._block = -1
+        self.block = -1
+        """int: the block of the last row sent (-1 before any)."""
         self._status = -1
         self._fine: list[np.ndarray] = []
         self._col: dict[str, int] = {}
@@ -176,26 +241,30 @@ class TelemetryWriter:
             col += width
         t0 = time.perf_counter()
         if self.path:
-            sink.static_path(PROGRAMMED, programmed_polyline(self.path))
+            sink.static_path(PROGRAMMED, to_shown("mm", programmed_polyline(self.path)))
             self._distance = PathDistance(self.path)
-        style = getattr(sink, "style", None)
-        if style is not None:
-            # styles only for series that will carry data: the actual velocity and feed
-            # come from the twin's truth, the programmed feed from the program's lines
-            truth = truth_record is not None
-            for ax in AXES:
-                for q in ("position", "velocity"):
-                    style(f"axes/{ax}/{q}/reference", name=f"{ax} {q} reference",
-                          color=(120, 120, 120))
-                    if q == "position" or truth:
-                        style(f"axes/{ax}/{q}/actual", name=f"{ax} {q} actual",
-                              color=(230, 80, 30))
-                style(f"axes/{ax}/regulator", name=[f"{ax} {t}" for t in TERMS])
-                style(f"axes/{ax}/following_error_um", name=f"{ax} following error",
-                      color=(230, 80, 30))
-            for name, color in FEED_STYLE.items():
-                if (name != "actual" or truth) and (name != "programmed" or self.feeds):
-                    style(f"feed/{name}", name=f"{name} feed", color=color)
+        # styles only for series that will carry data: the actual velocity, the motor
+        # speed and the actual feed come from the twin's truth, the drive-rate channels
+        # from its samples, the programmed feed from the program's lines
+        truth = truth_record is not None
+        sent = ["feed/commanded", *(["feed/actual"] if truth else []),
+                *(["feed/programmed"] if self.feeds else []),
+                *(["errors/contour_um"] if self.path else [])]
+        for ax in AXES:
+            base = f"axes/{ax}"
+            sent += [f"{base}/{q}" for q in ("position/reference", "position/actual",
+                                             "velocity/reference", "following_error_um",
+                                             "regulator", "drive/dac_volts",
+                                             "drive/tacho_volts")]
+            if truth:
+                sent.append(f"{base}/velocity/actual")
+                if self.motor_ratio is not None:
+                    sent.append(f"{base}/drive/motor_speed")
+            if self._col:
+                sent += [f"{base}/{q}" for q in ("drive/armature_current",
+                                                 "drive/converter_voltage",
+                                                 "drive/conduction", "screw_deflection_um")]
+        style_series(sink, sent)
         self.wall += time.perf_counter() - t0
 
     def add_fine(self, rows: np.ndarray) -> None:
@@ -215,7 +284,8 @@ class TelemetryWriter:
             cols[f"{base}/drive/armature_current"] = rows[:, c["armature_current"] + k]
             cols[f"{base}/drive/converter_voltage"] = rows[:, c["converter_voltage"] + k]
             cols[f"{base}/drive/conduction"] = rows[:, c["conduction"] + k]
-            cols[f"{base}/screw_deflection_um"] = rows[:, c["screw_deflection"] + k] * 1e6
+            cols[f"{base}/screw_deflection_um"] = to_shown("µm",
+                                                          rows[:, c["screw_deflection"] + k])
         self.sink.scalars(rows[:, c["t"]], cols)
 
     def flush(self, record: Record, *, status_names: Mapping[int, str] | None = None
@@ -236,26 +306,27 @@ class TelemetryWriter:
         cols: dict[str, np.ndarray] = {}
         for k, ax in enumerate(AXES):
             base = f"axes/{ax}"
-            cols[f"{base}/position/reference"] = c["ref_position"][:, k]
-            cols[f"{base}/position/actual"] = c["position"][:, k]
-            cols[f"{base}/velocity/reference"] = c["ref_velocity"][:, k]
-            cols[f"{base}/following_error_um"] = c["following_error"][:, k] * 1e6
+            cols[f"{base}/position/reference"] = to_shown("mm", c["ref_position"][:, k])
+            cols[f"{base}/position/actual"] = to_shown("mm", c["position"][:, k])
+            cols[f"{base}/velocity/reference"] = to_shown("mm/min", c["ref_velocity"][:, k])
+            cols[f"{base}/following_error_um"] = to_shown("µm", c["following_error"][:, k])
             cols[f"{base}/drive/dac_volts"] = c["dac_volts"][:, k]
             cols[f"{base}/drive/tacho_volts"] = c["tacho_volts"][:, k]
             cols[f"{base}/regulator"] = c["terms"][:, k, :]   # one series per term
             if tr:
-                cols[f"{base}/velocity/actual"] = tr["table_velocity"][:, k]
+                cols[f"{base}/velocity/actual"] = to_shown("mm/min", tr["table_velocity"][:, k])
                 if self.motor_ratio is not None:
-                    cols[f"{base}/drive/motor_speed"] = (tr["table_velocity"][:, k]
-                                                         / self.motor_ratio[k])
+                    cols[f"{base}/drive/motor_speed"] = to_shown(
+                        "rpm", tr["table_velocity"][:, k] / self.motor_ratio[k])
         cols.update(self._feed_columns(c, tr))
         colors = None
         if self.path:
             contour = self._distance(c["position"])
-            cols["errors/contour_um"] = contour * 1e6
+            cols["errors/contour_um"] = to_shown("µm", contour)
             colors = error_colors(contour / self.contour_tolerance)
         self.sink.scalars(t, cols)
-        self.sink.points(t, {"path/actual": c["position"], "path/reference": c["ref_position"]},
+        self.sink.points(t, {"path/actual": to_shown("mm", c["position"]),
+                             "path/reference": to_shown("mm", c["ref_position"])},
                          colors={"path/actual": colors} if colors is not None else None)
         self._events(t, c, status_names or {})
         self._sent = n
@@ -266,9 +337,9 @@ class TelemetryWriter:
                       ) -> dict[str, np.ndarray]:
         """Feed (mm/min): programmed F of the tick's source line (NaN for a rapid or no
         motion), commanded |v_ref| and, on the twin, the table's actual |v|."""
-        cols = {"feed/commanded": np.hypot(*c["ref_velocity"].T) / MM_PER_MIN}
+        cols = {"feed/commanded": to_shown("mm/min", np.hypot(*c["ref_velocity"].T))}
         if tr:
-            cols["feed/actual"] = np.hypot(*tr["table_velocity"].T) / MM_PER_MIN
+            cols["feed/actual"] = to_shown("mm/min", np.hypot(*tr["table_velocity"].T))
         if self.feeds:
             lines = c["line"].ravel()
             programmed = np.full(len(lines), np.nan)
@@ -287,7 +358,7 @@ class TelemetryWriter:
             if block[i] >= 0:
                 where = f" (line {line[i]})" if line[i] > 0 else ""
                 self.sink.event(float(t[i]), f"block {block[i]}{where} starts")
-        self._block = int(block[-1])
+        self._block = self.block = int(block[-1])
         prev_s = np.concatenate(([self._status], status[:-1]))
         for i in np.flatnonzero(status != prev_s):
             name = names.get(int(status[i]), str(int(status[i])))

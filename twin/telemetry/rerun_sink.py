@@ -19,7 +19,8 @@ import rerun as rr
 import rerun.blueprint as rrb
 
 from twin.system.jsonio import partial_path
-from twin.telemetry.blueprint import PATH_TRANSFORM, default_blueprint
+from twin.telemetry.blueprint import PATH_TRANSFORM, PathGrid, default_blueprint, frame_bounds
+from twin.telemetry.extent import Extents
 from twin.telemetry.sink import PROGRAMMED
 from twin.telemetry.viewer import ViewerUnavailable, start_rerun
 
@@ -37,6 +38,9 @@ FLUSH_WALL = 1.0
 POINT_RADIUS = -1.5
 """Radius of the path's points: 1.5 UI points (negative: screen, not scene, units), so the
 path stays visible at any zoom."""
+
+GRID_COLOUR = (215, 215, 215)
+"""The path view's grid lines: light grey, under the paths."""
 
 LIVE_FLUSH_TIMEOUT = 5.0
 """Seconds a live viewer may take to accept what was sent before it counts as gone."""
@@ -67,9 +71,11 @@ class RerunSink:
         can share one file and are overlaid by the viewer.
     recording_name : str, optional
         Human-readable name shown in the viewer.
-    blueprint : bool or rerun.blueprint.Blueprint
-        True: the default layout (path view + error plots); a Blueprint: that layout;
-        False: none.
+    blueprint : bool or rerun.blueprint.Blueprint or callable
+        True: the default layout (``default_blueprint``); a callable ``(Extents) ->
+        Blueprint``: that layout; either is sent at the start, when the programmed path
+        is known and, framed on everything recorded (``extents``), when the recording
+        is finished. A Blueprint: that layout, as it is; False: none.
     notice : callable(str), optional
         Told, in one line, when the live view is given up (no display, the viewer exited);
         default: printed on stderr. The notices are kept in ``notices`` as well.
@@ -96,7 +102,12 @@ class RerunSink:
                 self._live = rr.RecordingStream(APPLICATION_ID, recording_id=recording_id)
                 self._live.set_sinks(rr.GrpcSink(self.url))
         self._closed = self._finished = False
-        self._layout = blueprint is True
+        self.extents = Extents()
+        """Ranges of everything sent (values, point bounds, time span)."""
+        self._layout = default_blueprint if blueprint is True else (
+            blueprint if callable(blueprint) and not isinstance(blueprint, rrb.Blueprint)
+            else None)
+        self._frame: str | None = None
         try:
             if self._partial is not None:
                 self._partial.parent.mkdir(parents=True, exist_ok=True)
@@ -105,11 +116,11 @@ class RerunSink:
             for rec in self._streams():
                 if recording_name:
                     rec.send_recording_name(recording_name)
-                if blueprint is True:
-                    rec.send_blueprint(default_blueprint())
+                if self._layout is not None:
+                    rec.send_blueprint(self._layout(None))
                 elif blueprint:
                     rec.send_blueprint(blueprint)
-            if self._layout:
+            if blueprint is True:
                 self.machine_frame("path")
         except BaseException:   # a Ctrl-C while the file is begun leaves no .partial
             self.discard()
@@ -154,26 +165,50 @@ class RerunSink:
 
     # -- Sink protocol ------------------------------------------------------------------
     def machine_frame(self, entity: str) -> None:
-        """Draw the 2-D data under ``entity`` in machine orientation: millimetres, Y up
-        (`PATH_TRANSFORM`; the data stay in metres)."""
+        """Draw the 2-D data (mm) under ``entity`` in machine orientation, Y up
+        (`PATH_TRANSFORM`), on a grid with a scale bar (``entity/grid``, drawn once the
+        first path is known and again, fitted to everything, at the end)."""
+        self._frame = entity
         for rec in self._streams():
             rec.log(entity, PATH_TRANSFORM, static=True)
 
     def static_path(self, entity: str, points: np.ndarray, *,
                     color: tuple[int, int, int] = (160, 160, 160)) -> None:
-        """Log a polyline (m) that does not change with time. The programmed path
-        (``path/programmed``) also fits the default layout's path view to itself."""
+        """Log a polyline (mm) that does not change with time. The programmed path
+        (``.../path/programmed``) also frames the layout's path view and grid on itself."""
         pts = np.asarray(points, dtype=np.float64).reshape(-1, 2)
+        self.extents.add_points(entity, pts)
         for rec in self._streams():
             rec.log(entity, rr.LineStrips2D([pts], colors=[color]), static=True)
-            if self._layout and entity == PROGRAMMED and len(pts):
-                rec.send_blueprint(default_blueprint(pts))
+        if entity.endswith(PROGRAMMED) and len(pts):
+            self._send_layout()
+
+    def _send_layout(self) -> None:
+        """Draw the path grid fitted to the points recorded so far, and send the layout
+        framed on everything recorded so far."""
+        frame = frame_bounds(self.extents, f"{self._frame}/**") if self._frame else None
+        for rec in self._streams():
+            if frame is not None:
+                g = PathGrid(*frame)
+                base = f"{self._frame}/grid"
+                rec.log(f"{base}/lines", rr.LineStrips2D(g.lines, colors=[GRID_COLOUR],
+                                                         radii=[-0.5], draw_order=0.0),
+                        static=True)
+                rec.log(f"{base}/labels", rr.Points2D(
+                    g.label_positions, labels=g.labels, show_labels=True, radii=[-0.5],
+                    colors=[(90, 90, 90)], draw_order=0.5), static=True)
+                rec.log(f"{base}/scale", rr.LineStrips2D(
+                    [g.scale], labels=[g.scale_label], show_labels=True, radii=[-1.5],
+                    colors=[(60, 60, 60)], draw_order=0.5), static=True)
+            if self._layout is not None:
+                rec.send_blueprint(self._layout(self.extents))
 
     def scalars(self, t: np.ndarray, columns: Mapping[str, np.ndarray]) -> None:
         """Send scalar columns (float64, exact) for samples at times ``t`` (s); a value
         array of shape (n, k) sends k series on one entity."""
         if self.failed is not None:
             return
+        self.extents.add_scalars(t, columns)
         if self._gather:
             self._hold("scalars", t, columns)
             return
@@ -253,10 +288,13 @@ class RerunSink:
 
     def points(self, t: np.ndarray, columns: Mapping[str, np.ndarray], *,
                colors: Mapping[str, np.ndarray] | None = None) -> None:
-        """Send one 2-D point per sample (m) for each entity; ``colors``: RGB per point
+        """Send one 2-D point per sample (mm) for each entity; ``colors``: RGB per point
         (uint8, (n, 3)) for some of them."""
         if self.failed is not None:
             return
+        self.extents.add_time(t)
+        for entity, values in columns.items():
+            self.extents.add_points(entity, values)
         if self._gather:
             self._hold("points", t, columns, colors)
             return
@@ -271,12 +309,13 @@ class RerunSink:
             rec.log("events", rr.TextLog(text, level=_LEVELS.get(level.upper(), "INFO")))
 
     def style(self, entity: str, *, name: str | list[str],
-              color: tuple[int, int, int] | None = None) -> None:
-        """Name (and colour) the scalar series of an entity in the viewer's legend (a list of
-        names for an entity that carries several series)."""
-        kwargs = {"names": [name] if isinstance(name, str) else list(name)}
+              color: tuple[int, int, int] | list[tuple[int, int, int]] | None = None
+              ) -> None:
+        """Name (and colour) the scalar series of an entity in the viewer (a list of names,
+        and of colours, for an entity that carries several series)."""
+        kwargs: dict = {"names": [name] if isinstance(name, str) else list(name)}
         if color is not None:
-            kwargs["colors"] = [color]
+            kwargs["colors"] = [color] if isinstance(color, tuple) else list(color)
         for rec in self._streams():
             rec.log(entity, rr.SeriesLines(**kwargs), static=True)
 
@@ -293,6 +332,8 @@ class RerunSink:
         self._finished = True
         if self.failed is None:
             self._send_held()
+            with contextlib.suppress(RuntimeError, OSError):   # a failing writer: _flush says
+                self._send_layout()
             self._flush()
         for rec in self._streams():
             with contextlib.suppress(RuntimeError, OSError):

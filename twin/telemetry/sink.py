@@ -14,19 +14,21 @@ import numpy as np
 __all__ = ["PROGRAMMED", "NullSink", "Sink"]
 
 PROGRAMMED = "path/programmed"
-"""The entity of the programmed path: a static polyline (m), logged by `Sink.static_path`."""
+"""The entity of the programmed path: a static polyline (mm), logged by `Sink.static_path`."""
 
 
 @runtime_checkable
 class Sink(Protocol):
     """Where a run's signals go.
 
-    Every method takes SI values; ``t`` is simulated time (s), shape (n,), increasing.
+    ``t`` is simulated time (s), shape (n,), increasing; values come in the units the
+    recording shows them in (``twin.telemetry.channels.SERIES``: mm, mm/min, µm, V, A, rpm),
+    2-D points in mm.
     """
 
     def static_path(self, entity: str, points: np.ndarray, *,
                     color: tuple[int, int, int] = (160, 160, 160)) -> None:
-        """A time-independent polyline, e.g. the programmed path; points (n, 2) (m)."""
+        """A time-independent polyline, e.g. the programmed path; points (n, 2) (mm)."""
         ...
 
     def scalars(self, t: np.ndarray, columns: Mapping[str, np.ndarray]) -> None:
@@ -35,7 +37,7 @@ class Sink(Protocol):
 
     def points(self, t: np.ndarray, columns: Mapping[str, np.ndarray], *,
                colors: Mapping[str, np.ndarray] | None = None) -> None:
-        """One 2-D point per sample: each value array has shape (n, 2) (m); ``colors``
+        """One 2-D point per sample: each value array has shape (n, 2) (mm); ``colors``
         optionally gives some entities one RGB colour (uint8, (n, 3)) per point."""
         ...
 

@@ -22,8 +22,8 @@ from urllib.parse import quote
 from twin.errors import ViewerError
 from twin.system.processes import stop_process
 
-__all__ = ["ViewerUnavailable", "has_display", "listening", "open_recording", "running_rerun",
-           "start_rerun", "stop_rerun", "web_viewer_url"]
+__all__ = ["ViewerUnavailable", "has_display", "listening", "open_recording", "rerun_command",
+           "running_rerun", "start_rerun", "stop_rerun", "web_viewer_url"]
 
 _PROCESSES: list[subprocess.Popen] = []
 
@@ -48,8 +48,14 @@ def listening(host: str, port: int) -> bool:
         return False
 
 
+def rerun_command() -> str:
+    """The ``rerun`` command as a user can type it: ``rerun`` when it is on the PATH, else
+    the full path of the one beside this Python (a venv not activated)."""
+    return "rerun" if shutil.which("rerun") else str(Path(sys.executable).with_name("rerun"))
+
+
 def _rerun_exe() -> str:
-    """The ``rerun`` command: on the PATH, or beside this Python (a venv not activated)."""
+    """The ``rerun`` executable: on the PATH, or beside this Python (a venv not activated)."""
     return shutil.which("rerun") or str(Path(sys.executable).with_name("rerun"))
 
 

@@ -15,9 +15,12 @@ every contour and rapids between contours:
   check);
 * ``chords`` — one long free-form curve as a given number of chords (the throughput check).
 
-And what the bench and the tests measure on their plans: ``middle_speed`` (the planned
-speed halfway along the feed moves) and ``sampled_acceleration`` (the reference's
-acceleration as the axes receive it, period by period).
+And what the bench and the tests measure on their plans: ``planned_time`` (the cycle time
+of a plan), ``middle_speed`` (the planned speed halfway along the feed moves),
+``sampled_reference`` (the position reference period by period), ``sampled_extremes`` and
+``sampled_acceleration`` (the acceleration and jerk of that reference as the axes receive
+it). The random program classes of issue 30 are in
+`twin.analysis.studies.cam_classes`.
 
 Coordinates are written with ``decimals`` places (3 by default, as CAM posts round them); a
 chord shorter than that resolution is not representable, so ``circle`` takes more.
@@ -35,13 +38,14 @@ from twin.analysis.studies.nest import chord_length, nest
 from twin.controller.blocks import PlannedBlock
 from twin.controller.interpolator import Interpolator, InterpolatorStatus
 
-__all__ = ["chorded_nest", "chords", "circle", "lettering", "middle_speed", "pocket",
-           "sampled_acceleration"]
+__all__ = ["Writer", "chorded_nest", "chords", "circle", "glyph_contours", "lettering",
+           "middle_speed", "nearest_first", "planned_time", "pocket", "sampled_acceleration",
+           "sampled_extremes", "sampled_reference"]
 
 _HEADER = "G21 G90 G17 G94"
 
 
-class _Writer:
+class Writer:
     """G-code text of contours: rapids between them, M3/M5 around each."""
 
     def __init__(self, feed: float, decimals: int, title: str):
@@ -91,7 +95,7 @@ def _quad(p0: Sequence[float], p1: Sequence[float], p2: Sequence[float],
     return out
 
 
-def _glyph_contours(text: str, height: float, chord: float
+def glyph_contours(text: str, height: float, chord: float
                     ) -> list[list[tuple[float, float]]]:
     """The closed outlines of ``text`` (cap height about ``height`` mm) as chord polylines."""
     from matplotlib.font_manager import FontProperties
@@ -138,15 +142,15 @@ def lettering(text: str = "XY-twin 2026", *, height: float = 40.0, chord: float 
               decimals: int = 3) -> str:
     """Engrave the outlines of ``text``: capitals ``height`` mm tall, curves as chords
     within ``chord`` mm, at ``feed`` mm/min; contours cut nearest first."""
-    w = _Writer(feed, decimals, f"xy-twin lettering: {text!r}, {height:g} mm, chord {chord:g}")
+    w = Writer(feed, decimals, f"xy-twin lettering: {text!r}, {height:g} mm, chord {chord:g}")
     contours = [[(origin[0] + x, origin[1] + y) for x, y in c]
-                for c in _glyph_contours(text, height, chord)]
-    for c in _nearest_first(contours, origin):
+                for c in glyph_contours(text, height, chord)]
+    for c in nearest_first(contours, origin):
         w.contour(c)
     return w.text((origin[0] - 40.0, origin[1] - 40.0))
 
 
-def _nearest_first(contours: list[list[tuple[float, float]]], here: tuple[float, float]
+def nearest_first(contours: list[list[tuple[float, float]]], here: tuple[float, float]
                    ) -> Iterable[list[tuple[float, float]]]:
     todo = list(contours)
     while todo:
@@ -163,7 +167,7 @@ def pocket(width: float = 120.0, height: float = 80.0, *, tool: float = 6.0,
     """Clear a ``width`` × ``height`` mm pocket with a ``tool`` mm cutter: a zig-zag raster
     along x at ``stepover`` × the tool diameter, then one finishing pass around the wall
     with corners of radius ``corner`` mm, as chords within ``chord`` mm."""
-    w = _Writer(feed, decimals, f"xy-twin pocket {width:g} x {height:g} mm, tool {tool:g}")
+    w = Writer(feed, decimals, f"xy-twin pocket {width:g} x {height:g} mm, tool {tool:g}")
     r = tool / 2.0
     x0, y0 = origin[0] + r, origin[1] + r
     x1, y1 = origin[0] + width - r, origin[1] + height - r
@@ -194,7 +198,7 @@ def circle(radius: float, *, chord: float | None = None, center: tuple[float, fl
            200.0, 200.0), feed: float = 3000.0, decimals: int = 9) -> str:
     """One full counter-clockwise circle of ``radius`` mm: a G3 arc (``chord`` None), or
     chords of at most ``chord`` mm."""
-    w = _Writer(feed, decimals, f"xy-twin circle r {radius:g} mm, "
+    w = Writer(feed, decimals, f"xy-twin circle r {radius:g} mm, "
                                 f"{'G3' if chord is None else f'chords {chord:g} mm'}")
     cx, cy = center
     start = (cx + radius, cy)
@@ -215,7 +219,7 @@ def chords(blocks: int, *, chord: float = 0.005, center: tuple[float, float] = (
     of curvature, so the chords run from tenths of a millimetre in the tight bends to a few
     millimetres on the flanks; the curve is followed round again until the count is reached.
     """
-    w = _Writer(feed, decimals, f"xy-twin chords: {blocks} along a Lissajous curve")
+    w = Writer(feed, decimals, f"xy-twin chords: {blocks} along a Lissajous curve")
     half = 0.5 * size
 
     def point(t: float) -> tuple[float, float]:
@@ -237,6 +241,26 @@ def chords(blocks: int, *, chord: float = 0.005, center: tuple[float, float] = (
     return w.text((10.0, 10.0))
 
 
+def planned_time(items: Iterable[Any], feed_only: bool = False) -> float:
+    """A plan's cycle time (s): its blocks' profile durations (a run's one move counted
+    once) and its dwells; ``feed_only``: the feed moves alone."""
+    total = 0.0
+    run = None                       # the run being counted: its members are consecutive
+    for it in items:
+        if isinstance(it, PlannedBlock):
+            if feed_only and it.rapid:
+                continue
+            piece = it.piece
+            if piece is None:
+                total += it.profile().duration
+            elif piece[0] is not run:
+                run = piece[0]
+                total += run.duration
+        elif hasattr(it, "duration") and not feed_only:
+            total += it.duration
+    return total
+
+
 def middle_speed(items: Iterable[Any]) -> float:
     """The highest planned path speed (m/s) on the block halfway along the feed moves of a
     plan (the cruise of a circle program, say)."""
@@ -251,14 +275,29 @@ def middle_speed(items: Iterable[Any]) -> float:
     raise ValueError("the plan has no feed move")
 
 
-def sampled_acceleration(items: Iterable[Any], period: float) -> np.ndarray:
-    """Largest |Δ²p|/T² per axis (m/s², shape (2,)) of a plan's position reference sampled
-    every ``period`` by the interpolator: a velocity step at a node counts as Δv/T, as the
-    axes receive it."""
+def sampled_reference(items: Iterable[Any], period: float) -> np.ndarray:
+    """A plan's position reference (m, shape (n, 2)) as the interpolator samples it every
+    ``period``, from the start point to the end point at rest."""
     interp = Interpolator([i for i in items if isinstance(i, PlannedBlock)
                            or hasattr(i, "duration")], period=period)
     pos = [interp.reference.position.copy()]
     while interp.update() < InterpolatorStatus.FINISHED:
         pos.append(interp.reference.position.copy())
     pos.append(interp.reference.position.copy())
-    return np.abs(np.diff(np.array(pos), 2, axis=0)).max(axis=0) / period**2
+    return np.array(pos)
+
+
+def sampled_acceleration(items: Iterable[Any], period: float) -> np.ndarray:
+    """Largest |Δ²p|/T² per axis (m/s², shape (2,)) of a plan's position reference sampled
+    every ``period`` by the interpolator: a velocity step at a node counts as Δv/T, as the
+    axes receive it."""
+    return sampled_extremes(sampled_reference(items, period), period)[0]
+
+
+def sampled_extremes(pos: np.ndarray, period: float) -> tuple[np.ndarray, np.ndarray]:
+    """Largest |Δ²p|/T² (m/s²) and |Δ³p|/T³ (m/s³) per axis (each shape (2,)) of a sampled
+    position reference ``pos`` (m, shape (n, 2)): the acceleration and the jerk the axes
+    receive, a step of acceleration within one period counting as its jump over T."""
+    d2 = np.diff(pos, 2, axis=0)
+    return (np.abs(d2).max(axis=0) / period**2,
+            np.abs(np.diff(d2, axis=0)).max(axis=0) / period**3)

@@ -55,7 +55,7 @@ Error codes (``GCodeError.code``)
 ``arc-missing-center``, ``arc-center-and-radius``, ``arc-zero-radius``,
 ``arc-end-off-circle``, ``arc-radius-too-small``, ``arc-full-circle-r``,
 ``unset-parameter``, ``unclosed-block``, ``unmatched-block``, ``bad-block``,
-``unknown-sub``, ``loop-limit``, ``call-depth``.
+``unknown-sub``, ``loop-limit``, ``call-depth``, ``nesting``.
 """
 
 from __future__ import annotations

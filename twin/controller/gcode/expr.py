@@ -16,6 +16,12 @@ A line that holds none of ``#``, ``[`` or ``O`` goes through the fast word lexer
   a comment may share its line;
 * ``@`` (distance) and ``^`` (angle, degrees) are polar coordinates, words like X and Y.
 
+Bounds: brackets, function arguments and ``#`` references nest at most ``MAX_NESTING``
+(100) deep together, far above what a real program writes (a handful) or what fits on a
+line of LinuxCNC (at most 255 characters); deeper, the line is refused (``nesting``) at the
+bracket or ``#`` that went past the limit. A number is a float of any length: one of 1e300
+or more is refused at its place (``bad-number``), and an O-word number must be below 1e9.
+
 Angles of the trigonometric functions are in degrees, as in LinuxCNC. ``EQ`` and ``NE``
 compare within ``EQUAL_TOLERANCE`` (LinuxCNC's ``TOLERANCE_EQUAL``).
 """
@@ -37,7 +43,15 @@ from twin.controller.gcode.values import (
 )
 from twin.errors import GCodeError
 
-__all__ = ["EQUAL_TOLERANCE", "KEYWORDS", "Assignment", "OWord", "Statement", "read_statement"]
+__all__ = ["EQUAL_TOLERANCE", "KEYWORDS", "MAX_NESTING", "Assignment", "OWord", "Statement",
+           "read_statement"]
+
+MAX_NESTING = 100
+"""Most brackets, function arguments and ``#`` references open at once on one line."""
+
+MAX_NUMBER = 1e300
+"""Magnitude from which a number written in a program is refused (the binary operators
+refuse such results too)."""
 
 KEYWORDS = ("sub", "endsub", "call", "do", "while", "endwhile", "if", "elseif", "else",
             "endif", "break", "continue", "return", "repeat", "endrepeat")
@@ -99,11 +113,11 @@ _NUMBER_BODY = frozenset(".0123456789")
 
 
 
-
 class _Reader:
     """One compacted line (blanks removed, upper case) and the columns of its characters."""
 
-    __slots__ = ("columns", "end", "exists", "line", "lookup", "pos", "source", "text")
+    __slots__ = ("at", "columns", "depth", "end", "exists", "line", "lookup", "pos", "source",
+                 "text")
 
     def __init__(self, text: str, columns: list[int] | None, line: int, source: str,
                  lookup: Lookup, exists: Exists):
@@ -115,6 +129,8 @@ class _Reader:
         self.lookup = lookup
         self.exists = exists
         self.pos = 0
+        self.depth = 0                      # brackets and '#'s open (MAX_NESTING)
+        self.at = 0                         # where the word being read begins
 
     def column(self, pos: int | None = None) -> int:
         at = min(self.pos if pos is None else pos, max(self.end - 1, 0))
@@ -134,17 +150,36 @@ class _Reader:
         if found is None:
             raise self.error("expected a number, a [expression], a #parameter or a function",
                              "bad-number")
+        value = float(found.group())
+        if not -MAX_NUMBER < value < MAX_NUMBER:
+            digits = sum(c in _DIGITS for c in found.group())
+            # a word's own number is placed at its letter, as the lexer places it
+            raise self.error(f"number of {digits} digits is out of range (|value| < "
+                             f"{MAX_NUMBER:g})", "bad-number",
+                             self.at if self.depth == 0 else None)
         self.pos = found.end()
-        return float(found.group())
+        return value
+
+    def nest(self, start: int) -> None:
+        """One more bracket or '#' opens at ``start``: refused past ``MAX_NESTING``."""
+        self.depth += 1
+        if self.depth > MAX_NESTING:
+            raise self.error(f"brackets, functions and '#' nest deeper than {MAX_NESTING} "
+                             "levels", "nesting", start)
 
     def value(self) -> float:
         text, pos = self.text, self.pos
         char = text[pos]
+        if (char == "+" or char == "-") and text[pos + 1] not in _NUMBER_BODY:
+            negative = False            # a run of signs: read in a loop, not recursively
+            while (char == "+" or char == "-") and text[pos + 1] not in _NUMBER_BODY:
+                negative ^= char == "-"
+                pos += 1
+                char = text[pos]
+            self.pos = pos
+            value = self.value()
+            return self.negate(value) if negative else value
         if char in _NUMBER_START:
-            if (char == "+" or char == "-") and text[pos + 1] not in _NUMBER_BODY:
-                self.pos = pos + 1
-                value = self.value()
-                return self.negate(value) if char == "-" else value
             return self.number()
         if char == "[":
             return self.expression()
@@ -160,6 +195,7 @@ class _Reader:
         self.pos += 1  # the '#'
         if self.pos >= self.end:
             raise self.error("'#' without a parameter number or <name>", pos=start)
+        self.nest(start)
         if self.peek() == "<":
             close = self.text.find(">", self.pos)
             if close < 0:
@@ -168,8 +204,11 @@ class _Reader:
             if not name:
                 raise self.error("empty parameter name '#<>'", pos=start)
             self.pos = close + 1
+            self.depth -= 1
             return name
-        return self.index(self.value(), start)
+        index = self.index(self.value(), start)
+        self.depth -= 1
+        return index
 
     def parameter(self) -> float:
         start = self.pos
@@ -255,6 +294,7 @@ class _Reader:
         and operators, reduced while the next operator binds no tighter than the last."""
         start = self.pos
         self.expect("[")
+        self.nest(start)
         values = [self.value()]
         operators: list[tuple[str, int, int]] = []
         while True:
@@ -262,6 +302,7 @@ class _Reader:
                 self.pos += 1
                 while operators:
                     self.reduce(values, operators)
+                self.depth -= 1
                 return values[0]
             found = self.operator()
             if found is None:
@@ -303,7 +344,10 @@ class _Reader:
                 self.pos += 1
             if digits == self.pos:
                 raise self.error("O-word needs a number or a <name> as its label", pos=start)
-            label = str(int(self.text[digits:self.pos]))
+            label = self.text[digits:self.pos].lstrip("0") or "0"   # no int(): any length
+            if len(label) > 9:
+                raise self.error(f"O-word number of {len(label)} digits is out of range "
+                                 f"(below {MAX_VALUE:g})", "bad-number", start + 1)
         rest = self.text[self.pos:self.end]
         keyword = next((k for k in sorted(KEYWORDS, key=len, reverse=True)
                         if rest.startswith(k.upper())), None)
@@ -332,14 +376,15 @@ class _Reader:
         assignments: list[Assignment] = []
         text, end = self.text, self.end
         if self.peek() == "N":  # a block number may precede an O-word
-            start = self.pos
+            start = self.at = self.pos
             self.pos += 1
-            words.append(("N", self.number(), self.column(start)))
+            words.append(("N", self.word_value("N", self.number(), start),
+                          self.column(start)))
         if self.peek() == "O":
             return Statement(words, [], self.oword())
         while self.pos < end:
             char = text[self.pos]
-            start = self.pos
+            start = self.at = self.pos
             if char == "#":
                 key = self.parameter_key()
                 if self.peek() != "=":

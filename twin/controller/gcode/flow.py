@@ -7,9 +7,11 @@ only what a jump back may need:
 * the lines of a loop (``while``/``endwhile``, ``do``/``while``, ``repeat``/``endrepeat``)
   while it runs, from its first line (``Tape``); a program without loops streams in constant
   memory;
-* the body of every subroutine defined so far (``O<name> sub`` … ``O<name> endsub``), read
-  when its definition is passed over. A ``call`` of a name not defined in the program loads
-  ``name.ngc`` from the search path (once per run).
+* the body of every subroutine defined in the program so far (``O<name> sub`` …
+  ``O<name> endsub``), read when its definition is passed over. A ``call`` of a name not
+  defined in the program runs ``name.ngc`` from the program's folder or the subroutine
+  folders (``twin.controller.gcode.subfiles``: nothing outside them is read), streamed from
+  the file at every call like the main program, in constant memory.
 
 Scopes as in LinuxCNC: ``#1``–``#30`` and names without a leading underscore are local to a
 call (a call's arguments are its ``#1``, ``#2``, …); ``#31``–``#5601`` and names that begin
@@ -23,17 +25,17 @@ that passed it.
 
 from __future__ import annotations
 
-import os
 import re
 from collections.abc import Callable, Iterable, Iterator
 from dataclasses import dataclass, field
 from functools import partial
-from pathlib import Path
+from typing import IO
 
 from twin.controller.gcode.expr import OWord, read_statement
 from twin.controller.gcode.lexer import clean, words
 from twin.controller.gcode.parameters import Parameters
 from twin.controller.gcode.shapes import Shapes
+from twin.controller.gcode.subfiles import Folders, SubFile, name_problem, open_body
 from twin.controller.gcode.tape import Tape
 from twin.errors import ConfigError, GCodeError
 
@@ -53,14 +55,15 @@ class Limits:
         Most passes of one loop (each ``while``, ``do`` or ``repeat`` counted on its own).
     call_depth : int
         Most subroutine calls open at once (recursion included).
-    search_path : tuple of str
+    subroutine_path : tuple of str
         Folders searched for ``name.ngc`` when ``O<name> call`` names a subroutine the
-        program does not define; the program's own folder is searched first.
+        program does not define, after the program's own folder
+        (``controller.gcode.subroutine_path``).
     """
 
     loop_iterations: int = 100_000
     call_depth: int = 64
-    search_path: tuple[str, ...] = ()
+    subroutine_path: tuple[str, ...] = ()
 
     def __post_init__(self) -> None:
         for name in ("loop_iterations", "call_depth"):
@@ -93,13 +96,15 @@ class _Frame:
     file: str | None
     label: str | None = None
     controls: list[_Control] = field(default_factory=list)
+    handle: IO[str] | None = None       # a called file's, closed when the call returns
 
 
 @dataclass(slots=True)
 class _Sub:
-    lines: list[str]
+    lines: list[str] | None              # None: read from ``source`` at every call
     first_line: int
     file: str | None
+    source: SubFile | None = None
 
 
 class Runner:
@@ -133,7 +138,7 @@ class Runner:
         self._fast = fast
         self.parameters = parameters
         self.limits = limits
-        self._folders = ([folder] if folder else []) + list(limits.search_path)
+        self._folders = Folders(([folder] if folder else []) + list(limits.subroutine_path))
         self._subs: dict[str, _Sub] = {}
         self._frames: list[_Frame] = []
 
@@ -157,6 +162,10 @@ class Runner:
                 raise
             raise GCodeError(error.line, error.column, error.message, code=error.code,
                              source=error.source, file=file) from None
+        finally:
+            for frame in self._frames:      # the called files still open
+                if frame.handle is not None:
+                    frame.handle.close()
 
     def _run(self, lines: Iterable[str], started: Callable[[], bool]) -> Iterator[tuple]:
         tape = Tape(lines)
@@ -418,21 +427,27 @@ class Runner:
         if match is None:
             return None
         label = match.group(1).replace(" ", "").replace("\t", "")
-        label = label.lower() if label.startswith("<") else str(int(label))
+        label = label.lower() if label.startswith("<") else label.lstrip("0") or "0"
         keyword = match.group(2).lower()
         return label, keyword
 
     # -- subroutines ----------------------------------------------------------------------
     def _define(self, frame: _Frame, label: str, line: int, column: int, text: str) -> None:
+        self._subs[label] = _Sub(self._body(frame, label, line, column, text, []), line + 1,
+                                 frame.file)
+
+    def _body(self, frame: _Frame, label: str, line: int, column: int, text: str,
+              body: list[str] | None) -> list[str] | None:
+        """Read the body of ``O<label> sub`` (at ``line``) through its endsub, into
+        ``body`` if one is given."""
         tape = frame.tape
-        body: list[str] = []
-        first = line + 1
         while True:
             row = tape.next()
             if row is None:
                 raise self._error(line, column, f"O{label} sub without its O{label} endsub",
                                   "unclosed-block", text)
-            body.append(row)
+            if body is not None:
+                body.append(row)
             if "o" in row or "O" in row:
                 found = self._oword_of(row, tape.line)
                 if found is not None and found[0] == label:
@@ -441,7 +456,7 @@ class Runner:
                     if found[1] == "sub":
                         raise self._error(tape.line, 1, f"O{label} sub inside the body of "
                                           f"O{label} sub", "bad-block", row)
-        self._subs[label] = _Sub(body, first, frame.file)
+        return body
 
     def _call(self, label: str, arguments: tuple[float, ...], line: int, column: int,
               text: str) -> None:
@@ -452,41 +467,61 @@ class Runner:
             raise self._error(line, column, f"O{label} call: calls nest deeper than "
                               f"{self.limits.call_depth} (controller.gcode.call_depth): a "
                               "runaway recursion?", "call-depth", text)
+        handle = None
+        if sub.source is not None:
+            handle = self._open_file(sub.source, label, line, column, text)
         self.parameters.enter(arguments)
-        self._frames.append(_Frame(Tape(sub.lines, sub.first_line), sub.file, label))
+        self._frames.append(_Frame(Tape(sub.lines if handle is None else handle,
+                                        sub.first_line), sub.file, label, handle=handle))
+
+    def _open_file(self, source: SubFile, label: str, line: int, column: int, text: str
+                   ) -> IO[str]:
+        try:
+            return open_body(source)
+        except OSError as exc:
+            raise self._error(line, column, f"O{label} call: cannot read {source.path}: "
+                              f"{exc.strerror or exc}", "unknown-sub", text) from None
 
     def _load(self, label: str, line: int, column: int, text: str) -> _Sub:
+        """Find ``name.ngc`` for ``O<name> call`` (``subfiles``), check that it defines
+        the subroutine and that its body ends, and note where the body begins."""
         if not label.startswith("<"):
             raise self._error(line, column, f"O{label} call of a subroutine not defined "
                               "before it", "unknown-sub", text)
         name = label[1:-1]
-        for folder in self._folders:
-            path = Path(folder) / f"{name}.ngc"
-            if path.is_file():
-                break
-        else:
-            where = ", ".join(self._folders) or "no folders (controller.gcode.search_path)"
+        problem = name_problem(name)
+        if problem is not None:
+            raise self._error(line, column, f"O{label} call: {problem}", "unknown-sub", text)
+        found = self._folders.find(name)
+        if found is None:
             raise self._error(line, column, f"O{label} call: no subroutine {label} in the "
-                              f"program and no {name}.ngc in {where}", "unknown-sub", text)
-        file = os.fspath(path)
-        lines = path.read_text(encoding="utf-8", errors="replace").splitlines()
-        for number, row in enumerate(lines, start=1):
-            if "o" in row or "O" in row:
-                found = self._oword_of(row, number)
-                if found == (label, "sub"):
-                    frame = _Frame(Tape(lines[number:], number + 1), file)
+                              f"program and no {name}.ngc in {self._folders.describe()}",
+                              "unknown-sub", text)
+        with self._open_file(found, label, line, column, text) as handle:
+            number = 0
+            for row in iter(handle.readline, ""):
+                number += 1
+                row = row.rstrip("\r\n")
+                if ("o" in row or "O" in row) and self._oword_of(row, number) == (label, "sub"):
+                    sub = _Sub(None, number + 1, found.path,
+                               found._replace(offset=handle.tell(), first_line=number + 1))
+                    frame = _Frame(Tape(handle, number + 1), found.path)   # no tell() now
                     self._frames.append(frame)
                     try:
-                        self._define(frame, label, number, 1, row)
+                        self._body(frame, label, number, 1, row, None)
                     finally:
                         self._frames.pop()
-                    return self._subs[label]
-        raise self._error(line, column, f"O{label} call: {file} does not define O{label} "
-                          "sub", "unknown-sub", text)
+                    self._subs[label] = sub
+                    return sub
+        raise self._error(line, column, f"O{label} call: {found.path} does not define "
+                          f"O{label} sub", "unknown-sub", text)
 
     def _return(self, value: float | None) -> None:
-        """Leave the call: its frame, its tape and its local parameters go."""
-        self._frames.pop()
+        """Leave the call: its frame, its tape (a called file closed) and its local
+        parameters go."""
+        frame = self._frames.pop()
+        if frame.handle is not None:
+            frame.handle.close()
         self.parameters.leave()
         if value is not None:
             self.parameters.set("_value", value)

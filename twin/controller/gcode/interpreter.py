@@ -300,7 +300,7 @@ class Interpreter(Motion, Commands):
             that may be an error), which then runs it from the start.
         """
         number, g, x, y, f = found.groups()
-        return self.fast_move(None if number is None else int(number),
+        return self.fast_move(None if number is None else float(number),  # any length
                               None if g is None else float(g),
                               None if x is None else float(x),
                               None if y is None else float(y),

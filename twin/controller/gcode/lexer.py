@@ -126,7 +126,8 @@ def words(code: str, line: int, source: str) -> list[Word]:
             number = number.replace(" ", "").replace("\t", "")
         value = float(number)
         if not -MAX_VALUE < value < MAX_VALUE:
-            raise _error(line, found.start(1) + 1, f"{letter} value {number} is out of range "
+            shown = number if len(number) <= 24 else f"{number[:12]}… ({len(number)} characters)"
+            raise _error(line, found.start(1) + 1, f"{letter} value {shown} is out of range "
                                                    f"(|value| < {MAX_VALUE:g})", "bad-number",
                          source)
         found_words.append((letter, value, found.start(1) + 1))

@@ -222,7 +222,8 @@ def law_code(law: str) -> tuple[int, float, float]:
 def check_law(law: str) -> None:
     """Raise ``ConfigError("law", ...)`` unless ``law`` is one of `LAWS`."""
     if law not in _TIME:
-        raise ConfigError("law", f"unknown acceleration law {law!r}; expected one of {LAWS}")
+        raise ConfigError("law", f"unknown acceleration law {law!r}; expected one of "
+                          f"{', '.join(LAWS)}")
 
 
 def change_time(law: str, dv: float, limits: Limits) -> float:
