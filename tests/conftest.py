@@ -20,6 +20,13 @@ os.environ.setdefault("MPLBACKEND", "Agg")
 os.environ.pop("DISPLAY", None)           # CI has none; a viewer must never open on a desk
 os.environ.pop("WAYLAND_DISPLAY", None)
 
+# xdist starts its workers with SIGINT ignored, and an ignored signal stays ignored across
+# exec: every `twin` the tests start would ignore a Ctrl-C until its run installs handlers,
+# and the tests of stop signals at random instants would see a SIGINT at start-up vanish.
+# The tests' processes get Python's own handler, as a command started from a terminal has.
+if signal.getsignal(signal.SIGINT) is signal.SIG_IGN:
+    signal.signal(signal.SIGINT, signal.default_int_handler)
+
 from hypothesis import settings
 
 settings.register_profile("ci", max_examples=200, deadline=None, derandomize=True)
