@@ -83,6 +83,10 @@ above it (a drive whose limit cycle the twin cannot follow tick by tick, a model
 lacks) the profile intervals describe a cost that is not the machine's, and every replayed
 parameter keeps BASE's value, flagged."""
 
+CONVERGED = 0.25
+"""Largest held-out normalised RMS error of a fit that converged at all: above it the fit
+is refused (nothing is written), at the end and already after the staged fit."""
+
 REPLAYED_PARAMS = ("inertia", "coulomb", "viscous", "breakaway", "resistance",
                    "inductance", "speed_kp", "speed_ti", "reference_filter", "current_kp",
                    "current_ti", "brush_drop")
@@ -256,7 +260,7 @@ def fit(base: MachineConfig, log: IdentLog, *,
     params = _scan_scale(problem, params, start, steps, limit_inertia(problem, params))
     params = solve(problem, params, ["scale", "resistance", *SPEED_LOOP], loop, start,
                    max_nfev=6).params
-    scan_mains_phase(problem, params)
+    scan_mains_phase(problem, params, near=3)   # the phase moves little with the inertia
     say("inertia: " + ", ".join(f"{a} {params[a].inertia:.4g} kg·m²" for a in axes)
         + f" ({problem.replays} replays, {time.process_time() - cpu0:.0f} s CPU)")
     # 5. friction: the coast-downs (friction alone)
@@ -270,8 +274,12 @@ def fit(base: MachineConfig, log: IdentLog, *,
             params[a] = params[a].with_(backlash=lost[a][0])
     say("lost motion: " + ", ".join(f"{a} {1e6 * params[a].backlash:.1f} µm" for a in axes)
         + f" ({problem.replays} replays, {time.process_time() - cpu0:.0f} s CPU)")
-    # 7. everything the replay carries, together, with the profile intervals
+    # the staged fit must already predict the held-out experiment roughly (within twice
+    # the final bound): the last stage refines the values, it does not rescue a log the
+    # twin cannot replay at all, and it is most of the fit's time
     fit_mask = log.experiment_mask(FIT_EXPERIMENTS)
+    _held_out(problem, params, fit_mask, bound=2.0 * CONVERGED)
+    # 7. everything the replay carries, together, with the profile intervals
     names = list(REPLAYED_PARAMS)   # quantities; fitted in profile.own_coordinate
     if all(dcm[a].present for a in axes):   # the current loop is unseen (drive_fit)
         names = [n for n in names if n not in CURRENT_LOOP]
@@ -340,22 +348,9 @@ def fit(base: MachineConfig, log: IdentLog, *,
                 estimates[a][name] = dataclasses.replace(estimates[a][name],
                                                          value=getattr(d, name))
     # fit quality: the fit experiments' residual, and the held-out prediction
-    held = log.experiment_mask(HELD_OUT)
-    pos, tacho = problem.simulate(final, int(np.flatnonzero(held)[-1]) + 1)
+    (pos, tacho), residual, nrmse = _held_out(problem, final, fit_mask)
     n = len(pos)
-    residual, nrmse = {}, {}
-    fm, hm = fit_mask[:n], held[:n]
-    for k, a in problem.excited:
-        residual[a] = {
-            "position_um": float(np.sqrt(np.mean((pos[fm, k] - problem.pos[:n][fm, k]) ** 2))
-                                 * 1e6),
-            "tacho_v": float(np.sqrt(np.mean((tacho[fm, k] - problem.tacho[:n][fm, k]) ** 2)))}
-        nrmse[a] = {"position": _nrmse(pos[hm, k], problem.pos[:n][hm, k]),
-                    "tacho": _nrmse(tacho[hm, k], problem.tacho[:n][hm, k])}
     worst = max(max(v.values()) for v in nrmse.values())
-    if not math.isfinite(worst) or worst > 0.25:
-        raise FitError(f"the fit did not converge: the held-out experiment is predicted "
-                       f"with a normalised RMS error of {100 * worst:.1f} %")
     say(f"held out: NRMSE {100 * worst:.2f} % ({problem.replays} replays, "
         f"{time.process_time() - cpu0:.0f} s CPU)")
     if worst > QUALITY:   # the twin does not replay this machine: no value to trust
@@ -407,6 +402,34 @@ def _scan_scale(problem: Problem, params: dict[str, AxisParams],
             if cost < best[a][0]:
                 best[a] = (cost, trial[a])
     return {**params, **{a: b[1] for a, b in best.items()}}
+
+
+def _held_out(problem: Problem, params: dict[str, AxisParams], fit_mask: np.ndarray, *,
+              bound: float = CONVERGED):
+    """Replay ``params`` through the held-out experiment: ((positions, tacho volts), the
+    fit experiments' RMS residual and the held-out normalised RMS errors, per excited axis).
+
+    Raises
+    ------
+    FitError
+        The held-out prediction is worse than ``bound``."""
+    held = problem.log.experiment_mask(HELD_OUT)
+    pos, tacho = problem.simulate(params, int(np.flatnonzero(held)[-1]) + 1)
+    n = len(pos)
+    residual, nrmse = {}, {}
+    fm, hm = fit_mask[:n], held[:n]
+    for k, a in problem.excited:
+        residual[a] = {
+            "position_um": float(np.sqrt(np.mean((pos[fm, k] - problem.pos[:n][fm, k]) ** 2))
+                                 * 1e6),
+            "tacho_v": float(np.sqrt(np.mean((tacho[fm, k] - problem.tacho[:n][fm, k]) ** 2)))}
+        nrmse[a] = {"position": _nrmse(pos[hm, k], problem.pos[:n][hm, k]),
+                    "tacho": _nrmse(tacho[hm, k], problem.tacho[:n][hm, k])}
+    worst = max(max(v.values()) for v in nrmse.values())
+    if not math.isfinite(worst) or worst > bound:
+        raise FitError(f"the fit did not converge: the held-out experiment is predicted "
+                       f"with a normalised RMS error of {100 * worst:.1f} %")
+    return (pos, tacho), residual, nrmse
 
 
 def _value(p: AxisParams, base: AxisParams, name: str, x: float) -> float:

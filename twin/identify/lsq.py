@@ -239,12 +239,14 @@ def solve(problem: Problem, params: dict[str, AxisParams], names: Sequence[str],
     return Solution(out_params, pack.names, jacs, res, free)
 
 
-def scan_mains_phase(problem: Problem, params: dict[str, AxisParams], steps: int = 36) -> None:
+def scan_mains_phase(problem: Problem, params: dict[str, AxisParams], steps: int = 36, *,
+                     near: int | None = None) -> None:
     """The mains phase that best replays the speed steps: a scan of one pulse period, then
     a golden-section search around the best point of the grid. A drive without the
     adaptation to discontinuous conduction replays well only within a few degrees of the
     right phase (its current pulses at feed speeds decide how each step starts), hence the
-    fine grid over all the steps."""
+    fine grid over all the steps. ``near``: only the ``near`` grid points either side of
+    the problem's present phase (a scan again after the parameters moved a little)."""
     base = problem.base
     if not any(base.axes[a].converter.kind == "thyristor" for a in AXES):
         return
@@ -257,7 +259,10 @@ def scan_mains_phase(problem: Problem, params: dict[str, AxisParams], steps: int
         return sum(float(v @ v) for v in r.values())
 
     step = 2.0 * math.pi / p / steps
-    grid = [k * step for k in range(steps)]
+    if near is None or problem.mains_phase is None:
+        grid = [k * step for k in range(steps)]
+    else:
+        grid = [problem.mains_phase + k * step for k in range(-near, near + 1)]
     values = [sse(x) for x in grid]
     best = grid[int(np.argmin(values))]
     lo, hi = best - step, best + step

@@ -81,6 +81,14 @@ def threshold(res: np.ndarray, parameters: int, level: float = LEVEL) -> float:
         res, parameters) * tau
 
 
+IMPROVE = 0.25
+"""A profile point counts as better than the optimum (``Profile.better``: the fit is run
+again from it) when its cost is below the optimum's by this share of the threshold. A
+smaller dip only widens the interval, never narrows it (its ends are placed against the
+optimum's cost, above the least one), by about an eighth of its half-width at most: not
+worth a second fit and profile."""
+
+
 @dataclass
 class Profile:
     """The profile interval of one coordinate of one axis (in the coordinate).
@@ -190,7 +198,7 @@ def profile(problem: Problem, sol: Solution, mask: np.ndarray, start: dict[str, 
                 nxt = {}
                 for a, d in delta.items():
                     r = rise[a]
-                    if r < -1e-3 * crit[a] and (better[a] is None or r < better[a][0]):
+                    if r < -IMPROVE * crit[a] and (better[a] is None or r < better[a][0]):
                         better[a] = (r, moved[a])
                     q, qr = math.sqrt(crit[a]), math.sqrt(max(r, 0.0))
                     if r >= crit[a]:   # the end lies inside: secant on sqrt(rise)
