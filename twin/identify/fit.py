@@ -41,9 +41,10 @@ same column of y come from one simulation. The held-out experiment (``ramps``, c
 is then predicted, and its normalised RMS error is the fit quality.
 
 What the signals cannot give is never fitted (``NOT_IDENTIFIABLE``): the screw's stiffness
-and damping and the carriage masses, the split of friction between rotor and slide, the
-motor's EMF constant and current limit (they scale with the inertia), the tacho filter, the
-converter's mains data, the current regulator's settings and the brush and thyristor drops.
+and damping, the screw body's geometry and the carriage masses, the split of friction
+between rotor and slide, the motor's EMF constant and current limit (they scale with the
+inertia), the tacho filter, the converter's mains data, the current regulator's settings
+and the brush and thyristor drops.
 """
 
 from __future__ import annotations
@@ -95,6 +96,9 @@ REPLAYED_PARAMS = ("inertia", "coulomb", "viscous", "breakaway", "resistance",
 NOT_IDENTIFIABLE = {
     "transmission.stiffness": "the motor encoder does not see the table move on the screw",
     "transmission.damping_ratio": "as the stiffness",
+    "transmission screw body (screw_diameter, screw_length, screw_support, nut_start, "
+    "drive_end)": "the screw's own inertia adds to the rotor's, which is fitted (with "
+                  "BASE's screw); its stiffness along the travel as the stiffness",
     "mechanics.carriage_mass": "its reflected inertia is 0.1 % of the rotor's on tomsk_xy",
     "mechanics: rotor/slide split of friction": "only their sum acts on the motor",
     "motor.emf_constant, motor.current_limit_factor": "they scale with the inertia in "
