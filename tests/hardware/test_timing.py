@@ -80,9 +80,13 @@ def test_late_ticks_raise_the_error_of_a_lock_step_run(tmp_path):
     assert worse["status"] == "FINISHED"
     assert worse["ticks"]["simulated_timer"] and not clean["ticks"]["simulated_timer"]
     assert 20 < worse["ticks"]["late"] < 120
+    # the largest error anywhere on the path grows markedly; each axis' own peak grows by
+    # more than a few µm (how much depends on where the late ticks fall against the peak:
+    # 1.31-1.36 × on the default program after its corners became tangent-continuous)
+    assert worse["max_vector_error_um"] > 1.3 * clean["max_vector_error_um"]
     for axis in ("x", "y"):
-        assert worse["max_coordinate_error_um"][axis] > 1.3 * clean["max_coordinate_error_um"][
-            axis]
+        assert worse["max_coordinate_error_um"][axis] > clean["max_coordinate_error_um"][
+            axis] + 5.0
     assert runs[0]["max_coordinate_error_um"] == runs[1]["max_coordinate_error_um"]
 
 

@@ -43,12 +43,14 @@ run's within this share, or the part whose limits the joining lowers (the block,
 so far) is short (5 % of the run with it): the run's changes of speed use the lowest of its
 members' limits (a tight curve's are low)."""
 
-STEP_SEEN = 0.75
-"""The largest share of a step of acceleration Δa between two samples that the sampled
-reference's third difference shows, over Δa/T: the second difference is the acceleration
-averaged by a triangle of half-width T, and the most of that triangle's area one period can
-hold is 3/4 (from −T/2 to T/2). A curvature step Δκ passed at v is held to
-v²·|Δκ|·STEP_SEEN ≤ J·T: the step spread over the samples it takes."""
+STEP_SEEN = 1.0
+"""The share of a step of acceleration Δa between two samples that the reference passed to
+the regulator shows, over Δa/T. The sampled position's third difference shows at most 3/4
+of it (its second difference averages the acceleration by a triangle of half-width T, and
+one period holds at most 3/4 of that triangle's area), but the regulator's feed-forward
+terms take the interpolator's acceleration itself, which steps by the whole Δa in one
+period: the drive receives all of it. A curvature step Δκ passed at v is held to
+v²·|Δκ|·STEP_SEEN ≤ J·T."""
 
 SLIVER_JERK = 0.1
 """A line after a curve is a sliver (a blend that could not reach the middle of a chord by

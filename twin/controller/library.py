@@ -15,11 +15,13 @@ from collections.abc import Iterable, Sequence
 from typing import Any
 
 import numpy as np
+from scipy.optimize import brentq
 
 from twin.config import MachineConfig
 from twin.controller.gcode import Dwell
 from twin.controller.geometry import Arc, Line, Segment
 from twin.controller.planner import MotionBlock, segments_from_program
+from twin.controller.spline import natural_cubic
 from twin.controller.spline_path import SplinePath
 from twin.errors import ConfigError
 
@@ -40,10 +42,55 @@ __all__ = [
     "tiny_program",
 ]
 
-# Shape of the default program in units of the program scale L, relative to its start O.
-_OA = ((0.0, 0.0), (0.25, 0.05), (0.5, 0.15), (0.75, 0.3))
-_AB = ((0.75, 0.3), (1.0, 0.45), (1.25, 0.6), (1.5, 0.7))
-_BC = ((1.5, 0.7), (1.7, 0.8), (1.85, 0.95), (1.9, 1.1))
+
+
+def _end_tangents(points: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Unit tangents at the start and the end of the natural cubic spline through
+    ``points`` (as `SplinePath` builds it: x(u), y(u) of the cumulative chord length u)."""
+    u = np.concatenate(([0.0], np.cumsum(np.hypot(*np.diff(points, axis=0).T))))
+    sp = natural_cubic(u, points)
+    h = u[-1] - u[-2]
+    start, end = sp.b[0], sp.b[-1] + 2.0 * sp.c[-1] * h + 3.0 * sp.d[-1] * h * h
+    return start / np.linalg.norm(start), end / np.linalg.norm(end)
+
+
+def _continuing(previous: np.ndarray, section: np.ndarray) -> np.ndarray:
+    """``section`` with its second point moved along its normal so that its natural spline
+    leaves its first point along ``previous``' end tangent: the two sections then meet
+    tangentially, and both natural ends have zero curvature there (G2)."""
+    want = _end_tangents(previous)[1]
+    chord = section[2] - section[0]
+    normal = np.array([-chord[1], chord[0]]) / np.linalg.norm(chord)
+
+    def turn(d: float) -> float:
+        moved = section.copy()
+        moved[1] = section[1] + d * normal
+        t = _end_tangents(moved)[0]
+        return float(want[0] * t[1] - want[1] * t[0])    # sin of the angle between them
+
+    reach = 0.5 * float(np.linalg.norm(chord))
+    out = section.copy()
+    out[1] = section[1] + brentq(turn, -reach, reach, xtol=1e-15) * normal
+    return out
+
+
+def _tangent_sections(*sections: Sequence[Sequence[float]]) -> tuple[np.ndarray, ...]:
+    """Seed 000's trajectory is built of spline sections that meet without a velocity jump
+    (the sections' speeds change, not their direction): each section after the first is
+    made to continue the one before it tangentially (``_continuing``)."""
+    out = [np.asarray(sections[0], dtype=float)]
+    for section in sections[1:]:
+        out.append(_continuing(out[-1], np.asarray(section, dtype=float)))
+    return tuple(out)
+
+
+# Shape of the default program in units of the program scale L, relative to its start O:
+# O-A-B-C as three natural splines that meet tangentially at A and B (the second point of
+# A-B and of B-C is placed for it, within 0.01·L of (1.0, 0.45) and (1.7, 0.8)).
+_OA, _AB, _BC = _tangent_sections(
+    ((0.0, 0.0), (0.25, 0.05), (0.5, 0.15), (0.75, 0.3)),
+    ((0.75, 0.3), (1.0, 0.45), (1.25, 0.6), (1.5, 0.7)),
+    ((1.5, 0.7), (1.7, 0.8), (1.85, 0.95), (1.9, 1.1)))
 _D = (1.9, 1.6)
 _E = (1.3, 1.6)
 _CIRCLE_RADIUS = 0.3

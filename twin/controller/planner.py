@@ -38,13 +38,14 @@ stopped, as a jerk limit demands of a corner.
 Curvature across nodes (laws that limit jerk)
 ---------------------------------------------
 A node where the curvature steps (a line entering an arc, a circular blend, arcs of two
-radii) steps the normal acceleration by ``v²·|κ_out − κ_in|``. The sampled reference
-averages the acceleration over a triangle of half-width T, so a step between two samples
-spreads over the samples it takes and shows as at most ``STEP_SEEN`` = 3/4 of ``Δa/T`` in
-the third difference: the node is passed at ``v²·|Δκ|·3/4 ≤ J·T`` (J the smallest of the
-contour and axis jerks). Where the curvature is continuous (a G2 blend, a spline, a chain
-of equal arcs) there is no such cap. A *sliver* — a line so short after a curve that
-missing the curve's normal acceleration along it shows as at most a tenth of J
+radii) steps the normal acceleration by ``v²·|κ_out − κ_in|`` within one period. The
+sampled position shows at most 3/4 of that step in its third difference, but the
+regulator's feed-forward takes the interpolator's acceleration itself, so the whole step
+reaches the drive (`block_rules.STEP_SEEN` = 1): the node is passed at
+``v²·|Δκ| ≤ J·T`` (J the smallest of the contour and axis jerks). Where the curvature is
+continuous (a G2 blend, a spline, a chain of equal arcs) there is no such cap. A *sliver* —
+a line so short after a curve that missing the curve's normal acceleration along it shows as
+at most a tenth of J
 (`block_rules.SLIVER_JERK`), as blends leave between the rounded chords of CAM output —
 takes the curve's curvature, so the step is counted once, from the curve before it to the
 curve after. On a curve the jerk budget is split as `twin.controller.segment_limits`
