@@ -70,6 +70,10 @@ class RunOutcome:
         Wall-clock time of the run (s).
     message : str
         What went wrong, empty for a good run.
+    trace : dict of str to ndarray, optional
+        With ``tuning_run(..., trace=True)`` and a finished run: ``t`` (s), ``error``
+        (N, 2), the measured position minus the reference (m), and ``speed`` (N,), the
+        reference's path speed (m/s). None otherwise.
     """
 
     metrics: dict[str, float]
@@ -79,6 +83,7 @@ class RunOutcome:
     sim_time: float = 0.0
     wall_time: float = 0.0
     message: str = ""
+    trace: dict[str, np.ndarray] | None = None
 
     @property
     def failed(self) -> bool:
@@ -133,14 +138,15 @@ _DIVERGED = (ControllerStatus.INVALID_INPUT,)
 
 def tuning_run(cfg: MachineConfig, settings: TuningSettings, *,
                models: Sequence[LinearAxisModel], program: str = "compact",
-               max_time: float = 600.0, model_axes: Mapping[str, Any] | None = None
-               ) -> RunOutcome:
+               max_time: float = 600.0, model_axes: Mapping[str, Any] | None = None,
+               trace: bool = False) -> RunOutcome:
     """Run ``program`` on machine ``cfg`` with ``settings`` and measure it.
 
     Parameters
     ----------
     cfg : MachineConfig
-        The machine (its jerk limit is replaced by ``settings.max_jerk``).
+        The machine (its jerk limit, and its shapers' frequency and damping when tuned,
+        replaced by ``settings``: ``TuningSettings.overrides``).
     settings : TuningSettings
         Gains and jerk limit.
     models : sequence of 2 LinearAxisModel
@@ -152,13 +158,16 @@ def tuning_run(cfg: MachineConfig, settings: TuningSettings, *,
     model_axes : mapping, optional
         The axes the controller believes the machine has (its corner model); default the
         machine's.
+    trace : bool
+        Keep the run's coordinate errors and path speed against time
+        (``RunOutcome.trace``), for a report that draws two runs over each other.
 
     Returns
     -------
     RunOutcome
     """
     wall = time.perf_counter()
-    cfg = cfg.with_overrides({"controller.limits.max_jerk": float(settings.max_jerk)})
+    cfg = cfg.with_overrides(settings.overrides())
     p = wire(cfg, lambda start: tuning_program(program, cfg, start), gains=settings.gains,
              axis_models=list(models), model_axes=model_axes)
     ctrl = p.controller
@@ -176,13 +185,18 @@ def tuning_run(cfg: MachineConfig, settings: TuningSettings, *,
         return _failed("DIVERGED" if status in _DIVERGED else status.name,
                        diverged=status in _DIVERGED, message=why, sim_time=sim_time,
                        wall=time.perf_counter() - wall)
-    metrics = measure(ctrl.record.as_arrays(), p.path, settings)
+    rec = ctrl.record.as_arrays()
+    metrics = measure(rec, p.path, settings)
     bad = [m for m, v in metrics.items() if not math.isfinite(v)]
     if bad:
         return _failed("DIVERGED", diverged=True, message=f"{bad[0]} is not finite",
                        sim_time=sim_time, wall=time.perf_counter() - wall)
+    kept = None if not trace else {
+        "t": np.array(rec["t"], dtype=float),
+        "error": np.asarray(rec["position"], dtype=float) - rec["ref_position"],
+        "speed": np.hypot(*np.asarray(rec["ref_velocity"], dtype=float).T)}
     return RunOutcome(metrics, status.name, sim_time=sim_time,
-                      wall_time=time.perf_counter() - wall)
+                      wall_time=time.perf_counter() - wall, trace=kept)
 
 
 def measure(rec: Mapping[str, np.ndarray], path: list, settings: TuningSettings

@@ -21,8 +21,9 @@ from envs.evaluation import (
 )
 from envs.programs import PROGRAMS
 from envs.randomize import MachineRandomizer
-from envs.space import DIM, TuningSettings, TuningSpace, check_action
+from envs.space import DIM, SHAPER_NAMES, TuningSettings, TuningSpace, check_action
 from twin.config import MachineConfig, load_machine
+from twin.config.shaper_settings import shaper_overrides
 from twin.errors import ConfigError, SimulationError
 from twin.session.run import axis_models
 
@@ -95,10 +96,11 @@ class Tuning:
         self.scales = metric_scales(self.baseline)
         self.max_time = max_time_factor * self.baseline.sim_time + 5.0
 
-    def run(self, settings: TuningSettings) -> RunOutcome:
-        """One run with ``settings``."""
+    def run(self, settings: TuningSettings, *, trace: bool = False) -> RunOutcome:
+        """One run with ``settings`` (``trace``: keep its errors against time,
+        ``RunOutcome.trace``)."""
         return tuning_run(self.cfg, settings, models=self.models, program=self.program,
-                          max_time=self.max_time, model_axes=self.belief.axes)
+                          max_time=self.max_time, model_axes=self.belief.axes, trace=trace)
 
     def terms(self, outcome: RunOutcome) -> dict[str, float]:
         """Weighted cost terms (``cost_terms``) of an outcome on this machine, and the
@@ -158,6 +160,12 @@ class GainTuningEnv(gym.Env):
     | 5-9 | same, y    |            |                                                     |
     | 10  | max_jerk   | m/s³       | J0/4 … J0 … 4·J0 (log)                              |
 
+    With ``shaper`` (or a machine that shapes both axes) four more, ``(15,)``:
+
+    | 11  | sf_x       | Hz         | f0/1.5 … f0 … 1.5·f0 (log): the shaper's frequency  |
+    | 12  | sz_x       | 1          | ζ0 − 0.2 … ζ0 … ζ0 + 0.2, within [0, 0.9]           |
+    | 13-14 | same, y  |            |                                                     |
+
     NaN or inf entries raise ``ValueError``; finite ones are clipped to [-1, 1].
 
     ## Observation Space
@@ -170,6 +178,8 @@ class GainTuningEnv(gym.Env):
     | 8-15  | log10 of the baseline's metrics               | log10 µm / log10 s     |
     | 16-26 | the settings of the last run (the action)     | 1                      |
     | 27-34 | ln(metric / scale) of the best run so far     | 1                      |
+
+    (with a shaper: the action takes 15 entries and the observation 39).
 
     The metrics, in order: max and RMS coordinate error (larger axis), max and RMS
     contour error, overshoot, settling travel, cycle time, saturation time.
@@ -214,6 +224,8 @@ class GainTuningEnv(gym.Env):
     | penalty     | 50.0         | cost of a failed run                                |
     | render_mode | None         | "rgb_array": ``render()`` plots the last run        |
     | max_cycle_time_increase | None | constraint: the cycle time may grow by this share |
+    | shaper      | None         | input shaper on both axes (zv, mzv, zvd, ei, …):    |
+    |             |              | its frequency and damping become actions 11-14      |
 
     ## Version History
 
@@ -228,13 +240,18 @@ class GainTuningEnv(gym.Env):
                  program: str | Sequence[str] = "compact", randomize: bool = False,
                  weights: Weights | dict[str, float] | None = None, penalty: float = 50.0,
                  render_mode: str | None = None,
-                 max_cycle_time_increase: float | None = None):
+                 max_cycle_time_increase: float | None = None, shaper: str | None = None):
         if render_mode is not None and render_mode not in self.metadata["render_modes"]:
             raise ConfigError("render_mode", f"must be None or one of "
                               f"{self.metadata['render_modes']}, got {render_mode!r}")
         self.render_mode = render_mode
         self._last: tuple[RunOutcome, float] | None = None
         self._base = machine if isinstance(machine, MachineConfig) else load_machine(machine)
+        if shaper is not None:
+            self._base = self._base.with_overrides(shaper_overrides(shaper, "shaper"))
+        dim = DIM + (len(SHAPER_NAMES) if all(
+            getattr(self._base.controller.shaper, a).type != "none" for a in ("x", "y"))
+            else 0)
         self._programs = (program,) if isinstance(program, str) else tuple(program)
         for p in self._programs:
             if p not in PROGRAMS:
@@ -245,9 +262,9 @@ class GainTuningEnv(gym.Env):
             Weights.from_mapping(weights)
         self._penalty = float(penalty)
         self._cycle_limit = max_cycle_time_increase
-        self.action_space = gym.spaces.Box(-1.0, 1.0, (DIM,), dtype=np.float32)
+        self.action_space = gym.spaces.Box(-1.0, 1.0, (dim,), dtype=np.float32)
         n = len(METRICS)
-        self.observation_space = gym.spaces.Box(-_ABS_CLIP, _ABS_CLIP, (3 * n + DIM,),
+        self.observation_space = gym.spaces.Box(-_ABS_CLIP, _ABS_CLIP, (3 * n + dim,),
                                                 dtype=np.float32)
         self.tuning: Tuning | None = None
         self._best = np.zeros(n)

@@ -12,7 +12,14 @@ coordinate     physical value                                          range
 ``a2_<ax>``    ``α2⁰ · (1 + 0.5·a)``                                  ±50 %
 ``a3_<ax>``    ``α3⁰ · (1 + 1.0·a)``                                  0 … 2·α3⁰
 ``max_jerk``   ``J0 · jerk_span^a``  (log scale)                      ``J0/4 … 4·J0``
+``sf_<ax>``    ``f0 · SHAPER_FREQUENCY_SPAN^a`` (log), < 0.9·Nyquist  ``f0/1.5 … 1.5·f0``
+``sz_<ax>``    ``ζ0 + SHAPER_DAMPING_SPAN·a``, within [0, 0.9]        ``ζ0 ± 0.2``
 =============  =====================================================  ===================
+
+The last four only when the machine shapes both axes (``[controller.shaper.x|y] type``,
+``twin.controller.shaping``): its input shapers' frequency and damping, centred on the
+machine file's values (unset: the model's mode), so that a tuner can find where the belt
+mode really is. Without shapers the space has the eleven coordinates above (``DIM``).
 
 ``K_v = kp0·K_H`` is the analytic velocity gain of the position loop (1/s), so the integral
 corner ``ki/kp0`` spans three decades below the loop's crossover; ``a ≤ 0`` switches the
@@ -35,9 +42,12 @@ import numpy as np
 from twin.config import AXES, MachineConfig
 from twin.controller.gains import RegulatorGains, default_gains
 from twin.controller.linear import LinearAxisModel
+from twin.controller.shaping import axis_shapers
 from twin.errors import ConfigError
 
-__all__ = ["ALPHA_SPAN", "DIM", "KI_DECADES", "NAMES", "TuningSettings", "TuningSpace",
+__all__ = ["ALPHA_SPAN", "DIM", "KI_DECADES", "NAMES", "SHAPER_DAMPING_SPAN",
+           "SHAPER_FREQUENCY_SPAN", "SHAPER_NAMES", "SHAPER_NYQUIST_SHARE", "TuningSettings",
+           "TuningSpace",
            "check_action", "settings_from_dict"]
 
 ALPHA_SPAN = (0.02, 0.2, 0.5)
@@ -49,6 +59,14 @@ DIM = len(AXES) * len(_PER_AXIS) + 1
 NAMES = (*(f"{n}_{a}" for a in AXES for n in _PER_AXIS), "max_jerk")
 """Coordinate names: ``kp_x, ki_x, a1_x, a2_x, a3_x, kp_y, …, max_jerk``."""
 """Length of a tuning vector: five coordinates per axis and the jerk limit (11)."""
+SHAPER_NAMES = tuple(f"{n}_{a}" for a in AXES for n in ("sf", "sz"))
+"""The shaper coordinates a shaped machine adds: ``sf_x, sz_x, sf_y, sz_y``."""
+SHAPER_FREQUENCY_SPAN = 1.5
+"""Factor from the shaper's frequency to either end of its log-scaled coordinate."""
+SHAPER_DAMPING_SPAN = 0.2
+"""Half-range of the shaper's damping ratio about its centre (1)."""
+SHAPER_NYQUIST_SHARE = 0.9
+"""A decoded shaper frequency stays below this share of the Nyquist rate."""
 
 
 @dataclass(frozen=True)
@@ -61,10 +79,14 @@ class TuningSettings:
         Position regulator gains, per axis (V/m, V/(m·s), DCU α in V/m).
     max_jerk : float
         Contour jerk limit of the planner (m/s³).
+    shaper : tuple of 2 (frequency, damping), optional
+        The input shapers' design frequency (Hz) and damping (1) of x and y, for a machine
+        that shapes both axes; None: the machine's shapers as they are.
     """
 
     gains: RegulatorGains
     max_jerk: float
+    shaper: tuple[tuple[float, float], tuple[float, float]] | None = None
 
     def __post_init__(self) -> None:
         if not (isinstance(self.max_jerk, int | float) and math.isfinite(self.max_jerk)
@@ -76,9 +98,22 @@ class TuningSettings:
         """Plain per-axis values: ``{"kp": [x, y], "ki": [x, y], "dcu_alpha": [[…], […]],
         "max_jerk": J}`` (SI)."""
         g = self.gains
-        return {"kp": list(_pair(g.kp)), "ki": list(_pair(g.ki)),
-                "dcu_alpha": [list(row) for row in _rows(g.dcu_alpha)],
-                "max_jerk": float(self.max_jerk)}
+        out: dict[str, object] = {"kp": list(_pair(g.kp)), "ki": list(_pair(g.ki)),
+                                  "dcu_alpha": [list(row) for row in _rows(g.dcu_alpha)],
+                                  "max_jerk": float(self.max_jerk)}
+        if self.shaper is not None:
+            out["shaper_frequency"] = [float(f) for f, _ in self.shaper]
+            out["shaper_damping"] = [float(z) for _, z in self.shaper]
+        return out
+
+    def overrides(self) -> dict[str, float]:
+        """The machine overrides these settings make besides the gains (dotted keys, SI):
+        the jerk limit, and the shapers' frequency and damping when tuned."""
+        out = {"controller.limits.max_jerk": float(self.max_jerk)}
+        for axis, (f, z) in zip(AXES, self.shaper or (), strict=False):
+            out[f"controller.shaper.{axis}.frequency"] = float(f)
+            out[f"controller.shaper.{axis}.damping"] = float(z)
+        return out
 
 
 def _pair(value: float | tuple[float, ...]) -> tuple[float, float]:
@@ -103,6 +138,11 @@ class TuningSpace:
         ``K_H`` of each axis (m/(V·s)), for the ki scale.
     kp_span, jerk_span : float
         Factor from the centre to either end of the log-scaled kp and jerk coordinates.
+    shaper : tuple of 2 (frequency, damping), optional
+        The centre of the shaper coordinates (Hz, 1), x and y; None: no such coordinates.
+    shaper_limit : float
+        Highest shaper frequency a decoded action gets (Hz): ``SHAPER_NYQUIST_SHARE`` of
+        the controller period's Nyquist rate (a shaper cannot act above it).
     """
 
     analytic: RegulatorGains
@@ -110,6 +150,8 @@ class TuningSpace:
     velocity_gain: tuple[float, float]
     kp_span: float = 4.0
     jerk_span: float = 4.0
+    shaper: tuple[tuple[float, float], tuple[float, float]] | None = None
+    shaper_limit: float = math.inf
 
     def __post_init__(self) -> None:
         for name in ("kp_span", "jerk_span"):
@@ -129,17 +171,22 @@ class TuningSpace:
         base = dataclasses.replace(base, output_limit=tuple(cfg.axes[a].dac.full_scale
                                                             for a in AXES), dac_bits=None)
         kh = tuple(float(m.velocity_gain) for m in models)
+        shapers = axis_shapers(cfg.controller.shaper, cfg.axes, cfg.controller.period)
+        if all(s is not None for s in shapers):
+            options.setdefault("shaper", tuple((s.frequency, s.damping) for s in shapers))
+            options.setdefault("shaper_limit", SHAPER_NYQUIST_SHARE * 0.5
+                               / cfg.controller.period)
         return cls(base, cfg.controller.limits.max_jerk, kh, **options)  # type: ignore[arg-type]
 
     @property
     def names(self) -> tuple[str, ...]:
-        """Coordinate names (``NAMES``)."""
-        return NAMES
+        """Coordinate names (``NAMES``, then ``SHAPER_NAMES`` when shaped)."""
+        return NAMES if self.shaper is None else (*NAMES, *SHAPER_NAMES)
 
     @property
     def dim(self) -> int:
-        """Number of coordinates (``DIM``)."""
-        return DIM
+        """Number of coordinates (``DIM``, 4 more when shaped)."""
+        return DIM if self.shaper is None else DIM + len(SHAPER_NAMES)
 
     def _ki_scale(self, k: int) -> float:
         kp0 = _pair(self.analytic.kp)[k]
@@ -165,7 +212,14 @@ class TuningSpace:
                                in zip(alpha0[k], ALPHA_SPAN, u[2:], strict=True)))
         gains = dataclasses.replace(self.analytic, kp=tuple(kp), ki=tuple(ki),
                                     dcu_alpha=tuple(alpha))
-        return TuningSettings(gains, float(self.max_jerk * self.jerk_span ** a[-1]))
+        jerk = float(self.max_jerk * self.jerk_span ** a[DIM - 1])
+        if self.shaper is None:
+            return TuningSettings(gains, jerk)
+        u = a[DIM:]
+        shaper = tuple((float(min(self.shaper_limit, f0 * SHAPER_FREQUENCY_SPAN ** u[2 * k])),
+                        float(min(0.9, max(0.0, z0 + SHAPER_DAMPING_SPAN * u[2 * k + 1]))))
+                       for k, (f0, z0) in enumerate(self.shaper))
+        return TuningSettings(gains, jerk, shaper)  # type: ignore[arg-type]
 
     def encode(self, settings: TuningSettings) -> np.ndarray:
         """The action of ``settings`` (the inverse of ``decode``, clipped to [-1, 1]; a
@@ -181,6 +235,11 @@ class TuningSpace:
             for a, a0, span in zip(_rows(g.dcu_alpha)[k], alpha0[k], ALPHA_SPAN, strict=True):
                 out.append(0.0 if a0 == 0.0 else (a / a0 - 1.0) / span)
         out.append(math.log(settings.max_jerk / self.max_jerk) / math.log(self.jerk_span))
+        if self.shaper is not None:
+            tuned = settings.shaper or self.shaper
+            for (f, z), (f0, z0) in zip(tuned, self.shaper, strict=True):
+                out += [math.log(f / f0) / math.log(SHAPER_FREQUENCY_SPAN),
+                        (z - z0) / SHAPER_DAMPING_SPAN]
         return np.clip(np.asarray(out), -1.0, 1.0)
 
 
@@ -193,7 +252,11 @@ def settings_from_dict(values: Mapping[str, Any], base: RegulatorGains) -> Tunin
                                            for row in values["dcu_alpha"]),
                            output_limit=base.output_limit, dac_bits=base.dac_bits,
                            following_error_limit=base.following_error_limit)
-    return TuningSettings(gains, float(values["max_jerk"]))
+    shaper = None
+    if "shaper_frequency" in values:
+        shaper = tuple((float(f), float(z)) for f, z in zip(
+            values["shaper_frequency"], values["shaper_damping"], strict=True))
+    return TuningSettings(gains, float(values["max_jerk"]), shaper)  # type: ignore[arg-type]
 
 
 def check_action(action: Sequence[float] | np.ndarray, dim: int) -> np.ndarray:

@@ -83,3 +83,4 @@ def pytest_sessionfinish(session, exitstatus):
         except OSError:
             pass
     session.exitstatus = 1
+

@@ -24,7 +24,7 @@ def twin(*args: str, timeout: float = 300) -> subprocess.CompletedProcess:
 
 
 COMMANDS = {"run", "demo", "view", "machines", "experiment", "home", "jog", "hil-server",
-            "compare", "tune", "identify", "runs"}
+            "compare", "tune", "identify", "runs", "measure", "shaper"}
 
 
 def test_help_lists_every_command():

@@ -16,7 +16,7 @@ from twin.cli import app
 
 ENV = {**os.environ, "RERUN_ANALYTICS": "0", "COLUMNS": "200"}
 COMMANDS = ("run", "demo", "view", "machines", "experiment", "home", "jog", "hil-server",
-            "compare", "tune", "identify", "runs")
+            "compare", "tune", "identify", "measure", "runs", "shaper")
 
 BAD = [
     # (arguments, what the one line must contain); more are in test_cli_bad_input.py,
@@ -24,7 +24,14 @@ BAD = [
     (("bogus",), "No such command 'bogus'"),
     (("--nope",), "No such option: --nope"),
     (("run", "--builtin", "nope"), "Invalid value for '--builtin'"),
-    (("run", "--profile", "sinus"), "Invalid value for '--profile'"),
+    (("run", "--profile", "sinus"), "--profile: unknown law 'sinus'"),
+    (("run", "--profile", "trapezoid+foo"), "--profile: unknown shaper 'foo'"),
+    (("compare", "--profiles", "trapezoid,parabolic+foo"), "--profiles: unknown shaper 'foo'"),
+    (("compare", "--profiles", "trapezoid,trapezoid+mzv"),          # tomsk_xy's y: 161 Hz
+     "--profiles: trapezoid+mzv: controller.shaper.y.frequency: unset, and the model's mode"),
+    (("shaper", "--shapers", "zv,foo"), "--shapers: unknown shaper 'foo'"),
+    (("shaper", "--driver", "bogus://x"), "driver: unknown driver 'bogus://x'"),
+    (("shaper", "--frequency-spread", "1.5"), "--frequency-spread: must lie in [0, 1)"),
     (("run", "--planner", "maybe"), "Invalid value for '--planner'"),
     (("run", "--dcu-order", "7"), "--dcu-order: must be at most 3, got 7"),
     (("run", "--rerun", "foo"), "--rerun: must be file, none, spawn, serve"),
@@ -56,8 +63,16 @@ BAD = [
     (("tune", "--method", "grid"), "Invalid value for '--method'"),
     (("tune", "--method", "cma", "--program", "nope"), "Invalid value for '--program'"),
     (("tune", "--method", "cma", "--budget-s", "-1"), "budget_s"),
+    (("tune", "--method", "cma", "--shaper", "foo"), "--shaper: unknown shaper 'foo'"),
     (("identify",), "Missing option '--output'"),
     (("identify", "-o", "x.toml", "--axes", "z"), "Invalid value for '--axes'"),
+    (("measure", "--axis", "z"), "Invalid value for '--axis'"),
+    (("measure", "--f-max", "5000"), "--f-max: must lie in (0, 1600] Hz, the Nyquist "
+                                     "frequency of the accelerometer"),
+    (("measure", "--sensor", "motor", "--f-max", "150"), "--f-max: must lie in (0, 100] "
+                                                          "Hz"),
+    (("measure", "--f-min", "0.05"), "--amplitude: axis x: the measurement travels"),
+    (("measure", "--amplitude", "500"), "--amplitude: must lie in (0, 15] mm/s"),
 ]
 
 

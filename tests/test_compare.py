@@ -259,10 +259,12 @@ def test_compare_on_the_default_program_names_the_winner_of_every_figure(tmp_pat
               str(tmp_path))
     assert r.returncode == 0, r.stderr
     assert "winner" in r.stdout and "margin" in r.stdout              # the terminal table
-    assert re.search(r"(trapezoid|jerk-limited) wins \d+ of 11 figures", r.stdout)
+    from twin.analysis.compare import FIGURES
+
+    assert re.search(rf"(trapezoid|jerk-limited) wins \d+ of {len(FIGURES)} figures", r.stdout)
     (folder,) = tmp_path.iterdir()
     verdict = json.loads((folder / "verdict.json").read_text())
-    assert len(verdict) == 11
+    assert len(verdict) == len(FIGURES)
     for e in verdict:
         values = e["values"]
         if e["winner"] is not None:

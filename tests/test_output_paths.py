@@ -58,7 +58,7 @@ def test_a_folder_nothing_can_be_written_in_is_refused(tmp_path):
     proc = _twin("run", "--builtin", "spline_line", "--out", str(tmp_path / "runs"),
                  limit_file_size=True)
     _refused(proc, "cannot write in", "File too large")
-    assert not [p for p in (tmp_path / "runs").iterdir()]   # nothing left behind
+    assert not (tmp_path / "runs").exists()   # nothing left behind, not even the folder
 
 
 def test_output_dir_creates_and_checks(tmp_path):
@@ -119,3 +119,33 @@ def test_an_output_path_through_a_dangling_symlink_names_the_symlink(tmp_path):
     assert not (tmp_path / "gone").exists()            # nothing was created behind it
     (tmp_path / "gone" / "deeper").mkdir(parents=True)
     assert output_dir(link / "below") == link / "below" and (link / "below").is_dir()
+
+
+@pytest.mark.parametrize("command", [
+    ["run", "nosuch.ngc"],
+    ["compare", "nosuch.ngc", "--profiles", "trapezoid,parabolic"],
+    ["run", "nosuch.ngc", "--dry-run"],
+])
+def test_a_refused_command_leaves_no_folder_behind(command, tmp_path):
+    """The folders a command made for its results go when it refuses its input; a folder
+    that was there before stays, and so does what it held."""
+    made = tmp_path / "new" / "deeper"
+    _refused(_twin(*command, "--out", str(made)), "nosuch.ngc")
+    assert not (tmp_path / "new").exists()
+    kept = tmp_path / "kept"
+    kept.mkdir()
+    (kept / "earlier.txt").write_text("an earlier result")
+    _refused(_twin(*command, "--out", str(kept / "sub")), "nosuch.ngc")
+    assert sorted(p.name for p in kept.iterdir()) == ["earlier.txt"]
+
+
+def test_drop_unused_outputs_removes_only_empty_folders_it_made(tmp_path):
+    from twin.system.jsonio import drop_unused_outputs, forget_outputs
+
+    forget_outputs()
+    empty = output_dir(tmp_path / "a" / "b")
+    used = output_dir(tmp_path / "c")
+    (used / "result.json").write_text("{}")
+    drop_unused_outputs()
+    assert not (tmp_path / "a").exists() and not empty.exists()
+    assert (used / "result.json").is_file()

@@ -157,6 +157,16 @@ class Evaluator:
                      dict(outcome.metrics), outcome.status, s.to_dict(), outcome.wall_time,
                      outcome.sim_time)
 
+    def trace(self, settings: dict[str, Any]) -> dict[str, np.ndarray] | None:
+        """Run ``settings`` (``TuningSettings.to_dict``, SI) once, in this process, and
+        return its errors and path speed against time (``RunOutcome.trace``); None if the
+        run failed."""
+        from envs.space import settings_from_dict
+
+        outcome = self.tuning.run(settings_from_dict(settings, self.tuning.space.analytic),
+                                  trace=True)
+        return None if outcome.failed else outcome.trace
+
     @property
     def dim(self) -> int:
         """Length of a tuning vector."""

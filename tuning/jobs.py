@@ -8,6 +8,8 @@ same files there:
 
 * ``best.toml`` — the best settings as a machine-override file (``tuning.report``);
 * ``convergence.png`` — cost and max coordinate error per run against the analytic design;
+* ``runs.png`` — the analytic run and the best run over each other: path speed and each
+  axis' coordinate error against time;
 * ``report.md`` — the table best vs analytic;
 * ``result.json`` — the summary (also what ``twin tune --json`` prints) with every trial
   and the cost weights the job used.
@@ -31,6 +33,7 @@ from tuning.report import (
     comparison,
     notes,
     plot_convergence,
+    plot_runs,
     rounded_settings,
     settings_changes,
     settings_markdown,
@@ -39,6 +42,7 @@ from tuning.report import (
     write_overrides,
 )
 from twin.config import MachineConfig, load_machine
+from twin.config.shaper_settings import shaper_overrides
 from twin.errors import ConfigError
 from twin.system.jsonio import folder_lock, output_dir, write_json_atomic, write_text_atomic
 
@@ -103,6 +107,10 @@ class TuneSpec:
     heartbeat_s, grace_s : int
         Optuna: heartbeat interval of a running trial, and the age of the last heartbeat
         after which its worker is taken for dead (s).
+    shaper : str or None
+        An input shaper on both axes (``twin.config.shaper_settings.SHAPER_TYPES``): its
+        frequency and damping are tuned with the gains (``envs.space``); None: the
+        machine's shapers (tuned when it shapes both axes).
     """
 
     method: str
@@ -125,8 +133,11 @@ class TuneSpec:
     worker: bool = False
     heartbeat_s: int = 5
     grace_s: int = 20
+    shaper: str | None = None
 
     def __post_init__(self) -> None:
+        if self.shaper is not None:
+            shaper_overrides(self.shaper, "shaper")
         if self.method not in METHODS:
             raise ConfigError("method", f"must be one of {', '.join(METHODS)}, got "
                               f"{self.method!r}")
@@ -310,6 +321,8 @@ def tune(spec: TuneSpec, *, on_trial: Callable[[Trial], None] | None = None,
     if spec.out_dir is None:
         spec = dataclasses.replace(spec, out_dir=job_folder(spec))
     cfg: MachineConfig = load_machine(spec.machine)
+    if spec.shaper is not None:
+        cfg = cfg.with_overrides(shaper_overrides(spec.shaper, "shaper"))
     if spec.method == "optuna" and spec.storage:   # a shared study: checked before writing
         from tuning.study_storage import check_study, study_identity
 
@@ -345,6 +358,8 @@ def _tune_in(spec: TuneSpec, cfg: MachineConfig, out: Path, start: float,
         if found is not baseline and not improved:
             # rounding lost the little it had won: the analytic design stands, as written
             best = ev.settings_trial(rounded_settings(baseline.settings), baseline.x)
+        traces = (ev.trace(baseline.settings),
+                  ev.trace(best.settings) if improved else None)
     said = notes(baseline, best, runs=len(trials), improved=improved)
     header = (f"twin tune --method {spec.method}: best settings for {cfg.name}, program "
               f"{spec.program}", f"cost {best.cost:.4g} (analytic {baseline.cost:.4g}); "
@@ -356,10 +371,13 @@ def _tune_in(spec: TuneSpec, cfg: MachineConfig, out: Path, start: float,
     # what the job is for comes first: the settings and the result; the figure and the
     # report after them, so that a failing plot (a full disk, a broken backend) loses
     # neither
-    files["overrides"] = write_overrides(out / "best.toml", best.settings, header=header)
+    files["overrides"] = write_overrides(out / "best.toml", best.settings, header=header,
+                                         shaper_type=cfg.controller.shaper.x.type)
     files["result"] = out / "result.json"
     files["report"] = out / "report.md"
     files["plot"] = out / "convergence.png"
+    if traces[0] is not None:             # the analytic run finished (it always does)
+        files["runs"] = out / "runs.png"
     weights = dataclasses.asdict(ev.tuning.weights)     # the weights the runs were costed with
     result = TuneResult(spec, baseline, best, list(trials), files,
                         time.perf_counter() - start, weights, improved)
@@ -376,8 +394,12 @@ def _tune_in(spec: TuneSpec, cfg: MachineConfig, out: Path, start: float,
                       + "".join(f"**{n[0].upper()}{n[1:]}.**\n\n" for n in said)
                       + table_markdown(rows) + "\n"
                       + settings_markdown(settings_changes(baseline.settings, best.settings))
-                      + "\n" + weights_markdown(weights) + "\n" + limit)
-    plot_convergence(files["plot"], trials, baseline,
-                     title=f"{spec.method} on {cfg.name} ({spec.program})",
-                     training=training)
+                      + "\n" + weights_markdown(weights) + "\n" + limit
+                      + "Figures: `convergence.png` (every tuning run against the analytic "
+                      "design), `runs.png` (the analytic run and the best run over each "
+                      "other: path speed and coordinate errors against time).\n")
+    title = f"{spec.method} on {cfg.name} ({spec.program})"
+    plot_convergence(files["plot"], trials, baseline, title=title, training=training)
+    if "runs" in files and traces[0] is not None:
+        plot_runs(files["runs"], traces[0], traces[1], title=title)
     return result

@@ -38,7 +38,9 @@ SIGNIFICANT = 5
 """Significant digits the best settings are written with (``rounded_settings``): a gain
 to 0.01 % or better, finer than the DAC's step makes any difference; the jerk limit to 4."""
 
-_SETTINGS = (("kp", "V/m"), ("ki", "V/(m·s)"), ("dcu_alpha", "V/m"), ("max_jerk", "m/s³"))
+_SETTINGS = (("kp", "V/m"), ("ki", "V/(m·s)"), ("dcu_alpha", "V/m"), ("max_jerk", "m/s³"),
+             ("shaper_frequency", "Hz"), ("shaper_damping", "1"))
+"""The settings a job tunes; the shaper's only on a machine that shapes both axes."""
 
 
 def _round(value: float, digits: int) -> float:
@@ -51,11 +53,15 @@ def rounded_settings(settings: dict[str, Any]) -> dict[str, Any]:
     """``TuningSettings.to_dict()`` values rounded to ``SIGNIFICANT`` digits (the jerk
     limit to 4): what ``best.toml`` holds, and what the job runs once more so that the
     file reproduces the figures it reports."""
-    return {"kp": [_round(v, SIGNIFICANT) for v in settings["kp"]],
-            "ki": [_round(v, SIGNIFICANT) for v in settings["ki"]],
-            "dcu_alpha": [[_round(v, SIGNIFICANT) for v in row]
-                          for row in settings["dcu_alpha"]],
-            "max_jerk": _round(settings["max_jerk"], 4)}
+    out = {"kp": [_round(v, SIGNIFICANT) for v in settings["kp"]],
+           "ki": [_round(v, SIGNIFICANT) for v in settings["ki"]],
+           "dcu_alpha": [[_round(v, SIGNIFICANT) for v in row]
+                         for row in settings["dcu_alpha"]],
+           "max_jerk": _round(settings["max_jerk"], 4)}
+    for key in ("shaper_frequency", "shaper_damping"):
+        if key in settings:
+            out[key] = [_round(v, SIGNIFICANT) for v in settings[key]]
+    return out
 
 
 def settings_changes(analytic: dict[str, Any], best: dict[str, Any]) -> list[dict[str, Any]]:
@@ -63,6 +69,8 @@ def settings_changes(analytic: dict[str, Any], best: dict[str, Any]) -> list[dic
     unit, analytic, best, change_pct}`` (``kp x``, ``dcu_alpha y 2``, ``max_jerk``; SI)."""
     rows = []
     for name, unit in _SETTINGS:
+        if name not in analytic or name not in best:
+            continue
         a, b = analytic[name], best[name]
         if name == "max_jerk":
             pairs = [("max_jerk", a, b)]
@@ -142,9 +150,11 @@ def weights_markdown(weights: dict[str, float]) -> str:
             "design's, times its weight.\n\n| term | weight |\n| --- | --- |\n" + rows + "\n")
 
 
-def write_overrides(path: Path, settings: dict[str, Any], *, header: Sequence[str] = ()
-                    ) -> Path:
-    """Write ``settings`` (``TuningSettings.to_dict()``) as an override TOML at ``path``."""
+def write_overrides(path: Path, settings: dict[str, Any], *, header: Sequence[str] = (),
+                    shaper_type: str | None = None) -> Path:
+    """Write ``settings`` (``TuningSettings.to_dict()``) as an override TOML at ``path``;
+    tuned shapers with their ``shaper_type`` (the machine's), so that the file turns them on
+    wherever it is applied."""
     lines = [f"# {h}" for h in header]
     lines += ["", "[controller.limits]",
               f"max_jerk = {_num(settings['max_jerk'], 'm/s³')}",
@@ -154,6 +164,12 @@ def write_overrides(path: Path, settings: dict[str, Any], *, header: Sequence[st
               "# DCU alpha1..alpha3 per axis; replaces the derived dcu_order DCU",
               "dcu_alpha = [" + ", ".join(_arr(r, "V/m") for r in settings["dcu_alpha"]) + "]",
               ""]
+    if "shaper_frequency" in settings:          # the machine's shapers, tuned
+        for k, axis in enumerate(("x", "y")):
+            lines += [f"[controller.shaper.{axis}]",
+                      *([f'type = "{shaper_type}"'] if shaper_type else []),
+                      f"frequency = {_num(settings['shaper_frequency'][k], 'Hz')}",
+                      f"damping = {float(settings['shaper_damping'][k])!r}", ""]
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
     tmp = path.with_name(path.name + ".partial")
@@ -174,12 +190,18 @@ def read_overrides(path: Path, base: RegulatorGains) -> TuningSettings:
     doc = read_toml(path)
     try:
         reg = doc["controller"]["regulator"]
-        return settings_from_dict({
+        values: dict[str, Any] = {
             "max_jerk": _si(doc["controller"]["limits"]["max_jerk"], "m/s³", "max_jerk"),
             "kp": [_si(v, "V/m", "kp") for v in reg["kp"]],
             "ki": [_si(v, "V/(m·s)", "ki") for v in reg["ki"]],
             "dcu_alpha": [[_si(v, "V/m", "dcu_alpha") for v in r]
-                          for r in reg["dcu_alpha"]]}, base)
+                          for r in reg["dcu_alpha"]]}
+        shaper = doc["controller"].get("shaper")
+        if shaper:
+            values["shaper_frequency"] = [_si(shaper[a]["frequency"], "Hz", "frequency")
+                                          for a in ("x", "y")]
+            values["shaper_damping"] = [float(shaper[a]["damping"]) for a in ("x", "y")]
+        return settings_from_dict(values, base)
     except (KeyError, TypeError) as exc:
         raise ConfigError(str(path), f"not a tuning override file: missing or bad {exc}") \
             from None
@@ -300,6 +322,46 @@ def plot_convergence(path: Path, trials: Sequence[Trial], baseline: Trial, *,
         ax5.set_ylabel("cost (1)")
         ax5.legend(loc="upper right", fontsize=8)
     fig.tight_layout()
+    path = Path(path)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    fig.savefig(path, dpi=100)
+    plt.close(fig)
+    return path
+
+
+def plot_runs(path: Path, analytic: dict[str, np.ndarray],
+              best: dict[str, np.ndarray] | None, *, title: str) -> Path:
+    """The analytic design's run and the best run drawn over each other against time:
+    the reference's path speed (mm/min) and each axis' coordinate error (µm), the analytic
+    run dashed, the best solid (``RunOutcome.trace`` of each). ``best`` None: the analytic
+    run alone (nothing beat it). Writes a PNG."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    runs = [("analytic design", analytic, "--", "C3")]
+    if best is not None:
+        runs.append(("best run", best, "-", "C0"))
+    fig, axes = plt.subplots(3, 1, figsize=(8, 7.5), sharex=True)
+    for label, tr, style, colour in runs:
+        t = tr["t"]
+        axes[0].plot(t, tr["speed"] * 6e4, style, color=colour, lw=1.0, label=label)
+        for k, ax in enumerate(axes[1:]):
+            ax.plot(t, tr["error"][:, k] * 1e6, style, color=colour, lw=0.8, label=label)
+    axes[0].set_ylabel("path speed (mm/min)")
+    axes[1].set_ylabel("X coordinate error (µm)")
+    axes[2].set_ylabel("Y coordinate error (µm)")
+    axes[2].set_xlabel("time (s)")
+    fig.suptitle(title + ("" if best is not None else ": nothing beat the analytic design"))
+    # one legend above the panels, where it hides no trace
+    fig.legend(*axes[0].get_legend_handles_labels(), loc="upper center", ncol=2,
+               fontsize=8, frameon=False, bbox_to_anchor=(0.5, 0.955))
+    end = max(float(tr["t"][-1]) for _, tr, _, _ in runs if len(tr["t"]))
+    for ax in axes:
+        ax.grid(True, alpha=0.3)
+        ax.set_xlim(0.0, end)
+    fig.tight_layout(rect=(0.0, 0.0, 1.0, 0.93))
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
     fig.savefig(path, dpi=100)

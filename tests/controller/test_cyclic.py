@@ -22,6 +22,7 @@ from twin.controller.cyclic import steady_tick
 from twin.controller.geometry import Line
 from twin.controller.io import Inputs
 from twin.controller.planner import MotionBlock
+from twin.controller.shaping import NO_TAPS
 from twin.session.run import RunSpec, run
 
 LAWS = ("trapezoid", "parabolic", "cosine", "cubic", "jerk-limited")
@@ -275,7 +276,7 @@ def test_a_closed_switch_leaves_the_state_untouched():
                        interp._tau + interp.period, 3, ctrl.period, *(
                            getattr(interp.reference, f) for f in
                            ("position", "velocity", "acceleration", "jerk")),
-                       reg._par, reg._st, reg.output, reg.error, reg.terms,
+                       *NO_TAPS, reg._par, reg._st, reg.output, reg.error, reg.terms,
                        reg._code_min, reg._code_max, ctrl._held,
                        ctrl.outputs.dac_volts, chunk, row, 0, 0)
     assert code == controller_module.FALLBACK

@@ -205,3 +205,30 @@ def test_the_cycle_time_constraint_costs_more_than_the_analytic_design():
     assert info["terms"]["cycle_time_limit"] == 0.0
     with pytest.raises(Exception, match="max_cycle_time_increase"):
         GainTuningEnv(**KW, max_cycle_time_increase=-0.1).reset(seed=0)
+
+
+def test_the_shapers_frequency_and_damping_are_actions():
+    """``shaper="ei"``: four more actions, which set the EI shapers the run uses (the
+    controller's own shaper design, read back from a run with those settings)."""
+    from twin.config.shaper_settings import SHAPER_TYPES
+    from twin.controller.controller import Controller
+    from twin.errors import ConfigError
+
+    env = gym.make(envs.GAIN_TUNING_ID, machine="laser_belt", program="tiny", shaper="ei")
+    assert env.action_space.shape == (15,) and env.observation_space.shape == (39,)
+    env.reset(seed=0)
+    rng = np.random.default_rng(2)
+    a = np.zeros(15)
+    a[11:] = rng.uniform(-1, 1, 4)
+    _, _, _, _, info = env.step(a)
+    space = env.unwrapped.tuning.space
+    expect = space.decode(a)
+    assert info["settings"]["shaper_frequency"] == [f for f, _ in expect.shaper]
+    cfg = load_machine("laser_belt").with_overrides({**expect.overrides(), **{
+        f"controller.shaper.{ax}.type": "ei" for ax in ("x", "y")}})
+    built = Controller.from_machine(cfg, None).shaper.shapers
+    assert [(s.name, s.frequency, s.damping) for s in built] == [
+        ("ei", f, z) for f, z in expect.shaper]
+    with pytest.raises(ConfigError) as exc:
+        GainTuningEnv(machine="laser_belt", shaper="foo")
+    assert exc.value.field == "shaper" and "none" in SHAPER_TYPES

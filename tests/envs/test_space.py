@@ -94,3 +94,68 @@ def test_settings_validation(machine):
         TuningSettings(space.analytic, -1.0)
     with pytest.raises(ConfigError, match="kp_span"):
         TuningSpace(space.analytic, 5.0, (1.0, 1.0), kp_span=1.0)
+
+
+# --------------------------------------------------------------------------- shapers
+def _shaped(seed):
+    """A random shaped variant of a preset (type, and maybe a frequency and damping)."""
+    from twin.controller.shaping import SHAPERS
+
+    rng = np.random.default_rng(seed)
+    name = str(rng.choice(["tomsk_xy", "laser_belt"]))
+    ov = {f"controller.shaper.{a}.type": str(rng.choice(SHAPERS)) for a in ("x", "y")}
+    if name == "tomsk_xy":           # its y mode (161 Hz) lies above the Nyquist rate
+        ov.update({f"controller.shaper.{a}.frequency": float(rng.uniform(20, 85))
+                   for a in ("x", "y")})
+    if rng.random() < 0.5:
+        ov["controller.shaper.x.damping"] = float(rng.uniform(0.0, 0.6))
+    cfg = load_machine(name).with_overrides(ov)
+    return cfg, TuningSpace.from_machine(cfg, axis_models(cfg)), rng
+
+
+@pytest.mark.parametrize("seed", range(6))
+def test_a_shaped_machine_adds_its_shapers_coordinates(seed):
+    from envs.space import (
+        DIM,
+        SHAPER_DAMPING_SPAN,
+        SHAPER_FREQUENCY_SPAN,
+        settings_from_dict,
+    )
+    from twin.controller.shaping import axis_shapers
+
+    cfg, space, rng = _shaped(seed)
+    assert space.dim == DIM + 4 and space.names[-4:] == ("sf_x", "sz_x", "sf_y", "sz_y")
+    centre = [(s.frequency, s.damping) for s in axis_shapers(
+        cfg.controller.shaper, cfg.axes, cfg.controller.period)]
+    assert space.decode(np.zeros(space.dim)).shaper == tuple(centre)
+    a = rng.uniform(-1, 1, space.dim)
+    s = space.decode(a)
+    for k, (f0, z0) in enumerate(centre):
+        f, z = s.shaper[k]
+        assert f == pytest.approx(min(space.shaper_limit, f0 * SHAPER_FREQUENCY_SPAN
+                                      ** a[DIM + 2 * k]), rel=1e-12)
+        assert f < 0.5 / cfg.controller.period
+        assert z == pytest.approx(min(0.9, max(0.0, z0 + SHAPER_DAMPING_SPAN
+                                                * a[DIM + 2 * k + 1])), abs=1e-15)
+    back = space.encode(s)
+    clipped = {DIM + 2 * k + 1 for k in range(2) if s.shaper[k][1] in (0.0, 0.9)} | {
+        DIM + 2 * k for k in range(2) if s.shaper[k][0] == space.shaper_limit}
+    keep = [i for i in range(space.dim) if i not in clipped
+            and (i not in (1, 6) or a[i] > 0)]                       # ki ≤ 0 is one point
+    np.testing.assert_allclose(back[keep], a[keep], atol=1e-9)
+    again = settings_from_dict(s.to_dict(), space.analytic)
+    assert again.shaper == s.shaper
+    ov = s.overrides()
+    loaded = cfg.with_overrides(ov)
+    for axis, (f, z) in zip(("x", "y"), s.shaper, strict=True):
+        got = getattr(loaded.controller.shaper, axis)
+        assert (got.frequency, got.damping) == pytest.approx((f, z))
+
+
+def test_an_unshaped_machine_keeps_eleven_coordinates():
+    from envs.space import DIM
+
+    cfg = load_machine("laser_belt").with_overrides({"controller.shaper.x.type": "zv"})
+    space = TuningSpace.from_machine(cfg, axis_models(cfg))     # one axis: no coordinates
+    assert space.dim == DIM and space.decode(np.zeros(DIM)).shaper is None
+    assert "controller.shaper.x.frequency" not in space.decode(np.zeros(DIM)).overrides()

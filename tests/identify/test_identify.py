@@ -104,6 +104,10 @@ def test_fitting_the_recorded_experiments_again_gives_the_same_machine(over_modb
     proc = twin_cli("identify", "--machine", BASE, "--from-log", result["record"], "-o",
                  str(again), "--json")
     assert proc.returncode == 0, proc.stderr
+    # piped, not on a terminal: the fit still says where it is, stage by stage
+    stages = [ln.split(":")[0] for ln in proc.stderr.splitlines() if ":" in ln]
+    for stage in ("gains", "inertia", "lost motion", "joint fit", "held out"):
+        assert stage in stages, proc.stderr
     refit = json.loads(proc.stdout)
     for a in AXES:
         for name, e in result["estimates"][a].items():

@@ -129,8 +129,9 @@ def test_tuning_on_the_calibrated_file_transfers_to_the_machine(in_lockstep):
     with Evaluator.create(true, "compact") as on_truth:
         direct = run_cma(on_truth, budget_s=600.0, max_evals=runs, seed=3)
         analytic = on_truth.baseline.cost
-        # costed as the other two are, against the machine's own analytic design (the
-        # evaluator believing the calibrated file would scale it by its own baseline)
+        # costed as the other two are, against the machine's own analytic design (an
+        # evaluator believing the calibrated file scales each figure by the baseline it
+        # believes, up to 5 % off the machine's)
         transferred = math.fsum(on_truth.tuning.terms(outcome).values())
     assert direct.cost < 0.98 * analytic, "the budget must let tuning improve on the design"
     print(f"\ntuning cost on the machine: analytic {analytic:.4f}, transferred "

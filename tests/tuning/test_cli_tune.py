@@ -17,7 +17,7 @@ def _twin(*args, cwd=None):
 
 def test_cma_job_prints_one_json_object_and_writes_its_files(tmp_path):
     out = tmp_path / "job"
-    r = _twin("tune", "--method", "cma", "--program", "tiny", "--budget-s", "30",
+    r = _twin("tune", "--method", "cma", "--program", "tiny", "--budget-s", "300",
               "--max-runs", "8", "--workers", "1", "--out", str(out), "--json")
     assert r.returncode == 0, r.stderr
     doc = json.loads(r.stdout)                 # exactly one object

@@ -72,12 +72,21 @@ def test_cma_arguments(tiny, bad, field):
 def test_job_files_and_the_override_round_trip(tmp_path):
     result = tune(TuneSpec(method="cma", program="tiny", budget_s=60.0, max_runs=12,
                            workers=1, out_dir=tmp_path))
-    for key in ("overrides", "plot", "report", "result"):
+    for key in ("overrides", "plot", "report", "result", "runs"):
         assert result.files[key].is_file() and result.files[key].stat().st_size > 0
-    assert result.files["plot"].read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+    for key in ("plot", "runs"):
+        assert result.files[key].read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
     assert "| max_coordinate_error | µm |" in result.files["report"].read_text()
     # the TOML reproduces the best run exactly
-    ev_space = Evaluator.create("tomsk_xy", "tiny").tuning
+    ev = Evaluator.create("tomsk_xy", "tiny")
+    ev_space = ev.tuning
+    # runs.png draws the very runs the report gives: the trace of the best settings peaks
+    # at the best run's max coordinate error, the analytic one at the analytic run's
+    for trial in (result.baseline, result.best):
+        trace = ev.trace(trial.settings)
+        assert np.abs(trace["error"]).max() == pytest.approx(
+            trial.metrics["max_coordinate_error"], rel=1e-9)
+        assert trace["t"][-1] == pytest.approx(trial.sim_time, abs=0.1)
     settings = read_overrides(result.files["overrides"], ev_space.space.analytic)
     assert settings.to_dict() == result.best.settings   # repr floats round-trip exactly
     again = tuning_run(ev_space.cfg, settings, models=ev_space.models, program="tiny")
@@ -166,3 +175,26 @@ def test_black_box_tuning_beats_the_analytic_dcu(tmp_path):
     assert best["overshoot"] <= base["overshoot"]
     assert math.isfinite(result.best.cost) and result.best.cost < result.baseline.cost
     assert result.wall_time < 600.0
+
+
+def test_tuned_shapers_round_trip_through_best_toml(tmp_path):
+    """Random shaper settings written as best.toml read back bit for bit, and the file
+    turns the machine's shapers on with them (type, frequency, damping)."""
+    from envs.space import TuningSpace
+    from tuning.report import rounded_settings
+
+    cfg = load_machine("laser_belt").with_overrides(
+        {f"controller.shaper.{a}.type": "mzv" for a in ("x", "y")})
+    space = TuningSpace.from_machine(cfg, axis_models(cfg))
+    rng = np.random.default_rng(7)
+    for k in range(4):
+        s = space.decode(rng.uniform(-1, 1, space.dim)).to_dict()
+        path = write_overrides(tmp_path / f"b{k}.toml", s, shaper_type="mzv")
+        back = read_overrides(path, space.analytic).to_dict()
+        assert back == s
+        loaded = cfg.with_overrides(set_file_overrides(path))
+        for i, axis in enumerate(("x", "y")):
+            got = getattr(loaded.controller.shaper, axis)
+            assert (got.type, got.frequency, got.damping) == (
+                "mzv", s["shaper_frequency"][i], s["shaper_damping"][i])
+        assert set(rounded_settings(s)) == set(s)

@@ -20,6 +20,10 @@ elastic oscillation
     deflection is sampled every drive interval (the twin's drive-rate samples), because the
     modes (93 and 161 Hz on tomsk_xy) lie near or above the Nyquist rate of the controller
     period. Every run summary has it (``elastic_oscillation_um``).
+residual vibration
+    The free vibration of the same deflection left once the (shaped) reference stops
+    accelerating, about its settled value (``twin.analysis.vibration``): what an input shaper
+    cancels, where the elastic oscillation above also counts the quasi-static ``m·a/k``.
 contour error (max and RMS)
     Of the table's true path, searched over the whole program (``true_contour_error``);
     they replace the run summary's, which measures the encoder position near the active
@@ -44,6 +48,8 @@ from typing import Any
 
 import numpy as np
 
+from twin.analysis.spectrum import amplitude_density, peak
+from twin.analysis.vibration import residual_vibration
 from twin.controller.metrics import contour_error, oscillation
 from twin.plant.model import mode_periods
 from twin.session.run import RunResult, RunSpec, run
@@ -52,7 +58,7 @@ from twin.telemetry.sink import Sink
 
 __all__ = ["FIGURES", "LAW_COLOURS", "LAW_COLOUR_NAMES", "Comparison", "LawRun", "compare",
            "elastic_oscillation", "figure_value", "junction_speed_jump", "junctions",
-           "law_figures", "mode_periods",
+           "law_colour", "law_colour_name", "law_figures", "mode_periods",
            "true_contour_error", "verdict", "widest_difference"]
 
 FIGURES = (
@@ -66,6 +72,7 @@ FIGURES = (
     ("peak reference jerk |Δa|/T", "peak_reference_jerk_m_per_s3", "m/s³"),
     ("speed jump at junctions", "junction_speed_jump_mm_per_s", "mm/s"),
     ("elastic oscillation", "elastic_oscillation_um", "µm"),
+    ("residual vibration", "residual_vibration_um", "µm"),
     ("settling travel (loop lag)", "settling_travel_um", "µm"),
 )
 """The figures laws are compared by: label, summary key (or (key, axis)), unit. Smaller is
@@ -82,6 +89,23 @@ LAW_COLOURS = {"trapezoid": (214, 39, 40), "parabolic": (31, 119, 180),
 LAW_COLOUR_NAMES = {"trapezoid": "red", "parabolic": "blue", "cosine": "green",
                     "cubic": "purple", "jerk-limited": "orange"}
 """The names of ``LAW_COLOURS``, for the overlay's titles (its plots name their series)."""
+
+
+def law_colour(profile: str) -> tuple[int, int, int]:
+    """The colour of a profile (RGB): its law's (``LAW_COLOURS``), darkened by half for
+    ``law+shaper``; grey for an unknown law."""
+    law, _, shaper = profile.partition("+")
+    rgb = LAW_COLOURS.get(law, (90, 90, 90))
+    if shaper and shaper != "none":
+        return (rgb[0] // 2, rgb[1] // 2, rgb[2] // 2)
+    return rgb
+
+
+def law_colour_name(profile: str) -> str:
+    """``law_colour``'s name: the law's (``LAW_COLOUR_NAMES``), "dark …" when shaped."""
+    law, _, shaper = profile.partition("+")
+    name = LAW_COLOUR_NAMES.get(law, "grey")
+    return f"dark {name}" if shaper and shaper != "none" else name
 
 
 # --------------------------------------------------------------------------- metrics
@@ -162,7 +186,13 @@ def law_figures(result: RunResult, contour: np.ndarray | None = None) -> dict[st
         t, d = result.fine["t"], result.fine["screw_deflection"]
     else:
         t, d = rec["t"], rec["screw_deflection"]
-    out["elastic_oscillation_um"] = elastic_oscillation(t, d, mode_periods(cfg)) * 1e6
+    periods = mode_periods(cfg)
+    f_hz, density = amplitude_density(rec["t"], rec["following_error"])
+    # the loop's and the mode's band, not the moves' own slow content
+    out["following_error_peak_hz"] = peak(f_hz, density, above=0.5 / max(periods))[0]
+    out["elastic_oscillation_um"] = elastic_oscillation(t, d, periods) * 1e6
+    out["residual_vibration_um"] = residual_vibration(rec["t"], rec["ref_acceleration"], t, d,
+                                                      periods) * 1e6
     contour = true_contour_error(result) if contour is None else contour
     out["max_contour_error_um"] = float(contour.max()) * 1e6
     out["rms_contour_error_um"] = float(np.sqrt(np.mean(contour**2))) * 1e6
@@ -297,7 +327,7 @@ class _LawSink:
     def __init__(self, shared: Sink, law: str):
         self.shared, self.law = shared, law
         self.prefix = f"laws/{law}/"
-        self.colour = LAW_COLOURS.get(law, (90, 90, 90))
+        self.colour = law_colour(law)
 
     def static_path(self, entity: str, points: np.ndarray, *,
                     color: tuple[int, int, int] = (160, 160, 160)) -> None:
@@ -342,7 +372,7 @@ def _shared_sink(path: Path, laws: Sequence[str], run_id: str) -> Sink:
     from twin.telemetry.blueprint import overlay_blueprint
     from twin.telemetry.rerun_sink import RerunSink
 
-    names = {law: LAW_COLOUR_NAMES.get(law, "grey") for law in laws}
+    names = {law: law_colour_name(law) for law in laws}
     sink = RerunSink(path, recording_id=run_id, recording_name=run_id,
                      blueprint=lambda extents: overlay_blueprint(names, extents))
     sink.machine_frame("laws")          # the paths in mm, Y up, as in a run's layout

@@ -21,7 +21,7 @@ from pathlib import Path
 
 import numpy as np
 
-from twin.analysis.compare import FIGURES, LAW_COLOURS, Comparison, verdict, widest_difference
+from twin.analysis.compare import FIGURES, Comparison, law_colour, verdict, widest_difference
 from twin.telemetry.channels import programmed_polyline
 
 __all__ = ["figure_label", "figure_unit", "margin_text", "readable", "write_report",
@@ -29,7 +29,7 @@ __all__ = ["figure_label", "figure_unit", "margin_text", "readable", "write_repo
 
 
 def _colour(law: str) -> tuple[float, float, float]:
-    r, g, b = LAW_COLOURS.get(law, (90, 90, 90))
+    r, g, b = law_colour(law)
     return r / 255.0, g / 255.0, b / 255.0
 
 
@@ -47,11 +47,12 @@ def write_report(comparison: Comparison, path: str | Path, *, title: str = "") -
     """Write the comparison PNG to ``path`` and return it."""
     from matplotlib.lines import Line2D
 
-    fig = _figure_only((13.0, 14.0))
-    grid = fig.add_gridspec(4, 2, height_ratios=[1.0, 1.0, 1.0, 1.15])
+    fig = _figure_only((13.0, 17.5))
+    grid = fig.add_gridspec(5, 2, height_ratios=[1.0, 1.0, 1.0, 1.0, 1.15])
     speed, acc, jerk = (fig.add_subplot(grid[i, 0]) for i in range(3))
     paths, err = fig.add_subplot(grid[0, 1]), fig.add_subplot(grid[1:3, 1])
-    table = fig.add_subplot(grid[3, :])
+    _spectra(fig.add_subplot(grid[3, 0]), fig.add_subplot(grid[3, 1]), comparison)
+    table = fig.add_subplot(grid[4, :])
     per_min = 60e3                                              # m/s → mm/min
     for law, r in comparison.runs.items():
         rec, c = r.record, _colour(law)
@@ -108,6 +109,26 @@ def write_report(comparison: Comparison, path: str | Path, *, title: str = "") -
     out = Path(path)
     fig.savefig(out, dpi=110)
     return out
+
+
+def _spectra(ferr, fdef, comparison: Comparison) -> None:
+    """Amplitude spectral densities (``twin.analysis.spectrum``) of each law's following
+    error (per tick) and screw deflection (per drive interval), log-log."""
+    from twin.analysis.spectrum import amplitude_density
+
+    for law, r in comparison.runs.items():
+        c = _colour(law)
+        f, d = amplitude_density(r.record["t"], r.record["following_error"])
+        ferr.loglog(f[1:], d[1:] * 1e6, color=c, lw=1.0, label=law)
+        f, d = amplitude_density(r.fine_t, r.fine_deflection)
+        fdef.loglog(f[1:], d[1:] * 1e6, color=c, lw=1.0, label=law)
+    for a, what in ((ferr, "following error"), (fdef, "screw deflection")):
+        a.set_xlabel("frequency (Hz)")
+        a.set_ylabel(f"{what} (µm/√Hz)")
+        a.set_title(f"spectrum of the {what} (x and y in power, 1 s Hann windows)",
+                    fontsize=9)
+        a.grid(True, which="both", alpha=0.3)
+        a.legend(fontsize=8, loc="best")
 
 
 def _figure_only(size: tuple[float, float]):

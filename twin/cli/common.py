@@ -19,7 +19,7 @@ from rich.markup import escape
 from rich.table import Table
 
 from twin.errors import ConfigError, GCodeError
-from twin.system.jsonio import json_text
+from twin.system.jsonio import drop_unused_outputs, json_text
 
 __all__ = [
     "CONTROLLER_MODEL_HELP",
@@ -147,6 +147,8 @@ def fail(exc: BaseException, as_json: bool = False, *, code: int = 2,
         sys.stdout.write(json_text(refusal(exc, status)) + "\n")
         sys.stdout.flush()
     err.print(f"[bold red]error:[/] {escape(str(exc))}", highlight=False, soft_wrap=True)
+    if code == 2:                       # refused: the folders made for its results go
+        drop_unused_outputs()
     raise typer.Exit(code)
 
 

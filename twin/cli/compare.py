@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import dataclasses
 import shutil
 import sys
 from pathlib import Path
@@ -59,6 +60,18 @@ def _wins(verdicts: list[dict[str, Any]]) -> str:
     return "; ".join(parts)
 
 
+def _check_shapers(spec: Any, law: str) -> None:
+    """The shapers ``law`` puts on the machine can be built (a mode above the Nyquist rate
+    of the controller period cannot be shaped), or a ``ConfigError`` naming ``--profiles``."""
+    from twin.controller.shaping import axis_shapers
+
+    cfg = spec.machine_config()
+    try:
+        axis_shapers(cfg.controller.shaper, spec.belief(cfg).axes, cfg.controller.period)
+    except ConfigError as exc:
+        raise ConfigError("--profiles", f"{law}: {exc.field}: {exc.message}") from None
+
+
 def _call_folder(out: Path) -> Path:
     """A folder of its own for this call under ``out`` (time stamp + random suffix): a
     second comparison never overwrites the first's outputs."""
@@ -90,7 +103,9 @@ def compare_cmd(
                                            "program (--builtin)."),
     profiles: str = typer.Option("trapezoid,parabolic", "--profiles",
                                  help="Comma-separated laws: trapezoid, parabolic, cosine, "
-                                      "cubic, jerk-limited."),
+                                      "cubic, jerk-limited; LAW+SHAPER adds an input shaper "
+                                      "on both axes (zv, mzv, zvd, ei, 2hump-ei, 3hump-ei, "
+                                      "none), e.g. trapezoid,trapezoid+mzv."),
     machine: str = typer.Option("tomsk_xy", "--machine", "-m",
                                 help="Machine preset name or TOML file (the plant)."),
     controller_model: str | None = typer.Option(None, "--controller-model",
@@ -116,7 +131,7 @@ def compare_cmd(
     from twin.analysis.compare import compare, verdict
     from twin.analysis.report import write_report, write_sweep_report
     from twin.config.overrides import parse_sets
-    from twin.controller.profiles.laws import check_law
+    from twin.config.shaper_settings import split_profile
     from twin.session.run import RunSpec
 
     laws = [p.strip().replace("_", "-") for p in profiles.split(",") if p.strip()]
@@ -125,10 +140,7 @@ def compare_cmd(
     try:
         rerun = rerun_target(rerun)
         for law in laws:
-            try:
-                check_law(law)
-            except ConfigError as exc:
-                raise ConfigError("--profiles", exc.message) from None
+            split_profile(law, "--profiles")
         if not laws:
             raise ConfigError("--profiles", "names no law")
         base = RunSpec(machine=machine, controller_model=controller_model,
@@ -137,6 +149,8 @@ def compare_cmd(
                        else planner.value, dcu_order=dcu_order,
                        overrides=parse_sets(sets))
         base.belief(base.machine_config())
+        for law in laws:                  # a shaper the period cannot act on: before any run
+            _check_shapers(dataclasses.replace(base, profile=law), law)
         swept = _parse_sweep(sweep) if sweep is not None else None    # before any file
         folder = _call_folder(out)
         say = _Say(len(laws))

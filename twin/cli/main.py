@@ -29,7 +29,6 @@ from twin.cli.common import (  # noqa: E402
     RERUN_HELP,
     RUN_ROWS,
     Builtin,
-    Law,
     PlannerMode,
     err,
     fail,
@@ -41,7 +40,7 @@ from twin.cli.common import (  # noqa: E402
 from twin.config import available_machines, diff_machines, field_unit, load_machine  # noqa: E402
 from twin.config.overrides import SET_HELP  # noqa: E402
 from twin.errors import ConfigError, TwinError  # noqa: E402
-from twin.system.jsonio import json_text  # noqa: E402
+from twin.system.jsonio import forget_outputs, json_text  # noqa: E402
 
 __all__ = ["app"]
 
@@ -71,6 +70,7 @@ def main(show_version: bool = typer.Option(False, "--version", callback=_version
                                            is_eager=True, help="Print the version and exit.")
          ) -> None:
     """xy-twin: a digital twin of a two-axis CNC cross table."""
+    forget_outputs()        # a command answers only for the folders it makes itself
 
 
 def _emit(obj: dict[str, Any], as_json: bool) -> None:
@@ -97,10 +97,13 @@ def _run(program: Path | None, machine: str, profile: str | None, planner: str |
          driver: str = "sim", rt_priority: int = 0, set_file: Path | None = None,
          controller_model: str | None = None, rerun_port: int = 9876) -> None:
     from twin.config.overrides import parse_sets, set_file_overrides
+    from twin.config.shaper_settings import split_profile
     from twin.session.run import RunSpec, run
     from twin.session.run_end import RunInterrupted
 
     try:
+        if profile is not None:
+            split_profile(profile, "--profile")
         spec = RunSpec(machine=machine, controller_model=controller_model,
                        program=str(program) if program else None,
                        builtin=builtin, profile=profile, planner=planner,
@@ -210,8 +213,11 @@ def run_cmd(
                                            "default program."),
     machine: str = MachineOpt,
     controller_model: str | None = ModelOpt,
-    profile: Law | None = typer.Option(None, help="Acceleration law (default: the "
-                                       "machine's)."),
+    profile: str | None = typer.Option(None, help="Acceleration law (trapezoid, parabolic, "
+                                       "cosine, cubic, jerk-limited; default: the "
+                                       "machine's), or LAW+SHAPER with an input shaper on "
+                                       "both axes (zv, mzv, zvd, ei, 2hump-ei, 3hump-ei, "
+                                       "none), e.g. trapezoid+ei."),
     planner: PlannerMode | None = typer.Option(None, help="Look ahead over the blocks, or "
                                                "stop at every node (default: the "
                                                "machine's)."),
@@ -248,7 +254,7 @@ def run_cmd(
         rerun = rerun_target(rerun, live=True)
     except TwinError as exc:
         fail(exc, as_json)
-    _run(program, machine, None if profile is None else profile.value,
+    _run(program, machine, profile,
          None if planner is None else planner.value, dcu_order, period, sets, rerun, out,
          as_json, dry_run, builtin.value, driver, rt_priority, set_file, controller_model,
          rerun_port)
@@ -421,14 +427,16 @@ def _cell(value: Any) -> str:
 
 def _register_more() -> None:
     """Commands that live in their own modules (imported lazily by their functions)."""
-    from twin.cli import compare, hil, identify, manual, runs, tune
+    from twin.cli import compare, hil, identify, manual, measure, runs, shaper, tune
 
     manual.register(app)
     hil.register(app)
     compare.register(app)
     tune.register(app)
     identify.register(app)
+    measure.register(app)
     runs.register(app)
+    shaper.register(app)
 
 
 _register_more()

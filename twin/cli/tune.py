@@ -83,9 +83,14 @@ def tune(
         None, "--max-cycle-time-increase", metavar="PCT", help="A constraint: the cycle "
         "time may grow by at most this much over the analytic design's (0% forbids any "
         "growth; 5% or 0.05)."),
+    shaper: str | None = typer.Option(None, "--shaper", help="An input shaper on both axes "
+                                      "(zv, mzv, zvd, ei, 2hump-ei, 3hump-ei): its frequency "
+                                      "and damping are tuned too (so are a machine file's "
+                                      "shapers on both axes)."),
     as_json: bool = typer.Option(False, "--json", help="Print exactly one JSON object."),
 ) -> None:
-    """Tune the regulator gains, DCU coefficients and jerk limit of a machine."""
+    """Tune the regulator gains, DCU coefficients and jerk limit of a machine (and its input
+    shapers' frequency and damping)."""
     from tuning.jobs import TuneSpec
     from tuning.jobs import tune as run_job
 
@@ -96,13 +101,17 @@ def tune(
     try:
         weights = _weights(weight)
         limit = _share(max_cycle_time_increase)
+        if shaper is not None:
+            from twin.config.shaper_settings import shaper_overrides
+
+            shaper_overrides(shaper, "--shaper")
         spec = TuneSpec(method=method, machine=machine, controller_model=controller_model,
                         program=program, budget_s=budget_s, weights=weights,
                         max_cycle_time_increase=limit,
                         out_dir=out, storage=storage, study=study, workers=workers,
                         seed=seed, max_runs=max_runs, policy=policy, train_steps=train_steps,
                         resume=resume, worker=worker, heartbeat_s=heartbeat_s,
-                        grace_s=grace_s)
+                        grace_s=grace_s, shaper=shaper)
         training = method in ("ppo", "sac") and policy is None
         watch = _Watch(method, budget_s, train_steps if training else None)
         with watch:

@@ -25,6 +25,7 @@ from twin.config.loader import (
 )
 from twin.config.schema import (
     AXES,
+    AccelerometerConfig,
     AxisConfig,
     ControllerSettings,
     ConverterConfig,
@@ -50,6 +51,7 @@ from twin.config.schema import (
 __all__ = [
     "AXES",
     "MACHINES_DIR",
+    "AccelerometerConfig",
     "AxisConfig",
     "ControllerSettings",
     "ConverterConfig",

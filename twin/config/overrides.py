@@ -39,7 +39,7 @@ SHORT_KEYS = {
 }
 """Short names accepted by ``--set`` and the dotted path each stands for."""
 
-_ROOTS = ("axes", "controller", "simulation", "hil")
+_ROOTS = ("axes", "controller", "simulation", "hil", "accelerometer")
 
 
 def resolve_key(key: str) -> str:

@@ -32,10 +32,12 @@ from twin.config.axis import (
 )
 from twin.config.build import from_dict, set_path, to_raw
 from twin.config.fields import Validated, choice, flag, num, range_text, spec
+from twin.config.shaper_settings import ShaperAxes
 from twin.errors import ConfigError
 
 __all__ = [
     "AXES",
+    "AccelerometerConfig",
     "AxisConfig",
     "ControllerSettings",
     "ConverterConfig",
@@ -254,6 +256,10 @@ class ControllerSettings(Validated):
     gcode: GcodeSettings = field(default_factory=GcodeSettings)
     timing: TimingConfig = field(default_factory=TimingConfig)
     deadlines: DeadlineConfig = field(default_factory=DeadlineConfig)
+    shaper: ShaperAxes = field(default_factory=ShaperAxes)
+
+    def _check(self) -> None:
+        self.shaper.check_nyquist(self.period)
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -282,6 +288,43 @@ class HilSettings(Validated):
                                   f"network, got {owner!r}")
 
 
+@dataclass(frozen=True, kw_only=True)
+class AccelerometerConfig(Validated):
+    """A two-channel accelerometer clamped on the table (the Y carriage, which the X
+    carriage carries): channel x sees the X slide's acceleration, channel y the Y slide's.
+    Modelled on an ADXL345 as engineers clamp one on for a resonance test: it samples at
+    its own rate into a FIFO of ``block`` samples, which the I/O reads once per controller
+    period (one request; samples beyond a full FIFO are lost and flagged). Each sample is
+    the mean acceleration over its sample interval (the sensor's own averaging), plus white
+    noise of ``noise_density``, rounded to ``resolution`` and clipped to ``±range``
+    (``twin.plant.accelerometer``)."""
+
+    mounted: bool = flag(False, "an accelerometer is on the table (twin measure mounts one "
+                         "on the twin for its measurement when the file has none)")
+    range: float = num(156.9, "m/s²", gt=0.0, le=1e4, doc="full scale, ±range (ADXL345: "
+                       "±16 g)")
+    resolution: float = num(0.0383, "m/s²", gt=0.0, le=100.0, doc="one count of the "
+                            "sensor's output (ADXL345 full resolution: 3.9 mg)")
+    noise_density: float = num(4.0e-3, "m/s²/√Hz", ge=0.0, le=10.0, doc="white noise "
+                               "spectral density of each channel (ADXL345: ≈ 400 µg/√Hz)")
+    sample_rate: float = num(3200.0, "Hz", ge=10.0, le=1e5, doc="output data rate")
+    block: int = num(32, "1", ge=1, le=56, doc="FIFO depth: the most samples one read "
+                     "returns (ADXL345: 32); at most 56, what one Modbus read carries")
+    seed: int = num(0, "1", ge=0, le=2**32 - 1, doc="seed of the sensor's noise (its own "
+                    "stream: mounting it changes no other noise)")
+
+    def _check(self) -> None:
+        if self.resolution > self.range:
+            raise ConfigError("resolution", f"must not exceed the range {self.range:g} m/s², "
+                              f"got {self.resolution:g}")
+
+    @property
+    def noise_rms(self) -> float:
+        """Standard deviation of one sample's noise (m/s²): the density over the sensor's
+        Nyquist band, noise_density·√(sample_rate/2)."""
+        return self.noise_density * (0.5 * self.sample_rate) ** 0.5
+
+
 def moving_masses(axes: Mapping[str, AxisConfig]) -> dict[str, float]:
     """Mass moved by each axis of the cross table (kg), the one place it is computed: the
     lower axis (x) carries the upper carriage (y)."""
@@ -300,6 +343,7 @@ class MachineConfig(Validated):
     controller: ControllerSettings
     simulation: SimulationConfig = field(default_factory=SimulationConfig)
     hil: HilSettings = field(default_factory=HilSettings)
+    accelerometer: AccelerometerConfig = field(default_factory=AccelerometerConfig)
     source: str = ""
 
     def _check(self) -> None:

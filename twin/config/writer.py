@@ -70,4 +70,5 @@ def machine_to_toml(cfg: MachineConfig, *, header: Sequence[str] = ()) -> str:
     _table("controller", cfg.controller, out)
     _table("simulation", cfg.simulation, out)
     _table("hil", cfg.hil, out)
+    _table("accelerometer", cfg.accelerometer, out)
     return "\n".join(out).lstrip("\n") + "\n"

@@ -102,10 +102,12 @@ class BlockRules:
 
     def __init__(self, limits: Limits, axis_limits: tuple[Limits, Limits], *,
                  rapid_velocity: float, tolerance: float, corner_model: CornerModel,
-                 period: float | None, jerk: bool, view: float):
+                 period: float | None, jerk: bool, view: float,
+                 curve_acceleration: float = math.inf):
         self.limits, self.rapid_velocity, self.tolerance = limits, rapid_velocity, tolerance
         self.corner_model = corner_model
-        self._caps = SegmentLimits(limits, axis_limits, jerk=jerk)
+        self._caps = SegmentLimits(limits, axis_limits, jerk=jerk,
+                                   curve_acceleration=curve_acceleration)
         # a kink's velocity step per axis and on the contour: v·|Δt̂_k| ≤ A_k·T
         self._step = None if period is None else (
             axis_limits[0].max_acceleration * period, axis_limits[1].max_acceleration * period,

@@ -46,7 +46,7 @@ from typing import Any
 import numpy as np
 
 from twin.config import AXES, AxisConfig, ControllerSettings, MachineConfig
-from twin.controller.corner import CornerModel
+from twin.controller.corner import CornerModel, NoCornerLimit
 from twin.controller.cyclic import FALLBACK, steady_tick, warm_up
 from twin.controller.encoder import EncoderUnwrapper
 from twin.controller.gains import RegulatorGains
@@ -59,6 +59,8 @@ from twin.controller.manual import ManualCommands
 from twin.controller.planner import MotionBlock, PlannedBlock, Planner
 from twin.controller.record import Record
 from twin.controller.regulator import PositionRegulator, RegulatorStatus
+from twin.controller.shaped_corner import ShapedCornerModel, curve_acceleration
+from twin.controller.shaping import NO_TAPS, InputShaper, ReferenceShaper, axis_shapers
 from twin.controller.status import INTEGER_FIELDS, RECORD_FIELDS, ControllerStatus
 from twin.errors import ConfigError, PlanningError, TwinError
 
@@ -106,7 +108,10 @@ class Controller(ManualCommands):
         Interpolator interface (seed 004).
     corner_model : CornerModel, optional
         For the planner; default the seed-001 model of these axes with the servo time
-        constant of the regulator (``loop_defaults.default_corner_model``).
+        constant of the regulator (``loop_defaults.default_corner_model``). With shapers,
+        the planner gets it plus the corner the shapers cut
+        (``shaped_corner.ShapedCornerModel``) and caps the centripetal acceleration on
+        curves (``shaped_corner.curve_acceleration``); not with a ``NoCornerLimit``.
     lookahead : int, optional
         Window (blocks); default ``settings.lookahead``.
     planner_options : mapping, optional
@@ -114,10 +119,15 @@ class Controller(ManualCommands):
         ``period=None`` for a study of sharp corners passed at a chosen speed).
     start : sequence of 2 float, optional
         Table position at the first tick (m); default the program's start point.
+    shapers : sequence of 2 InputShaper or None, optional
+        The input shapers of x and y (``twin.controller.shaping``; None in the pair: that
+        axis unshaped); default ``settings.shaper``, its unset frequency and damping from
+        the believed axes (``shaping.axis_shapers``). They filter the interpolator's
+        reference (not a test signal's) before the regulator and the record.
     settle_time : float
-        Shortest closed-loop hold after the motion ends (s); the hold then lasts until the
-        table is in position (``settings.in_position_tolerance``, at most
-        ``settings.settle_timeout``).
+        Shortest closed-loop hold after the motion ends (s), at least the shapers' delay;
+        the hold then lasts until the table is in position
+        (``settings.in_position_tolerance``, at most ``settings.settle_timeout``).
     record_capacity : int
         Rows per chunk of the record.
     compiled : bool
@@ -143,6 +153,7 @@ class Controller(ManualCommands):
                  dcu_order: int | None = None, mode: str = "extended",
                  corner_model: CornerModel | None = None, lookahead: int | None = None,
                  planner_options: Mapping[str, Any] | None = None,
+                 shapers: Sequence[InputShaper | None] | None = None,
                  start: Sequence[float] | None = None, settle_time: float = 0.25,
                  record_capacity: int = 65536, compiled: bool = True):
         if sorted(axes) != sorted(AXES):
@@ -168,14 +179,27 @@ class Controller(ManualCommands):
         if corner_model is None:
             corner_model = default_corner_model(settings, axes, model_axes=believed,
                                                 axis_models=models, gains=gains)
+        if shapers is None:
+            shapers = axis_shapers(settings.shaper, believed, self.period)
+        shaper = ReferenceShaper(shapers, self.period)
+        shaped: dict[str, Any] = {}
+        if shaper.active and not isinstance(corner_model, NoCornerLimit):
+            corner_model = ShapedCornerModel(corner_model, shaper.shapers)
+            shaped["curve_acceleration"] = curve_acceleration(
+                shaper.shapers, settings.contour_tolerance, settings.shaper.curve_share)
         options: dict[str, Any] = {"law": profile or settings.profile,
                                    "mode": planner or settings.planner,
                                    "lookahead": lookahead or settings.lookahead,
-                                   "corner_model": corner_model, **(planner_options or {})}
+                                   "corner_model": corner_model, **shaped,
+                                   **(planner_options or {})}
         self.planner = Planner.from_settings(settings, axes, **options)
         """Planner: the look-ahead planner (its ``work_zone`` holds the soft limits)."""
         self._free_planner = Planner.from_settings(settings, axes, **options, work_zone=None)
         self.regulator = PositionRegulator(gains, self.period, n_axes=2)
+        self.shaper: ReferenceShaper | None = shaper if shaper.active else None
+        """ReferenceShaper or None: the input shapers of the position reference."""
+        if self.shaper is not None:
+            self.settle_time = max(self.settle_time, self.shaper.duration + self.period)
         self.encoder = EncoderUnwrapper([ax.counts_per_metre for ax in self.axes],
                                         bits=[ax.encoder.bits for ax in self.axes])
         self.record = Record(RECORD_FIELDS, integer=INTEGER_FIELDS, capacity=record_capacity)
@@ -201,6 +225,8 @@ class Controller(ManualCommands):
         if program is not None:
             self.status = ControllerStatus.RUNNING
         self._start = [float(p) for p in self.interpolator.reference.position]
+        if self.shaper is not None:
+            self.shaper.reset(self._start)
 
     @classmethod
     def from_machine(cls, cfg: MachineConfig, program: Iterable[Any] | None,
@@ -300,11 +326,15 @@ class Controller(ManualCommands):
         enc, reg, ref, rec = self.encoder, self.regulator, interp.reference, self.record
         chunk, row = rec.slot()
         geo, pieces, starts, table, coef = tables
+        shaper = self.shaper
+        taps = NO_TAPS if shaper is None else (shaper.index, shaper.weight, shaper.history,
+                                               shaper.state)
         code = steady_tick(
             inputs.encoder_counts, inputs.tacho_volts, inputs.limit_min, inputs.limit_max,
             bool(inputs.drive_ready), self._limits_prev, enc.state_int, enc.state_float,
             enc.position, geo, pieces, starts, table, coef, tau, self._ticks + 1,
-            self.period, ref.position, ref.velocity, ref.acceleration, ref.jerk, reg._par,
+            self.period, ref.position, ref.velocity, ref.acceleration, ref.jerk, *taps,
+            reg._par,
             reg._st, reg.output, reg.error, reg.terms, reg._code_min,
             reg._code_max, self._held, self.outputs.dac_volts, chunk, row, cur.index,
             cur.line)
@@ -346,6 +376,8 @@ class Controller(ManualCommands):
             status = self._safety(inputs, ref.velocity)
         if status < ControllerStatus.FINISHED and status != ControllerStatus.IDLE:
             istatus = interp.update()
+            if self.shaper is not None and type(interp) is Interpolator:
+                self.shaper.apply(ref.position, ref.velocity, ref.acceleration, ref.jerk)
             rstatus = reg.update(ref.position, ref.velocity, ref.acceleration, ref.jerk, pos)
             if rstatus >= RegulatorStatus.FOLLOWING_ERROR:
                 status = _FAULTS[RegulatorStatus(rstatus)]
@@ -453,6 +485,8 @@ class Controller(ManualCommands):
         self.interpolator = self._interpolator((), here) if interpolator is None \
             else interpolator
         self.regulator.reset(here)
+        if self.shaper is not None:
+            self.shaper.reset(here)
         self._held[0] = self._held[1] = 0.0
 
     def run(self, io: MachineIO, *, max_time: float = math.inf) -> ControllerStatus:

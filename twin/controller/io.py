@@ -9,6 +9,7 @@ Arrays are indexed by axis in the order ``AXES = ("x", "y")``.
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass, field
 from typing import Protocol, runtime_checkable
 
@@ -31,6 +32,10 @@ def _false() -> np.ndarray:
     return np.zeros(2, dtype=bool)
 
 
+def _no_samples() -> np.ndarray:
+    return np.zeros((0, 2))
+
+
 @dataclass(slots=True)
 class Inputs:
     """What the machine's I/O gives the controller each period.
@@ -50,6 +55,21 @@ class Inputs:
         The drives report no fault.
     time : float
         Time stamp of the sample (s), the driver's clock.
+    accel_samples : ndarray, shape (block, 2)
+        The table accelerometer's FIFO as read this period (m/s²; channels x, y): rows
+        0 … ``accel_count`` − 1 are new, oldest first; the rest is stale. Shape (0, 2)
+        without an accelerometer.
+    accel_count : int
+        How many samples the read returned (0: none, or no accelerometer).
+    accel_sequence : int
+        The sensor's sample number of the first of them: sample number i was taken at i
+        sample periods of the sensor's own clock, so a reader can place every sample in
+        time and see a gap.
+    accel_overrun : bool
+        The FIFO overflowed since the last read: samples were lost.
+    accel_clock : float
+        When the read was taken on the sensor's clock (sample periods: the newest sample's
+        number plus the elapsed fraction of the next); nan without an accelerometer.
     """
 
     encoder_counts: np.ndarray = field(default_factory=_zeros_i64)
@@ -59,6 +79,11 @@ class Inputs:
     home: np.ndarray = field(default_factory=_false)
     drive_ready: bool = True
     time: float = 0.0
+    accel_samples: np.ndarray = field(default_factory=_no_samples)
+    accel_count: int = 0
+    accel_sequence: int = 0
+    accel_overrun: bool = False
+    accel_clock: float = math.nan
 
 
 @dataclass(slots=True)

@@ -185,6 +185,9 @@ class Planner:
     blend : float
         Share of ``tolerance`` that the rounding of kinks may take (0 … 1; 0: no blending,
         the kinks stay); the rest is the servo's. Look-ahead mode only.
+    curve_acceleration : float
+        A further cap of the centripetal acceleration on curves (m/s²): what input shapers
+        allow (``twin.controller.shaped_corner.curve_acceleration``); default none.
     work_zone : WorkZone, optional
         Soft limits; None: unchecked.
     min_feed : float
@@ -202,7 +205,8 @@ class Planner:
                  lookahead: int = 64, mode: str = "lookahead",
                  corner_model: CornerModel | None = None, work_zone: WorkZone | None = None,
                  min_feed: float = 1e-6, max_program_time: float = 86400.0,
-                 period: float | None = None, blend: float = 0.5):
+                 period: float | None = None, blend: float = 0.5,
+                 curve_acceleration: float = math.inf):
         check_law(law)
         if mode not in MODES:
             raise ConfigError("mode", f"must be one of {MODES}, got {mode!r}")
@@ -233,7 +237,8 @@ class Planner:
         self._view = 2.0 * min_distance(law, limits.max_velocity, 0.0, limits)
         self._rules = BlockRules(limits, self.axis_limits, rapid_velocity=self.rapid_velocity,
                                  tolerance=self.tolerance, corner_model=self.corner_model,
-                                 period=self.period, jerk=law != "trapezoid", view=self._view)
+                                 period=self.period, jerk=law != "trapezoid", view=self._view,
+                                 curve_acceleration=curve_acceleration)
         self.min_feed = float(min_feed)
         self.max_program_time = float(max_program_time)
         self._time_bound = 0.0

@@ -66,12 +66,17 @@ class SegmentLimits:
         Limits of the x and y axes.
     jerk : bool
         Cap the speed on curves by the jerk the curvature demands (laws that limit jerk).
+    curve_acceleration : float
+        A further cap of the centripetal acceleration v²κ (m/s²): the input shapers'
+        (``twin.controller.shaped_corner.curve_acceleration``); default none.
     """
 
-    def __init__(self, limits: Limits, axis_limits: Sequence[Limits], *, jerk: bool = True):
+    def __init__(self, limits: Limits, axis_limits: Sequence[Limits], *, jerk: bool = True,
+                 curve_acceleration: float = math.inf):
         self.limits = limits
         self.axis_limits = tuple(axis_limits)
         self.jerk = jerk
+        self.curve_acceleration = float(curve_acceleration)
         self._axis_caps = tuple((lim.max_velocity, lim.max_acceleration, lim.max_jerk)
                                 for lim in self.axis_limits)
         if len(self._axis_caps) != 2:
@@ -122,7 +127,7 @@ class SegmentLimits:
         if my * v > ly.max_velocity:
             v = ly.max_velocity / my
         if kappa > 0.0:
-            v = min(v, math.sqrt(CENTRIPETAL * a_tot / kappa))
+            v = min(v, math.sqrt(min(CENTRIPETAL * a_tot, self.curve_acceleration) / kappa))
             if self.jerk:
                 v = min(v, (CRUISE_JERK * j_tot / math.hypot(kappa * kappa, dkappa))
                         ** (1.0 / 3.0))

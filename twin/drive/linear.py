@@ -58,8 +58,8 @@ import numpy as np
 from twin.config import AxisConfig
 from twin.drive.design import DriveDesign, design
 
-__all__ = ["axis_transfer_function", "current_transfer_function", "speed_transfer_function",
-           "velocity_gain"]
+__all__ = ["axis_transfer_function", "current_transfer_function", "speed_response",
+           "speed_transfer_function", "velocity_gain"]
 
 
 def _lag(t: float) -> np.ndarray:
@@ -143,6 +143,49 @@ def speed_transfer_function(axis: AxisConfig, *, moving_mass: float | None = Non
     den = np.polyadd(d.speed_ti * d.inertia * _mul([1.0, 0.0, 0.0], den_i), d.tacho_gain * pi_q)
     den = np.polymul(den, _lag(d.reference_filter))
     return num / den[0], den / den[0]
+
+
+def speed_response(axis: AxisConfig, s: np.ndarray, admittance: np.ndarray, *,
+                   moving_mass: float | None = None) -> np.ndarray:
+    """The closed speed loop from reference (V) to motor speed (rad/s) at the complex
+    frequencies ``s``, the rotor's mechanics given by its admittance Y(s) = ω/τ (rad/s per
+    N·m) instead of the rigid 1/(J·s): the same loop as :func:`speed_transfer_function`
+    (the module docstring's current loop, the speed PI, the tacho filter in the feedback,
+    the reference filter), evaluated point by point, so that an elastic chain behind the
+    rotor (its anti-resonances and resonances) enters as it is.
+
+    Parameters
+    ----------
+    axis : AxisConfig
+    s : ndarray, complex
+        Laplace variable (1/s), non-zero.
+    admittance : ndarray, complex, shape of ``s``
+        Y(s) of the rotor with its load (rad/(s·N·m)).
+    moving_mass : float, optional
+        As in :func:`speed_transfer_function` (the regulators' design inertia).
+
+    Returns
+    -------
+    ndarray, complex, shape of ``s``
+        ω/U (rad/(s·V)); with Y = 1/(J·s) it is :func:`speed_transfer_function`.
+    """
+    d = design(axis, moving_mass=moving_mass)
+    conv = axis.converter
+    mains_gain = 1.0 + conv.mains_deviation if conv.kind == "thyristor" else 1.0
+    t_v, t_m = _small_lags(d)
+    s = np.asarray(s, dtype=complex)
+    y = np.asarray(admittance, dtype=complex)
+    dead = mains_gain / (t_v * s + 1.0)
+    measure = 1.0 / (t_m * s + 1.0)
+    tacho = 1.0 / (d.tacho_filter * s + 1.0)
+    pi_i = d.current_kp * (d.current_ti * s + 1.0) / (d.current_ti * s)
+    k = d.emf_constant
+    c = 1.0 if d.emf_compensation else 0.0
+    current = dead * pi_i / (d.inductance * s + d.resistance - dead * c * k * k * y * tacho
+                             + dead * pi_i * measure + k * k * y)
+    pi_w = d.speed_kp * (d.speed_ti * s + 1.0) / (d.speed_ti * s)
+    forward = y * k * current * pi_w
+    return forward / (d.reference_filter * s + 1.0) / (1.0 + forward * d.tacho_gain * tacho)
 
 
 def axis_transfer_function(axis: AxisConfig, *, moving_mass: float | None = None

@@ -70,6 +70,7 @@ from twin.errors import ConfigError, SimulationError
 from twin.hardware.owners import Owners, client_host
 from twin.hardware.register_map import (
     RegisterMap,
+    accelerometer_words,
     check_dacs,
     counter_to_words,
     dac_volts,
@@ -330,8 +331,9 @@ class HilModule:
             self._hr[self.map.module.control] = int(flag)
 
     # ------------------------------------------------------------------ process image
-    def input_registers(self) -> dict[int, int]:
-        """Counters and tachos now: {address: register value}."""
+    def input_registers(self, *, accelerometer: bool = True) -> dict[int, int]:
+        """Counters and tachos now: {address: register value}; with a mapped accelerometer
+        and ``accelerometer``, its FIFO, which this empties (False: not read)."""
         r = self._reading()
         words: dict[int, int] = {}
         for k, a in enumerate(AXES):
@@ -343,7 +345,33 @@ class HilModule:
         if self.map.module.status is not None:
             words[self.map.module.status] = sum(
                 1 << address for address, on in self.discrete_inputs().items() if on)
+        m = self.map.module
+        if m.accelerometer is not None and accelerometer:
+            words.update(enumerate(self._accelerometer_words(), start=m.accelerometer))
         return words
+
+    def _accelerometer_words(self) -> list[int]:
+        """The accelerometer's registers: its FIFO, emptied (no samples without one)."""
+        m, sensor = self.map.module, self.plant.accelerometer
+        block = m.accelerometer_block
+        if sensor is None:
+            return accelerometer_words(0, 0, False, np.zeros((block, 2)),
+                                       m.accelerometer_lsb, block)
+        fifo = np.zeros((sensor.config.block, 2))
+        count, first, lost = sensor.pop(fifo)
+        if count > block:                 # the map holds fewer than the sensor's FIFO
+            fifo[:block] = fifo[count - block:count]
+            first, count, lost = first + count - block, block, True
+        clock = self.plant.time * sensor.config.sample_rate
+        return accelerometer_words(count, first, lost, fifo, m.accelerometer_lsb, block,
+                                   phase=max(0.0, clock - (first + count - 1)))
+
+    def reads_accelerometer(self, address: int, count: int) -> bool:
+        """Whether input registers [address, address + count) include the
+        accelerometer's."""
+        m = self.map.module
+        return m.accelerometer is not None and address < m.accelerometer + \
+            m.accelerometer_words and m.accelerometer < address + count
 
     def discrete_inputs(self) -> dict[int, bool]:
         """Switches, drive ready and the watchdog trip now: {address: state}."""
@@ -364,8 +392,9 @@ class HilModule:
     def _reading(self) -> Inputs:
         """The plant's sensor reading, sampled once per drive interval (the counter and
         switch reads of one tick share it)."""
-        if self._sampled != self._steps:
-            self._last_reading, self._sampled = self.plant.read(), self._steps
+        if self._sampled != self._steps:   # the accelerometer is read by its registers
+            self._last_reading = self.plant.read(accelerometer=False)
+            self._sampled = self._steps
         return self._last_reading
 
     def holding_registers(self) -> dict[int, int]:

@@ -213,7 +213,8 @@ def tick_answer(module: HilModule, tables: dict[int, tuple[int, int]], frame: by
     if code == 16:
         return _HEADER.pack(tid, 0, 6, unit, code) + _SPAN.pack(address, count)
     if code == 4:
-        words = module.input_registers()
+        words = module.input_registers(
+            accelerometer=module.reads_accelerometer(address, count))
         data = struct.pack(f">B{count}H", 2 * count,
                            *(words.get(a, 0) for a in range(address, address + count)))
     else:

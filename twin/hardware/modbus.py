@@ -50,6 +50,7 @@ from twin.controller.io import Inputs, Outputs
 from twin.errors import ConfigError, DriverError
 from twin.hardware.register_map import (
     RegisterMap,
+    accelerometer_samples,
     check_dacs,
     dac_word,
     load_register_map,
@@ -216,9 +217,28 @@ class ModbusDriver:
         now = time.perf_counter()
         if self._rate is not None:
             self._check_plausible(counts.tolist(), sent, now)
-        return Inputs(encoder_counts=counts, tacho_volts=tacho, limit_min=flags[0],
-                      limit_max=flags[1], home=flags[2], drive_ready=bool(ready),
-                      time=now - self._t0)
+        inputs = Inputs(encoder_counts=counts, tacho_volts=tacho, limit_min=flags[0],
+                        limit_max=flags[1], home=flags[2], drive_ready=bool(ready),
+                        time=now - self._t0)
+        if m.accelerometer is not None:
+            self._accelerometer(ir, inputs)
+        return inputs
+
+    def _accelerometer(self, ir: dict[int, int], inputs: Inputs) -> None:
+        """The accelerometer's FIFO into ``inputs`` (its sample numbers unwrapped from the
+        registers' 16 bits: a read follows the last within 32768 samples)."""
+        m = self.map.module
+        words = [ir[a] for a in range(m.accelerometer, m.accelerometer
+                                      + m.accelerometer_words)]
+        count, low, lost, phase, samples = accelerometer_samples(
+            words, m.accelerometer_lsb, m.accelerometer_block)
+        last = self._accel_next
+        first = low if last is None else last + ((low - last + 0x8000) & 0xFFFF) - 0x8000
+        if count:
+            self._accel_next = first + count
+        inputs.accel_samples, inputs.accel_count = samples, count
+        inputs.accel_sequence, inputs.accel_overrun = first, lost
+        inputs.accel_clock = first + count - 1 + phase
 
     def _check_plausible(self, counts: list[int], sent: float, now: float) -> None:
         """(With ``counts_per_s``.) Modbus/TCP has no checksum: a flipped byte in a counter
@@ -267,6 +287,7 @@ class ModbusDriver:
         """Requests of one tick, from the map (computed once)."""
         rmap = self.map
         self._ir_spans = rmap.input_spans()
+        self._accel_next: int | None = None    # the accelerometer's next sample number
         packed = rmap.module.status is not None
         self._di_spans = [] if packed else rmap.discrete_spans()
         self._di_bits = [address for _, address, _ in rmap.signals()[2]]

@@ -35,6 +35,8 @@ from dataclasses import dataclass, field, fields
 from pathlib import Path
 from typing import Any
 
+import numpy as np
+
 from twin.config import AXES, from_dict, read_toml
 from twin.errors import ConfigError
 
@@ -49,6 +51,8 @@ __all__ = [
     "AxisRegisters",
     "ModuleSettings",
     "RegisterMap",
+    "accelerometer_samples",
+    "accelerometer_words",
     "check_dacs",
     "counter_to_words",
     "dac_volts",
@@ -146,6 +150,19 @@ class ModuleSettings:
     control : int or None
         Holding register whose bit 0 is the drive enable (the coil's twin): the driver
         writes it with the references and the watchdog in one request. None: the coil.
+    accelerometer : int or None
+        First of the table accelerometer's input registers (``[accelerometer]`` of the
+        machine): its FIFO as one read takes it, which empties it. Register +0: the
+        samples read (bits 0-14) and bit 15 set when samples were lost since the last
+        read; +1: the sensor's sample number of the first of them (its low 16 bits); +2:
+        where in the sensor's sample interval the read fell (0 … 65535 for 0 … 1, the
+        time stamp that places the read on the sensor's clock); then
+        ``accelerometer_block`` pairs x, y (int16, counts of ``accelerometer_lsb``).
+        None: no accelerometer.
+    accelerometer_block : int
+        FIFO depth the registers hold (samples), 1 … 56 (one read of 125 registers).
+    accelerometer_lsb : float
+        m/s² per count of the accelerometer's registers.
     """
 
     enable: int
@@ -156,10 +173,20 @@ class ModuleSettings:
     watchdog_tripped: int | None = None
     status: int | None = None
     control: int | None = None
+    accelerometer: int | None = None
+    accelerometer_block: int = 32
+    accelerometer_lsb: float = 0.0383
 
     def __post_init__(self) -> None:
         for name in ("enable", "watchdog", "watchdog_tripped", "status", "control"):
             _check_address(getattr(self, name), name)
+        if not 1 <= self.accelerometer_block <= 56:
+            raise ConfigError("accelerometer_block", f"must be 1 … 56 samples, got "
+                              f"{self.accelerometer_block}")
+        _check_address(self.accelerometer, "accelerometer", width=self.accelerometer_words)
+        if not (math.isfinite(self.accelerometer_lsb) and self.accelerometer_lsb > 0):
+            raise ConfigError("accelerometer_lsb", f"must be > 0 m/s², got "
+                              f"{self.accelerometer_lsb}")
         if not 0 <= self.device_id <= 247:
             raise ConfigError("device_id", f"must be 0 … 247, got {self.device_id}")
         if self.word_order not in WORD_ORDERS:
@@ -168,6 +195,11 @@ class ModuleSettings:
         value = self.tacho_full_scale
         if not (math.isfinite(value) and value > 0):
             raise ConfigError("tacho_full_scale", f"must be > 0 V, got {value}")
+
+    @property
+    def accelerometer_words(self) -> int:
+        """Input registers the accelerometer takes: 3 + 2·block."""
+        return 3 + 2 * self.accelerometer_block
 
 
 _TABLES = ("input registers", "holding registers", "discrete inputs", "coils")
@@ -231,6 +263,8 @@ class RegisterMap:
             ir.append(("module.status", m.status, 1))
         if m.control is not None:
             hr.append(("module.control", m.control, 1))
+        if m.accelerometer is not None:
+            ir.append(("module.accelerometer", m.accelerometer, m.accelerometer_words))
         if m.watchdog_tripped is not None:
             di.append(("module.watchdog_tripped", m.watchdog_tripped, 1))
         return ir, hr, di, [("module.enable", m.enable, 1)]
@@ -266,7 +300,11 @@ class RegisterMap:
                "watchdog": "uint16, a new value every tick",
                "enable": "1 = drives enabled", "watchdog_tripped": "1 = outputs zeroed",
                "status": "bit n = discrete input n", "control": "bit 0 = drive enable",
-               "drive_ready": "1 = no drive fault"}
+               "drive_ready": "1 = no drive fault",
+               "accelerometer": f"count (bit 15: lost), first sample number, phase of "
+                                f"the read in 1/65536 of a sample, then "
+                                f"{m.accelerometer_block} × (x, y) int16 of "
+                                f"{m.accelerometer_lsb:g} m/s²"}
         rows = []
         for table, entries in zip(_TABLES, self.signals(), strict=True):
             for name, address, width in sorted(entries, key=lambda s: s[1]):
@@ -303,9 +341,11 @@ def register_map_from_dict(doc: dict[str, Any], *, source: str = "<dict>") -> Re
     return RegisterMap(rmap.module, rmap.axes, source)
 
 
-MAPS = {"default": DEFAULT_MAP, "packed": DEFAULT_MAP.with_name("register_map_packed.toml")}
-"""The shipped maps by name: ``default`` (three requests per tick) and ``packed`` (two:
-the switches in a status register, the enable in a control register)."""
+MAPS = {"default": DEFAULT_MAP, "packed": DEFAULT_MAP.with_name("register_map_packed.toml"),
+        "accelerometer": DEFAULT_MAP.with_name("register_map_accelerometer.toml")}
+"""The shipped maps by name: ``default`` (three requests per tick), ``packed`` (two:
+the switches in a status register, the enable in a control register) and
+``accelerometer`` (the default with the table accelerometer's registers)."""
 
 
 def load_register_map(path: str | Path | None = None) -> RegisterMap:
@@ -389,3 +429,28 @@ def words_to_counter(first: int, second: int, word_order: str = "high_first") ->
     """The unsigned 32-bit counter value (counts) of two registers in address order."""
     high, low = (first, second) if word_order == "high_first" else (second, first)
     return (high << 16) | low
+
+
+def accelerometer_words(count: int, first: int, lost: bool, samples: np.ndarray,
+                        lsb: float, block: int, phase: float = 0.0) -> list[int]:
+    """The accelerometer's registers (``ModuleSettings.accelerometer``) for ``count``
+    samples (m/s², rows x, y) from sample number ``first``, read at ``phase`` (0 … 1) of
+    the sensor's sample interval."""
+    words = [(count & 0x7FFF) | (0x8000 if lost else 0), first & 0xFFFF,
+             min(int(phase * 65536.0), 0xFFFF)]
+    codes = np.zeros((block, 2), dtype=np.int64)
+    if count:
+        codes[:count] = np.clip(np.rint(samples[:count] / lsb), -32768, 32767)
+    words += [int(c) & 0xFFFF for c in codes.ravel()]
+    return words
+
+
+def accelerometer_samples(words: list[int], lsb: float, block: int
+                          ) -> tuple[int, int, bool, float, np.ndarray]:
+    """(count, the low 16 bits of the first sample number, samples lost, the read's phase
+    (0 … 1), samples (block, 2) m/s²) from the accelerometer's registers."""
+    head = int(words[0])
+    codes = np.array(words[3:3 + 2 * block], dtype=np.int64).reshape(block, 2)
+    codes = np.where(codes >= 0x8000, codes - 0x10000, codes)
+    return (head & 0x7FFF, int(words[1]), bool(head & 0x8000), int(words[2]) / 65536.0,
+            codes * lsb)

@@ -28,26 +28,11 @@ __all__ = ["identify", "open_identification_driver"]
 
 
 def open_identification_driver(url: str, base: MachineConfig, *, noise: bool = True):
-    """The machine I/O ``url`` names and whether it is paced: ``sim`` (the twin of BASE),
-    ``sim:FILE`` (the twin of another machine file or preset: a stand-in for a real one),
-    ``modbus://HOST:PORT`` (real I/O, or the HIL server). Returns (driver, paced)."""
-    from twin.hardware.sim import SimDriver
-    from twin.plant import Plant
+    """The machine I/O ``url`` names and whether it is paced
+    (``twin.session.machine_io.open_experiment_driver``). Returns (driver, paced)."""
+    from twin.session.machine_io import open_experiment_driver
 
-    if url == "sim" or url.startswith("sim:"):
-        machine = base if url == "sim" else load_machine(url[4:])
-        if url != "sim":
-            from twin.identify.log import io_signature
-
-            if io_signature(machine) != io_signature(base):
-                raise ConfigError("driver", f"{url}: its I/O (counts per metre, counter "
-                                  f"width, period, DAC range) differs from {base.name}'s")
-        plant = Plant.from_machine(machine, noise=noise)
-        plant.reset()
-        return SimDriver(plant, machine.controller.period), False
-    from twin.hardware.drivers import open_driver
-
-    return open_driver(url, base), True
+    return open_experiment_driver(url, base, noise=noise)
 
 
 def identify(machine: str, output: str | Path, *, driver: str = "sim",

@@ -24,7 +24,6 @@ from collections.abc import Callable, Sequence
 import numpy as np
 
 from twin.config import AXES, MachineConfig
-from twin.controller.controller import Controller, ControllerStatus
 from twin.controller.encoder import EncoderUnwrapper
 from twin.controller.io import MachineIO, Outputs
 from twin.controller.loop_defaults import loop_gains
@@ -34,8 +33,8 @@ from twin.errors import ConfigError, ExperimentAborted
 from twin.hardware.realtime import RealTimeLoop, TickStats
 from twin.identify.log import COLUMNS, IdentLog, io_signature
 from twin.identify.plan import Piece, excursion, phases
-from twin.session.loop import TickLoop
-from twin.session.run import axis_models, measured_position, model_options
+from twin.session.machine_io import check_safe, move_to, safe_stop
+from twin.session.run import axis_models, measured_position
 
 __all__ = ["HOLD", "MARGIN", "REPEATS", "disturbed", "run_plan", "timing"]
 
@@ -160,25 +159,14 @@ class _Runner:
         return True
 
     def _check(self, inputs, pos, piece: Piece) -> None:
-        where = f"{piece.experiment} at x {1e3 * pos[0]:.3f} mm, y {1e3 * pos[1]:.3f} mm"
-        if np.any(inputs.limit_min) or np.any(inputs.limit_max):
-            raise ExperimentAborted(f"an end limit switch closed during {where}")
-        if not inputs.drive_ready and piece.kind != "coast":
-            raise ExperimentAborted(f"the drives reported not ready during {where}")
-        for k, (lo, hi) in enumerate(self.window):
-            if not lo <= pos[k] <= hi:
-                raise ExperimentAborted(
-                    f"axis {AXES[k]} left the room given to the experiments "
-                    f"({1e3 * lo:.3f} … {1e3 * hi:.3f} mm) during {where}")
+        check_safe(inputs, pos, self.window,
+                   f"during {piece.experiment} at x {1e3 * pos[0]:.3f} mm, "
+                   f"y {1e3 * pos[1]:.3f} mm", room="the experiments",
+                   drives=piece.kind != "coast")
 
     def stop(self) -> None:
         """Safe stop: outputs zero, drives disabled."""
-        self.out.dac_volts[:] = 0.0
-        self.out.enable = False
-        try:
-            self.driver.write(self.out)
-        except Exception:  # the stop is best effort; the caller reports what failed
-            pass
+        safe_stop(self.driver, self.out)
 
 
 def _position(driver: MachineIO, base: MachineConfig) -> np.ndarray:
@@ -243,25 +231,6 @@ def _coast_bound(base: MachineConfig, axis: str) -> Callable[[float], float]:
                                                                           / torque))
 
     return travel
-
-
-def _move_to(driver: MachineIO, base: MachineConfig, belief: MachineConfig,
-             target: np.ndarray, paced: bool) -> None:
-    """The controller's own planned jog to ``target`` (m), run to FINISHED."""
-    here = _position(driver, base)
-    if np.allclose(here, target, atol=2.0 / min(base.axes[a].counts_per_metre for a in AXES)):
-        return
-    ctrl = Controller.from_machine(base, None, start=here, **model_options(belief))
-    ctrl.jog(list(target))
-    loop = TickLoop(ctrl, driver)
-    limit = round(120.0 / base.controller.period)  # two minutes: a jog never needs more
-    if paced:
-        loop.run_paced(base.controller.period, max_ticks=limit)
-    else:
-        loop.run(limit)
-    if ctrl.status != ControllerStatus.FINISHED:
-        raise ExperimentAborted(f"the move to the experiments' start point ended "
-                                f"{ctrl.status.name}: {ctrl.error or ''}".rstrip(": "))
 
 
 def run_plan(driver: MachineIO, base: MachineConfig, plan: Sequence[Piece], *,
@@ -347,7 +316,7 @@ def _run_part(driver: MachineIO, base: MachineConfig, belief: MachineConfig,
     report, None lock-step; where the table started, m). The machine is stopped (outputs
     zero, drives disabled) however it ends."""
     target, window = _room(base, part, _position(driver, base), moving)
-    _move_to(driver, base, belief, target, paced)
+    move_to(driver, base, belief, target, paced)
     runner = _Runner(driver, base, belief, numbered, window, rows, moving)
     counts = driver.read().encoder_counts
     here = measured_position(counts, base)

@@ -287,8 +287,14 @@ def fit(base: MachineConfig, log: IdentLog, *,
     names = list(REPLAYED_PARAMS)   # quantities; fitted in profile.own_coordinate
     if all(dcm[a].present for a in axes):   # the current loop is unseen (drive_fit)
         names = [n for n in names if n not in CURRENT_LOOP]
+    say("joint fit: " + ", ".join(names) + " (least squares on the replayed experiments, "
+        "then each one's profile interval) …")
     joint = joint_fit(problem, params, names, fit_mask, start)
     params = {**params, **joint.params}
+    if any(joint.held[a] for a in axes):
+        say("not pinned down by these experiments: " + "; ".join(
+            f"{a} {', '.join(sorted(joint.held[a]))}" for a in axes if joint.held[a])
+            + "; the others fitted again around them")
     for a in axes:
         for n, how in joint.held[a].items():
             say(f"warning: axis {a}: {n} is not identifiable from these experiments "

@@ -21,6 +21,7 @@ import numpy as np
 from twin.config import AXES, MachineConfig
 from twin.errors import ConfigError
 from twin.identify.plan import EXPERIMENTS, Piece
+from twin.session.machine_io import io_signature
 from twin.system.jsonio import load_json, write_json_atomic
 
 __all__ = ["COLUMNS", "FORMAT", "IdentLog", "io_signature"]
@@ -31,16 +32,6 @@ COLUMNS = ("t", "dac_x", "dac_y", "enable", "counts_x", "counts_y", "tacho_x", "
 """Per-tick columns: time (s), DAC volts and drive enable (0/1) written, raw counter values,
 tacho volts, home switches (0/1), any end switch closed (0/1), drive ready (0/1), index of
 the plan's piece."""
-
-
-def io_signature(cfg: MachineConfig) -> dict[str, Any]:
-    """What a log must agree on with the machine it is fitted to: the I/O and the period."""
-    return {
-        "period": cfg.controller.period,
-        "counts_per_metre": [cfg.axes[a].counts_per_metre for a in AXES],
-        "encoder_bits": [cfg.axes[a].encoder.bits for a in AXES],
-        "dac_full_scale": [cfg.axes[a].dac.full_scale for a in AXES],
-    }
 
 
 @dataclass

@@ -240,7 +240,7 @@ if _MJ_STEP is not None:
                    log, n0, dt, enabled, passive, has_passive, chain, has_chain, torque,
                    sub_torque, scratch, rotor_frc, slide_frc, table_pos, table_vel, rotor_pos,
                    rotor_vel, qpos, qvel, qfrc, ten_stiffness, ten_damping, spring_adr,
-                   spring_ratio, samples, extent, ring, ring_n, out):
+                   spring_ratio, samples, steps, extent, ring, ring_n, out):
         clipped = quantise(dac_in, dac, u)
         if clipped < 0:
             return 0, 0, clipped
@@ -256,6 +256,10 @@ if _MJ_STEP is not None:
                              rotor_frc, slide_frc, table_pos, table_vel, rotor_pos, rotor_vel,
                              qpos, qvel, qfrc, ten_stiffness, ten_damping)
                 _c_mj_step(m_addr, d_addr)
+                if steps.shape[0] > 0:
+                    j = i * substeps + s
+                    steps[j, 0] = table_vel[0]
+                    steps[j, 1] = table_vel[1]
             record_interval(i, (n0 + i + 1) * dt, state, table_pos, qpos, spring_adr,
                             spring_ratio, samples, extent, ring, ring_n)
         readout(state, out)
@@ -279,12 +283,14 @@ def step_intervals(m_addr: int, d_addr: int, n: int, substeps: int, params: np.n
                    rotor_vel: np.ndarray, qpos: np.ndarray, qvel: np.ndarray,
                    qfrc: np.ndarray, ten_stiffness: np.ndarray, ten_damping: np.ndarray,
                    spring_adr: np.ndarray, spring_ratio: np.ndarray, samples: np.ndarray,
-                   extent: np.ndarray,
+                   steps: np.ndarray, extent: np.ndarray,
                    ring: np.ndarray, ring_n: int, out: np.ndarray) -> tuple[int, int, int]:
     """Quantise the DAC requests ``dac_in`` into ``u`` (:func:`quantise`), then run ``n``
     drive intervals: drive kernel, then ``substeps`` × (applied forces,
     ``mj_step``), and the drive-rate samples into ``samples[i]`` (and row ``ring_n + i`` of
-    the ring buffer ``ring``) after each; ``extent`` (4,) receives the lowest and highest
+    the ring buffer ``ring``) after each, and, when ``steps`` has rows (n·substeps, 2), the
+    table velocities after every physics step (m/s, for the accelerometer); ``extent`` (4,)
+    receives the lowest and highest
     table position of each axis.
 
     ``m_addr``, ``d_addr`` are :func:`addresses`; the ``*_frc``, ``*_pos`` and ``*_vel``
@@ -303,4 +309,4 @@ def step_intervals(m_addr: int, d_addr: int, n: int, substeps: int, params: np.n
                       noise, log, n0, dt, enabled, passive, has_passive, chain, has_chain,
                       torque, sub_torque, scratch, rotor_frc, slide_frc, table_pos, table_vel,
                       rotor_pos, rotor_vel, qpos, qvel, qfrc, ten_stiffness, ten_damping,
-                      spring_adr, spring_ratio, samples, extent, ring, ring_n, out)
+                      spring_adr, spring_ratio, samples, steps, extent, ring, ring_n, out)

@@ -38,6 +38,7 @@ from twin.controller.io import Inputs
 from twin.drive import Drives
 from twin.errors import ConfigError, SimulationError
 from twin.plant import loop as plant_loop
+from twin.plant.accelerometer import Accelerometer
 from twin.plant.model import (
     chain_parameters,
     load_model,
@@ -162,6 +163,12 @@ class Plant:
         if self._compiled:
             self._addresses = plant_loop.addresses(self.model, self.data)
         self._extent = np.zeros(4)  # lowest and highest table sample of each axis in a step
+        self.accelerometer = (Accelerometer(config.accelerometer, noise=self.noise)
+                              if config.accelerometer.mounted else None)
+        """The table accelerometer (``twin.plant.accelerometer``), or None: not mounted."""
+        self._no_steps = np.empty((0, 2))
+        self._steps = self._no_steps
+        """The table velocity after each physics step of a step (the accelerometer's)."""
         self._u = np.zeros(2)
         self.reset()
         if self._compiled:
@@ -182,7 +189,8 @@ class Plant:
             self._has_chain, self._drive_torque, sub, scratch, self._torque,
             self._slide_force, self._table_pos, self._table_vel, self._rotor_pos,
             self._rotor_vel, *self._mj_arrays, self._spring_adr, self._spring_ratio,
-            self._samples[:0], self._extent, self._ring, self._ring_n, self._out)
+            self._samples[:0], self._no_steps, self._extent, self._ring, self._ring_n,
+            self._out)
         self._u[:] = 0.0
 
     @classmethod
@@ -247,6 +255,8 @@ class Plant:
         plant_loop.readout(self.drives.kernel_arrays()[1], self._out)
         self._ro = self._out.tolist()
         self._ring_read = self._ring_n  # samples from before the reset are not drained
+        if self.accelerometer is not None:
+            self.accelerometer.reset(d.time, self._table_vel)
         self._offset = [0, 0]
         if encoder_preset is not None:
             self._offset = [int(p) - c for p, c in zip(np.asarray(encoder_preset, np.int64)
@@ -293,6 +303,11 @@ class Plant:
         if len(self._samples) < n:
             self._samples = np.empty((n, FINE_WIDTH))
         samples = self._samples[:n]
+        steps = self._no_steps
+        if self.accelerometer is not None:
+            if len(self._steps) < n * self._substeps:
+                self._steps = np.empty((n * self._substeps, 2))
+            steps = self._steps[:n * self._substeps]
         m, d, k, u, x = self.model, self.data, self._substeps, self._u, self._table_pos
         omega, theta, drives, extent = self._rotor_vel, self._rotor_pos, self.drives, self._extent
         t0 = d.time
@@ -306,8 +321,8 @@ class Plant:
                 log, drives.n_step, drives.dt, drives.enabled, self._passive,
                 self._has_passive, self._chain, self._has_chain, self._drive_torque, sub,
                 scratch, self._torque, self._slide_force, x, self._table_vel, theta, omega,
-                *self._mj_arrays, self._spring_adr, self._spring_ratio, samples, extent,
-                self._ring, self._ring_n, self._out)
+                *self._mj_arrays, self._spring_adr, self._spring_ratio, samples, steps,
+                extent, self._ring, self._ring_n, self._out)
             if clip < 0:
                 self._not_finite(dac_in)
             drives.advance(done)
@@ -327,12 +342,16 @@ class Plant:
                                             self._slide_force, x, self._table_vel, theta,
                                             omega, *self._mj_arrays)
                     mj_step(m, d)
+                    if len(steps):
+                        steps[i * k + s] = self._table_vel
                 plant_loop.record_interval(i, drives.time, state, x, d.qpos, self._spring_adr,
                                            self._spring_ratio,
                                            samples, extent, self._ring, self._ring_n)
             self._ring_n += n
             plant_loop.readout(state, self._out)
         saturated = FLAGS[2 * (clip & 1) + (clip >> 1 & 1)]  # x then y
+        if len(steps):
+            self.accelerometer.feed(t0, self.model.opt.timestep, steps)  # type: ignore[union-attr]
         self._ro = ro = self._out.tolist()
         self._fine = samples
         warnings = () if self._warning_count.tobytes() == self._warnings_seen \
@@ -368,10 +387,12 @@ class Plant:
         return "a MuJoCo state warning (no state is yet non-finite)"
 
     # ------------------------------------------------------------------ sensing
-    def read_into(self, inputs: Inputs) -> None:
+    def read_into(self, inputs: Inputs, *, accelerometer: bool = True) -> None:
         """Sample the I/O into ``inputs`` in place, as the machine's I/O hardware delivers
         it: encoder counters (with their noise, wrapped to the counter's bits), tacho
-        voltages at the ADC, debounced switches, drive ready, the plant time. The one read
+        voltages at the ADC, debounced switches, drive ready, the plant time, and the
+        accelerometer's FIFO when one is mounted and ``accelerometer`` (reading empties it;
+        False leaves it for a reader of its own, the HIL module's registers). The one read
         path (:meth:`read` returns a new sample of it)."""
         counts = self._raw_counts()
         if self._noisy_counts:
@@ -388,11 +409,20 @@ class Plant:
             inputs.limit_min[k], inputs.limit_max[k], inputs.home[k] = mon.state
         inputs.drive_ready = ro[2] == 0.0 and ro[3] == 0.0
         inputs.time = self.data.time
+        sensor = self.accelerometer
+        if sensor is None or not accelerometer:
+            inputs.accel_count = 0
+            return
+        if inputs.accel_samples.shape != (sensor.config.block, 2):
+            inputs.accel_samples = np.zeros((sensor.config.block, 2))
+        inputs.accel_count, inputs.accel_sequence, inputs.accel_overrun = sensor.pop(
+            inputs.accel_samples)
+        inputs.accel_clock = self.data.time * sensor.config.sample_rate
 
-    def read(self) -> Inputs:
+    def read(self, *, accelerometer: bool = True) -> Inputs:
         """A new I/O sample (`twin.controller.io.Inputs`; see :meth:`read_into`)."""
         inputs = Inputs()
-        self.read_into(inputs)
+        self.read_into(inputs, accelerometer=accelerometer)
         return inputs
 
     @property

@@ -16,6 +16,7 @@ import numpy as np
 
 from twin.config import AXES, MachineConfig, load_machine
 from twin.config.schema import WORK_SYSTEMS
+from twin.config.shaper_settings import profile_overrides
 from twin.controller.controller import Controller, ControllerStatus
 from twin.controller.gcode import Limits, ReaderOptions, decode_program, parse
 from twin.controller.library import build_program, program_path
@@ -49,7 +50,9 @@ class RunSpec:
     builtin : str
         Built-in program name (``twin.controller.library.PROGRAMS``).
     profile, planner : str or None
-        Acceleration law and planner mode; None: the machine's settings.
+        Acceleration law, or ``law+shaper`` (``trapezoid+mzv``: that input shaper on both
+        axes, ``twin.config.shaper_settings``), and planner mode; None: the machine's
+        settings.
     dcu_order : int or None
         0 … 3; None: the machine's setting.
     period : float or None
@@ -102,8 +105,8 @@ class RunSpec:
         sets = dict(self.overrides)
         if self.period is not None:
             sets["controller.period"] = self.period
-        if self.profile is not None:
-            sets["controller.profile"] = self.profile
+        if self.profile is not None:          # "law" or "law+shaper"
+            sets.update(profile_overrides(self.profile))
         if self.planner is not None:
             sets["controller.planner"] = self.planner
         if self.dcu_order is not None:

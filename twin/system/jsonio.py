@@ -59,7 +59,9 @@ def output_dir(path: str | Path, field: str = "out") -> Path:
                           "does not exist: point it at a folder or remove it")
     probe = folder / f".write-check-{os.getpid()}"
     try:
+        new = [part for part in (*reversed(folder.parents), folder) if not part.exists()]
         folder.mkdir(parents=True, exist_ok=True)
+        _CREATED.extend(new)
         try:
             with open(probe, "wb") as f:
                 f.write(b"\0")
@@ -68,6 +70,28 @@ def output_dir(path: str | Path, field: str = "out") -> Path:
     except OSError as exc:
         raise ConfigError(field, f"cannot write in {folder}: {exc.strerror or exc}") from None
     return folder
+
+
+_CREATED: list[Path] = []
+"""The folders ``output_dir`` created in this process, outermost first."""
+
+
+def drop_unused_outputs() -> None:
+    """Remove the folders ``output_dir`` created that are still empty, innermost first:
+    a command that refuses its input leaves nothing behind, not even the folder it made
+    for its results. A folder that held anything, or was there before, stays."""
+    while _CREATED:
+        folder = _CREATED.pop()
+        try:
+            folder.rmdir()              # only an empty folder goes
+        except OSError:
+            pass
+
+
+def forget_outputs() -> None:
+    """Forget the folders made so far (``drop_unused_outputs`` leaves them): a command
+    starting in a process that ran others answers only for its own."""
+    _CREATED.clear()
 
 
 def _dangling_link(folder: Path) -> Path | None:

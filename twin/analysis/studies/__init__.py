@@ -12,7 +12,7 @@ from typing import Any
 __all__ = ["STUDIES", "run_study"]
 
 STUDIES = ("seed000_dcu", "seed000_laws", "seed001_corner", "seed001_laser", "seed004_feed",
-           "seed002_steps", "seed000_dcu_as_built", "laws_on_cam")
+           "seed002_steps", "seed000_dcu_as_built", "laws_on_cam", "shaping_laser")
 """Study names, each a module of this package."""
 
 
