@@ -127,3 +127,45 @@ def test_parameters_the_data_cannot_separate_are_declared(start):
         # the separable one keeps a closed interval holding its fitted value
         lo, hi = joint.intervals[a]["speed_ti"]
         assert lo < coordinate(joint.params[a], start[a], "speed_ti") < hi
+
+
+@pytest.mark.parametrize("seed", range(3))
+def test_two_replay_processes_give_what_one_gives(seed, start, monkeypatch):
+    """The fit's independent replays split over two processes (``parallel.split_map``):
+    the same least squares, Jacobian and profile intervals as in one, the child's replays
+    counted, a failure in the child raised in the parent."""
+    from twin.identify import parallel
+
+    rng = np.random.default_rng(100 + seed)
+    n = 2 * int(rng.integers(100, 300))
+    mask = np.ones(n, dtype=bool)
+    outcome = {}
+    for procs in ("1", "2"):
+        monkeypatch.setenv(parallel.ENV, procs)
+        prob = LinearProblem(np.random.default_rng(100 + seed), n, start,
+                             tie=bool(seed % 2))
+        sol = solve(prob, dict(start), NAMES, mask, start, max_nfev=6)
+        prof = profile(prob, sol, mask, start, NAMES, {k: 2.0 for k in NAMES})
+        outcome[procs] = (sol, prof, prob.replays)
+    (one, p1, r1), (two, p2, r2) = outcome["1"], outcome["2"]
+    assert r1 == r2 > 0
+    for a in ("x", "y"):
+        np.testing.assert_array_equal(one.jac[a], two.jac[a])
+        np.testing.assert_array_equal(one.res[a], two.res[a])
+        assert list(p1[a]) == list(p2[a]) == NAMES
+        for name in NAMES:   # open ends are NaN in both
+            got, want = p2[a][name], p1[a][name]
+            np.testing.assert_equal([got.low, got.high, got.half],
+                                    [want.low, want.high, want.half])
+            assert got.better == want.better
+
+    def boom(k: int) -> int:
+        if k == 3:
+            raise ValueError("the replay failed")
+        return k
+
+    monkeypatch.setenv(parallel.ENV, "2")
+    assert parallel.split_map(LinearProblem(rng, 10, start), lambda k: k * k,
+                              range(5)) == [0, 1, 4, 9, 16]
+    with pytest.raises(ValueError, match="the replay failed"):
+        parallel.split_map(LinearProblem(rng, 10, start), boom, range(5))

@@ -15,6 +15,9 @@ the drive, so it is chosen, not fitted: the speed-loop stage is run for each mod
 both axes, (SSE_1 − SSE_0)/(s²·τ) with the residuals' variance ``profile.noise_variance``
 and autocorrelation time τ, above ``DECISIVE``) is taken;
 the models have the same fitted parameters, so the BIC difference is the likelihood ratio.
+Each model is first replayed with the staged speed loop at the best of a coarse mains-phase
+scan (``_screen``); one that is ``SCREEN`` worse there is not fitted (its screen's BIC is
+reported, marked): the speed loop the fit would adjust is the same in every model.
 The adaptation is decided first (the best model with it against the best without); below
 the margin BASE's choice is kept and reported as undecided.
 """
@@ -28,6 +31,7 @@ import numpy as np
 from twin.config import MachineConfig
 from twin.drive.design import design
 from twin.identify.lsq import scan_mains_phase, solve
+from twin.identify.parallel import split_map
 from twin.identify.profile import autocorrelation_time, noise_variance
 from twin.identify.replay import AxisParams, Problem
 
@@ -79,11 +83,22 @@ class DcmDecision:
         model of one kind is ``DECISIVE`` below the other kind's. Undecided, BASE's kind
         is kept. Within the kind, BASE's model is kept unless another is ``DECISIVE``
         better.
+    screened : tuple of str
+        Models not fitted: replayed with the staged speed loop, their BIC was ``SCREEN``
+        above the best's (their ``bic`` is that screen's).
     """
 
     model: str
     bic: dict[str, float]
     decided: bool
+    screened: tuple[str, ...] = ()
+
+    def bic_text(self) -> str:
+        """The BIC of each model over the chosen one's, for people (the models screened
+        out marked as such)."""
+        return ", ".join(f"{m} {b:+.1f}" + (" (screened out, not fitted)"
+                                            if m in self.screened else "")
+                         for m, b in self.bic.items())
 
     @property
     def present(self) -> bool:
@@ -101,11 +116,20 @@ def fit_speed_loop(problem: Problem, params: dict[str, AxisParams],
     BIC; a model without the adaptation is fitted with its current-loop settings and brush
     drop too (``CURRENT_LOOP``), so that it is compared at its best. Returns the
     parameters per axis and the decisions; the problem's mains phase is the chosen
-    model's."""
+    model's.
+
+    Every model is first replayed as it stands (``_screen``: the staged speed loop, a
+    coarse mains-phase scan); one whose BIC there is ``SCREEN`` above the best's is not
+    fitted: fitting the speed loop, which every model shares, does not close such a gap
+    (on tomsk_xy it is 2700-6400, where the choice is made with 6)."""
+    screened = _screen(problem, params, mask)
     fits = {}
     for name, (analog, dcm) in MODELS.items():
+        if name not in screened.kept:
+            continue
         trial = {a: _as_model(p, problem.base, a, analog, dcm) for a, p in params.items()}
-        scan_mains_phase(problem, trial)
+        problem.mains_phase = screened.phase[name]
+        scan_mains_phase(problem, trial, near=3)
         coords = SPEED_LOOP if dcm > 0.5 else SPEED_LOOP + CURRENT_LOOP
         sol = solve(problem, trial, coords, mask, start, max_nfev=max_nfev)
         fits[name] = (sol, problem.mains_phase)
@@ -117,21 +141,68 @@ def fit_speed_loop(problem: Problem, params: dict[str, AxisParams],
     bic = {m: (v - total[best]) / scale for m, v in total.items()}
     # first the adaptation (present or not), then, without it, how the drive is built
     base_model = model_of(params[axes[0]])
-    adapted = [m for m in MODELS if MODELS[m][1] > 0.5]
-    bare = [m for m in MODELS if MODELS[m][1] <= 0.5]
-    with_, without = min(bic[m] for m in adapted), min(bic[m] for m in bare)
-    if abs(with_ - without) >= DECISIVE:
-        group = adapted if with_ < without else bare
-        decided = True
+    adapted = [m for m in fits if MODELS[m][1] > 0.5]
+    bare = [m for m in fits if MODELS[m][1] <= 0.5]
+    if not adapted or not bare:   # the screen dropped a whole kind: decided there
+        group, decided = adapted or bare, True
     else:
-        group = adapted if MODELS[base_model][1] > 0.5 else bare
-        decided = False
+        with_, without = min(bic[m] for m in adapted), min(bic[m] for m in bare)
+        if abs(with_ - without) >= DECISIVE:
+            group = adapted if with_ < without else bare
+            decided = True
+        else:
+            group = adapted if MODELS[base_model][1] > 0.5 else bare
+            decided = False
     chosen = min(group, key=bic.get)
     if base_model in group and bic[base_model] - bic[chosen] < DECISIVE:
         chosen = base_model
     sol, problem.mains_phase = fits[chosen]
-    decisions = {a: DcmDecision(chosen, bic, decided) for a in axes}
+    bic.update({m: b for m, b in screened.bic.items() if m not in fits})
+    decisions = {a: DcmDecision(chosen, bic, decided, screened.dropped) for a in axes}
     return {**params, **sol.params}, decisions
+
+
+SCREEN = 20.0 * DECISIVE
+"""BIC above the best model's, all replayed with the staged speed loop, beyond which a
+model of the current regulator is not fitted (``fit_speed_loop``)."""
+
+SCREEN_GRID = 12
+"""Mains phases per pulse period of the screen's scan; the models fitted are scanned again
+on the fine grid around theirs."""
+
+
+@dataclass(frozen=True)
+class _Screened:
+    kept: tuple[str, ...]
+    dropped: tuple[str, ...]
+    bic: dict[str, float]
+    phase: dict[str, float | None]
+
+
+def _screen(problem: Problem, params: dict[str, AxisParams], mask: np.ndarray) -> _Screened:
+    """Each model of ``MODELS`` replayed with the speed loop as staged, at the best mains
+    phase of a coarse scan (``SCREEN_GRID``), on the ticks of ``mask``: its BIC over the
+    best's, and the models within ``SCREEN`` of it."""
+    def one(name: str) -> tuple[float, np.ndarray, float | None]:
+        analog, dcm = MODELS[name]
+        trial = {a: _as_model(p, problem.base, a, analog, dcm) for a, p in params.items()}
+        problem.mains_phase = None
+        scan_mains_phase(problem, trial, steps=SCREEN_GRID, golden=0)
+        r = problem.residuals(trial, mask)
+        return (sum(float(v @ v) for v in r.values()),
+                np.concatenate([r[a] for a in problem.axes]), problem.mains_phase)
+
+    # the models are independent: side by side where two processes may run (their scans
+    # are then one after the other in each)
+    done = dict(zip(MODELS, split_map(problem, one, list(MODELS)), strict=True))
+    sse = {m: (v[0], v[1]) for m, v in done.items()}
+    phase = {m: v[2] for m, v in done.items()}
+    best = min(sse, key=lambda m: sse[m][0])
+    res = sse[best][1]
+    scale = noise_variance(res, 0) * autocorrelation_time(res, channels=2 * len(problem.axes))
+    bic = {m: (v[0] - sse[best][0]) / scale for m, v in sse.items()}
+    kept = tuple(m for m in MODELS if bic[m] <= SCREEN)
+    return _Screened(kept, tuple(m for m in MODELS if m not in kept), bic, phase)
 
 
 def _as_model(p: AxisParams, base: MachineConfig, axis: str, analog: float, dcm: float

@@ -65,6 +65,7 @@ from twin.identify.drive_fit import CURRENT_LOOP, SPEED_LOOP, DcmDecision, fit_s
 from twin.identify.joint import TOLERANCE, joint_fit
 from twin.identify.log import IdentLog
 from twin.identify.lsq import BOUNDS, coordinate, scan_mains_phase, solve, with_coordinate
+from twin.identify.parallel import cpu_time
 from twin.identify.plan import FIT_EXPERIMENTS, HELD_OUT
 from twin.identify.replay import (
     NAMES,
@@ -204,7 +205,8 @@ class Identification:
     mains_phase: float | None = None
     """The log's mains phase the replays used (rad; None for PWM drives)."""
     cpu_time: float = 0.0
-    """CPU time of the fit (s): its wall time on a machine of its own."""
+    """CPU time of the fit (s), its replay processes' included (``parallel``): its wall
+    time on one core of its own."""
     dcm: dict[str, DcmDecision] = field(default_factory=dict)
     """Per excited axis: whether the drive's current regulator adapts to discontinuous
     conduction, as the model selection decided."""
@@ -231,7 +233,7 @@ def fit(base: MachineConfig, log: IdentLog, *,
     FitError
         The fit did not converge, or its parameters are not finite.
     """
-    t0, cpu0 = time.perf_counter(), time.process_time()
+    t0, cpu0 = time.perf_counter(), cpu_time()
     say = progress or (lambda _msg: None)
     log.check(base)
     problem = Problem(base, log)
@@ -258,15 +260,14 @@ def fit(base: MachineConfig, log: IdentLog, *,
         d = dcm[a]
         say(f"axis {a}: current regulator {d.model} "
             + ("" if d.decided else "UNDECIDED, BASE's kept ")
-            + "(BIC over the best: " + ", ".join(f"{m} {b:+.1f}" for m, b in d.bic.items())
-            + ")")
+            + f"(BIC over the best: {d.bic_text()})")
     steps = log.experiment_mask("steps")
     params = _scan_scale(problem, params, start, steps, limit_inertia(problem, params))
     params = solve(problem, params, ["scale", "resistance", *SPEED_LOOP], loop, start,
                    max_nfev=6).params
     scan_mains_phase(problem, params, near=3)   # the phase moves little with the inertia
     say("inertia: " + ", ".join(f"{a} {params[a].inertia:.4g} kg·m²" for a in axes)
-        + f" ({problem.replays} replays, {time.process_time() - cpu0:.0f} s CPU)")
+        + f" ({problem.replays} replays, {cpu_time() - cpu0:.0f} s CPU)")
     # 5. friction: the coast-downs (friction alone)
     coast = log.experiment_mask("coast")
     params = solve(problem, params, ["coulomb", "viscous", "breakaway"], coast, start,
@@ -277,7 +278,7 @@ def fit(base: MachineConfig, log: IdentLog, *,
         if math.isfinite(lost[a][0]):
             params[a] = params[a].with_(backlash=lost[a][0])
     say("lost motion: " + ", ".join(f"{a} {1e6 * params[a].backlash:.1f} µm" for a in axes)
-        + f" ({problem.replays} replays, {time.process_time() - cpu0:.0f} s CPU)")
+        + f" ({problem.replays} replays, {cpu_time() - cpu0:.0f} s CPU)")
     # the staged fit must already predict the held-out experiment roughly (within twice
     # the final bound): the last stage refines the values, it does not rescue a log the
     # twin cannot replay at all, and it is most of the fit's time
@@ -362,7 +363,7 @@ def fit(base: MachineConfig, log: IdentLog, *,
     n = len(pos)
     worst = max(max(v.values()) for v in nrmse.values())
     say(f"held out: NRMSE {100 * worst:.2f} % ({problem.replays} replays, "
-        f"{time.process_time() - cpu0:.0f} s CPU)")
+        f"{cpu_time() - cpu0:.0f} s CPU)")
     if worst > QUALITY:   # the twin does not replay this machine: no value to trust
         why = (f"the fitted twin predicts the held-out {HELD_OUT} with a normalised RMS "
                f"error of {100 * worst:.1f} % (above {100 * QUALITY:.0f} %): it does not "
@@ -382,7 +383,7 @@ def fit(base: MachineConfig, log: IdentLog, *,
     result.mains_phase = problem.mains_phase
     result.linear = joint.linear
     result.dcm = {a: dcm[a] for a in axes}
-    result.cpu_time = time.process_time() - cpu0
+    result.cpu_time = cpu_time() - cpu0
     return result
 
 

@@ -19,6 +19,7 @@ import numpy as np
 from scipy.optimize import least_squares
 
 from twin.config import AXES
+from twin.identify.parallel import split_map
 from twin.identify.replay import AxisParams, Problem
 
 __all__ = ["BOUNDS", "COORDS", "Solution", "coordinate", "scan_mains_phase", "solve",
@@ -194,6 +195,7 @@ def solve(problem: Problem, params: dict[str, AxisParams], names: Sequence[str],
         rows = np.cumsum([0, *sizes])
         out = np.zeros((rows[-1], len(x)))
         lo, hi = pack.bounds()
+        trials = []
         for name in pack.names:   # one replay per coordinate, every axis' column at once
             cols = [i for i, (_a, n) in enumerate(pack.slots) if n == name]
             if not cols:
@@ -203,7 +205,10 @@ def solve(problem: Problem, params: dict[str, AxisParams], names: Sequence[str],
             step = np.where(x[cols] + h <= hi[cols], h, -h)
             step = np.where(x[cols] + step >= lo[cols], step, h)
             trial[cols] = x[cols] + step
-            r1 = residuals(trial)
+            trials.append((cols, step, trial))
+        # the columns are independent replays: side by side where two processes may run
+        done = split_map(problem, lambda t: residuals(t[2]), trials)
+        for (cols, step, _trial), r1 in zip(trials, done, strict=True):
             for c, s in zip(cols, step, strict=True):
                 a = pack.slots[c][0]
                 k = axes.index(a)
@@ -240,13 +245,14 @@ def solve(problem: Problem, params: dict[str, AxisParams], names: Sequence[str],
 
 
 def scan_mains_phase(problem: Problem, params: dict[str, AxisParams], steps: int = 36, *,
-                     near: int | None = None) -> None:
+                     near: int | None = None, golden: int = 5) -> None:
     """The mains phase that best replays the speed steps: a scan of one pulse period, then
     a golden-section search around the best point of the grid. A drive without the
     adaptation to discontinuous conduction replays well only within a few degrees of the
     right phase (its current pulses at feed speeds decide how each step starts), hence the
     fine grid over all the steps. ``near``: only the ``near`` grid points either side of
-    the problem's present phase (a scan again after the parameters moved a little)."""
+    the problem's present phase (a scan again after the parameters moved a little);
+    ``golden``: the golden-section iterations after the grid (0: the grid's best)."""
     base = problem.base
     if not any(base.axes[a].converter.kind == "thyristor" for a in AXES):
         return
@@ -263,20 +269,23 @@ def scan_mains_phase(problem: Problem, params: dict[str, AxisParams], steps: int
         grid = [k * step for k in range(steps)]
     else:
         grid = [problem.mains_phase + k * step for k in range(-near, near + 1)]
-    values = [sse(x) for x in grid]
+    values = split_map(problem, sse, grid)   # independent replays, side by side
     best = grid[int(np.argmin(values))]
+    if golden <= 0:
+        problem.mains_phase = best % (2.0 * math.pi)
+        return
     lo, hi = best - step, best + step
-    golden = 0.5 * (math.sqrt(5.0) - 1.0)
-    c, d = hi - golden * (hi - lo), lo + golden * (hi - lo)
+    ratio = 0.5 * (math.sqrt(5.0) - 1.0)
+    c, d = hi - ratio * (hi - lo), lo + ratio * (hi - lo)
     fc, fd = sse(c), sse(d)
-    for _ in range(5):
+    for _ in range(golden):
         if fc < fd:
             hi, d, fd = d, c, fc
-            c = hi - golden * (hi - lo)
+            c = hi - ratio * (hi - lo)
             fc = sse(c)
         else:
             lo, c, fc = c, d, fd
-            d = lo + golden * (hi - lo)
+            d = lo + ratio * (hi - lo)
             fd = sse(d)
     candidates = [(min(values), best), (fc, c), (fd, d)]
     problem.mains_phase = min(candidates)[1] % (2.0 * math.pi)

@@ -25,10 +25,11 @@ import numpy as np
 from scipy.stats import f as f_dist
 
 from twin.identify.lsq import BOUNDS, Solution, coordinate, with_coordinates
+from twin.identify.parallel import split_map
 from twin.identify.replay import AxisParams, Problem
 
 __all__ = ["FLOOR", "QUANTITY", "Profile", "autocorrelation_time", "noise_variance",
-           "own_coordinate", "profile", "threshold"]
+           "own_coordinate", "profile", "profile_of", "threshold"]
 
 LEVEL = 0.95
 """Confidence level of the intervals."""
@@ -130,6 +131,23 @@ def own_coordinate(name: str) -> str:
 
 def profile(problem: Problem, sol: Solution, mask: np.ndarray, start: dict[str, AxisParams],
             names: Sequence[str], reach: dict[str, float]) -> dict[str, dict[str, Profile]]:
+    """``profile_of`` each quantity of ``names``, the quantities split over the processes
+    ``parallel.split_map`` may use (each quantity's profile is independent of the
+    others': the same intervals as one after the other)."""
+    names = list(names)
+    groups = [names[0::2], names[1::2]] if len(names) > 1 else [names]
+    parts = split_map(problem, lambda g: profile_of(problem, sol, mask, start, g, reach),
+                      groups)
+    out: dict[str, dict[str, Profile]] = {a: {} for a in problem.axes}
+    for part in parts:
+        for a, v in part.items():
+            out.setdefault(a, {}).update(v)
+    return {a: {n: out[a][n] for n in names if n in out[a]} for a in out}
+
+
+def profile_of(problem: Problem, sol: Solution, mask: np.ndarray,
+               start: dict[str, AxisParams], names: Sequence[str], reach: dict[str, float]
+               ) -> dict[str, dict[str, Profile]]:
     """The profile intervals of the quantities ``names`` (``QUANTITY``; in
     ``lsq.coordinate`` units) of every axis whose own coordinate is free in ``sol``.
 

@@ -105,8 +105,7 @@ def header_lines(result: Identification, base: MachineConfig, log: IdentLog,
             d = result.dcm[a]
             lines.append(f"  regulators.implementation, converter.dcm_compensation = {d.model}"
                          f"  <- steps, prbs (model selection, BIC over the best: "
-                         + ", ".join(f"{m} {b:+.1f}" for m, b in d.bic.items())
-                         + (")" if d.decided else "; UNDECIDED, BASE's model kept)"))
+                         + d.bic_text() + (")" if d.decided else "; UNDECIDED, BASE's model kept)"))
         d = derived[a]
         lines.append(f"  => K_H {1e3 * d['K_H']:.5g} mm/(s·V), Coulomb at the motor "
                      f"{d['coulomb_at_motor']:.4g} N·m, viscous at the motor "
@@ -144,6 +143,7 @@ def summary(result: Identification, base: MachineConfig, log: IdentLog) -> dict[
                           for k, e in result.estimates[a].items()} for a in AXES},
         "derived": result.derived(),
         "dcm_compensation": {a: {"present": d.present, "model": d.model, "bic": d.bic,
+                                 "screened": list(d.screened),
                                  "decided": d.decided} for a, d in result.dcm.items()},
         "nrmse": result.nrmse,
         "residual": result.residual,
