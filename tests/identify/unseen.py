@@ -107,9 +107,10 @@ def _max_coordinate_error(machine: Path, model: str, builtin: str, out: Path) ->
 
 def sim_to_real(true_path: Path, calibrated: Path, out: Path) -> dict[str, dict[str, float]]:
     """Max coordinate error (µm) of the machine run with the calibrated model, its own file
-    (the oracle) and the nominal BASE as the controller's model."""
+    (the oracle) and the nominal BASE as the controller's model: on the Table-2 move and
+    the default program (in CI the Table-2 move alone)."""
     table = {}
-    for builtin in ("spline_line", "default"):
+    for builtin in ("spline_line",) if CI else ("spline_line", "default"):
         table[builtin] = {name: _max_coordinate_error(true_path, model, builtin, out)
                           for name, model in (("calibrated", str(calibrated)),
                                               ("oracle", str(true_path)), ("nominal", BASE))}
