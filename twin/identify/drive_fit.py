@@ -128,8 +128,7 @@ def fit_speed_loop(problem: Problem, params: dict[str, AxisParams],
         if name not in screened.kept:
             continue
         trial = {a: _as_model(p, problem.base, a, analog, dcm) for a, p in params.items()}
-        problem.mains_phase = screened.phase[name]
-        scan_mains_phase(problem, trial, near=3)
+        scan_mains_phase(problem, trial)   # the full scan: as if no model were screened
         coords = SPEED_LOOP if dcm > 0.5 else SPEED_LOOP + CURRENT_LOOP
         sol = solve(problem, trial, coords, mask, start, max_nfev=max_nfev)
         fits[name] = (sol, problem.mains_phase)
@@ -167,8 +166,8 @@ SCREEN = 20.0 * DECISIVE
 model of the current regulator is not fitted (``fit_speed_loop``)."""
 
 SCREEN_GRID = 12
-"""Mains phases per pulse period of the screen's scan; the models fitted are scanned again
-on the fine grid around theirs."""
+"""Mains phases per pulse period of the screen's scan (the models fitted are scanned again
+in full, as ``fit_speed_loop`` scans them)."""
 
 
 @dataclass(frozen=True)
@@ -176,33 +175,30 @@ class _Screened:
     kept: tuple[str, ...]
     dropped: tuple[str, ...]
     bic: dict[str, float]
-    phase: dict[str, float | None]
 
 
 def _screen(problem: Problem, params: dict[str, AxisParams], mask: np.ndarray) -> _Screened:
     """Each model of ``MODELS`` replayed with the speed loop as staged, at the best mains
     phase of a coarse scan (``SCREEN_GRID``), on the ticks of ``mask``: its BIC over the
     best's, and the models within ``SCREEN`` of it."""
-    def one(name: str) -> tuple[float, np.ndarray, float | None]:
+    def one(name: str) -> tuple[float, np.ndarray]:
         analog, dcm = MODELS[name]
         trial = {a: _as_model(p, problem.base, a, analog, dcm) for a, p in params.items()}
         problem.mains_phase = None
         scan_mains_phase(problem, trial, steps=SCREEN_GRID, golden=0)
         r = problem.residuals(trial, mask)
         return (sum(float(v @ v) for v in r.values()),
-                np.concatenate([r[a] for a in problem.axes]), problem.mains_phase)
+                np.concatenate([r[a] for a in problem.axes]))
 
     # the models are independent: side by side where two processes may run (their scans
     # are then one after the other in each)
-    done = dict(zip(MODELS, split_map(problem, one, list(MODELS)), strict=True))
-    sse = {m: (v[0], v[1]) for m, v in done.items()}
-    phase = {m: v[2] for m, v in done.items()}
+    sse = dict(zip(MODELS, split_map(problem, one, list(MODELS)), strict=True))
     best = min(sse, key=lambda m: sse[m][0])
     res = sse[best][1]
     scale = noise_variance(res, 0) * autocorrelation_time(res, channels=2 * len(problem.axes))
     bic = {m: (v[0] - sse[best][0]) / scale for m, v in sse.items()}
     kept = tuple(m for m in MODELS if bic[m] <= SCREEN)
-    return _Screened(kept, tuple(m for m in MODELS if m not in kept), bic, phase)
+    return _Screened(kept, tuple(m for m in MODELS if m not in kept), bic)
 
 
 def _as_model(p: AxisParams, base: MachineConfig, axis: str, analog: float, dcm: float
