@@ -7,6 +7,10 @@ export RERUN_ANALYTICS=0
 export RERUN_DISABLE_ANALYTICS=1
 export MPLBACKEND=Agg
 export NUMBA_CACHE_DIR ?= $(CURDIR)/.cache/numba
+# One BLAS/OpenMP thread per process: the suite runs two workers on two cores, and the
+# tuning and identification jobs run their own worker processes (see twin/__init__.py).
+export OPENBLAS_NUM_THREADS ?= 1
+export OMP_NUM_THREADS ?= 1
 
 .PHONY: demo test test-linuxcnc test-screenshot lint bench clean
 

@@ -8,6 +8,7 @@ import subprocess
 import sys
 from pathlib import Path
 
+import numpy as np
 import rerun.chunk as rc
 
 RERUN = Path(sys.executable).with_name("rerun")
@@ -58,6 +59,22 @@ def layout_views(rrd: Path) -> list[dict]:
             if key is not None:
                 view[key] = v
     return list(views.values())
+
+
+def rrd_spectra(rrd: Path) -> dict[str, tuple[np.ndarray, np.ndarray]]:
+    """Every series on the spectra's timeline (``twin.telemetry.spectra.FREQUENCY``):
+    {entity: (frequency (Hz), values)}."""
+    from twin.telemetry.spectra import FREQUENCY
+
+    out = {}
+    for chunk in rc.RrdReader(rrd).stream().to_chunks():
+        rb = chunk.to_record_batch()
+        if FREQUENCY not in rb.schema.names or "Scalars:scalars" not in rb.schema.names:
+            continue
+        f = rb.column(FREQUENCY).cast("int64").to_numpy()
+        v = np.array([row[0] for row in rb.column("Scalars:scalars").to_pylist()])
+        out[chunk.entity_path.lstrip("/")] = (f, v)
+    return out
 
 
 def labelled(lo: float, hi: float, *, height: float = 110.0, spacing: float = 20.0) -> int:

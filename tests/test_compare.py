@@ -219,7 +219,8 @@ def test_overlay_is_framed_on_the_whole_path_and_the_data_time_span(compared):
     # its data untransformed (upside down, and outside these bounds)
     assert paths["origin"] == "/"
     t_all = np.concatenate([t for t, _ in scalars.values()])
-    plots = [v for v in views if v["kind"] == "TimeSeries"]
+    plots = [v for v in views if v["kind"] == "TimeSeries"
+             and "/spectra/" not in v["contents"][0]]
     assert len(plots) == 5
     for view in plots:
         values = np.concatenate([scalars[e.lstrip("/")][1] for e in view["contents"]])
@@ -228,6 +229,27 @@ def test_overlay_is_framed_on_the_whole_path_and_the_data_time_span(compared):
         assert view["legend"] is False
         assert "trapezoid red, parabolic blue" in view["name"], view["name"]
         np.testing.assert_allclose(view["time"], (t_all.min(), t_all.max()), atol=1e-9)
+
+
+def test_overlay_has_each_laws_spectra_per_quantity_and_axis(compared):
+    """compare.rrd's Spectra tab: one plot per quantity and axis, one series per law (in its
+    colour, named in the title), each law's spectra recorded under its subtree."""
+    from tests.rrd import layout_views, rrd_spectra
+
+    path = compared["recording"]
+    got = rrd_spectra(path)
+    laws = list(compared["profiles"])
+    plots = sorted((v for v in layout_views(path) if v["kind"] == "TimeSeries"
+                    and "/spectra/" in v["contents"][0]), key=lambda v: v["contents"])
+    expected = sorted([f"/laws/{law}/spectra/{q}/{a}" for law in laws]
+                      for q in ("following_error", "screw_deflection") for a in ("x", "y"))
+    assert [v["contents"][:len(laws)] for v in plots] == expected
+    for view in plots:
+        assert "trapezoid red, parabolic blue" in view["name"], view["name"]
+        assert "(dB re 1 µm/√Hz vs Hz)" in view["name"]
+        for entity in view["contents"][:len(laws)]:
+            hz, level = got[entity.lstrip("/")]
+            assert hz[0] == 0 and np.isnan(level[0]) and np.isfinite(level[1:]).all()
 
 
 def test_sweep_plots_a_figure_against_the_parameter(tmp_path):

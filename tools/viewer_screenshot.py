@@ -8,9 +8,10 @@ until the viewer has loaded the recording and laid it out (the picture stops cha
 
 The first file shows the layout's active tab; each ``--tab NAME=FILE`` clicks the tab NAME
 of a run's layout (``twin.telemetry.blueprint.default_blueprint``: Run, X drive, Y drive,
-X motion, Y motion) and shoots it. Prints one JSON object: the URL, the files written and
-how long each took to settle. Exit 2 (and a line saying what to install) without Chromium
-or Playwright.
+X motion, Y motion, Spectra) and shoots it, on the timeline the tab draws against (the
+spectra on ``frequency_hz``, chosen in the time panel's menu, as a reader would). Prints one
+JSON object: the URL, the files written and how long each took to settle. Exit 2 (and a
+line saying what to install) without Chromium or Playwright.
 """
 
 from __future__ import annotations
@@ -24,11 +25,36 @@ import subprocess
 import sys
 import time
 
-TABS = {"Run": 39, "X drive": 103, "Y drive": 177, "X motion": 252, "Y motion": 337}
+TABS = {"Run": 39, "X drive": 103, "Y drive": 177, "X motion": 252, "Y motion": 337,
+        "Spectra": 495}
 """Where each tab of a run's layout sits on the viewer's tab bar (x, screen points; the bar
 is at y = 50): the bar is left-aligned, so these hold at any window width."""
 
 TAB_BAR_Y = 50
+
+TAB_TIMELINE = {"Spectra": "frequency_hz"}
+"""The timeline a tab draws against, where it is not ``sim_time``."""
+
+TIMELINES = ("frequency_hz", "log_time", "sim_time")
+"""A run's timelines as the time panel's menu lists them (by name, bottom up from
+``sim_time``)."""
+
+TIMELINE_MENU = (178, 14)
+"""The time panel's timeline menu: x, and height above the window's bottom (screen points);
+its entries lie ``TIMELINE_ROW`` apart above it, the last one ``TIMELINE_LAST`` above the
+bottom."""
+
+TIMELINE_ROW, TIMELINE_LAST, TIMELINE_ENTRY_X = 24, 42, 205
+
+
+def choose_timeline(page, name: str, height: int, most: float) -> None:
+    """Choose timeline ``name`` in the time panel's menu (a window ``height`` points tall):
+    open the menu, wait until it is drawn, click the entry, wait until the views are."""
+    page.mouse.click(TIMELINE_MENU[0], height - TIMELINE_MENU[1])
+    settle(page, least=2.0, most=most)
+    below = len(TIMELINES) - 1 - TIMELINES.index(name)
+    page.mouse.click(TIMELINE_ENTRY_X, height - TIMELINE_LAST - TIMELINE_ROW * below)
+    settle(page, least=2.0, most=most)
 
 SETTLED = 3
 """Consecutive identical frames (one per ``POLL`` s) that count as laid out."""
@@ -120,7 +146,11 @@ def main() -> int:
             waited = settle(page, least=8.0, most=a.wait)     # the wasm app, then the data
             page.screenshot(path=a.out, timeout=SHOT_TIMEOUT)
             shots.append({"file": a.out, "settled_s": round(waited, 1)})
+            timeline = "sim_time"
             for name, path in tabs:
+                if TAB_TIMELINE.get(name, "sim_time") != timeline:
+                    timeline = TAB_TIMELINE.get(name, "sim_time")
+                    choose_timeline(page, timeline, height, a.wait)
                 page.mouse.click(TABS[name], TAB_BAR_Y)
                 page.mouse.move(width / 2, height - 5)      # no hover tooltip on the shot
                 waited = settle(page, least=2.0, most=a.wait)

@@ -13,6 +13,13 @@ Importing the package points numba's on-disk cache at a folder named by a hash o
 compiled modules' sources. Numba checks only the timestamp of the file that holds a cached
 function, not of the files it calls into, so a kernel compiled before an edit of a function
 in another module would otherwise be loaded stale.
+
+It also keeps OpenBLAS to one thread unless ``OPENBLAS_NUM_THREADS`` says otherwise (it
+takes effect when nothing has loaded numpy yet, as in the ``twin`` command and the worker
+processes it spawns). The twin's matrices are small (a drive's state, a regulator's design)
+and its parallelism is by processes (tuning and identification workers): a BLAS thread pool
+per process only competes for the same cores, and a 8×8 ``expm`` took 50× longer with it
+on a loaded two-core machine.
 """
 
 from __future__ import annotations
@@ -57,3 +64,4 @@ def _keyed_numba_cache() -> None:
 
 
 _keyed_numba_cache()
+os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")

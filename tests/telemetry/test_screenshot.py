@@ -59,22 +59,23 @@ def _has(img: np.ndarray, rgb: tuple[int, int, int], *, tol: int = 12, least: in
     return int(np.sum(np.all(np.abs(img - np.array(rgb)) <= tol, axis=2))) >= least
 
 
-def test_the_viewer_shows_the_run_tab_and_a_drive_tab(browser_ready, tmp_path):
+def test_the_viewer_shows_the_run_tab_a_drive_tab_and_the_spectra(browser_ready, tmp_path):
     from twin.telemetry.channels import COLOURS
     from twin.telemetry.rerun_sink import GRID_COLOUR
 
     s = run(RunSpec(machine="tomsk_xy", builtin="tiny"), out_dir=tmp_path,
             run_id="shot").summary
-    shot, drive = tmp_path / "run.png", tmp_path / "x_drive.png"
+    shot, drive, spectra = (tmp_path / f"{n}.png" for n in ("run", "x_drive", "spectra"))
     size = "1200x800" if CI else "1800x1100"
     r = subprocess.run([sys.executable, str(TOOL), s["recording"], str(shot), "--tab",
-                        f"X drive={drive}", "--size", size, "--port", "9391",
+                        f"X drive={drive}", "--tab", f"Spectra={spectra}", "--size", size,
+                        "--port", "9391",
                         "--grpc-port", "9392", "--wait", "300"],
                        capture_output=True, text=True, timeout=900, cwd=ROOT,
                        env={**os.environ, "PYTHONPATH": str(ROOT)})
     assert r.returncode == 0, r.stderr[-2000:]
     report = json.loads(r.stdout.strip().splitlines()[-1])
-    assert [Path(x["file"]) for x in report["screenshots"]] == [shot, drive]
+    assert [Path(x["file"]) for x in report["screenshots"]] == [shot, drive, spectra]
     img = _pixels(shot)
     assert img.shape[:2] == tuple(int(v) for v in reversed(size.split("x")))
     # the Run tab: the actual path (green at this error), its grid, the feeds, the terms
@@ -85,3 +86,6 @@ def test_the_viewer_shows_the_run_tab_and_a_drive_tab(browser_ready, tmp_path):
     tab = _pixels(drive)
     assert _has(tab, COLOURS["purple"]) and _has(tab, COLOURS["red"])   # converter, current
     assert not np.array_equal(img, tab), "the tab was switched"
+    # the spectra, on their timeline: x's curves in orange (the Spectra tab on sim_time
+    # draws no curve: only the viewer's own orange warning)
+    assert _has(_pixels(spectra), COLOURS["orange"], least=500), "the spectra are drawn"

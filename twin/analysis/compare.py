@@ -349,9 +349,15 @@ class _LawSink:
     def event(self, t: float, text: str, *, level: str = "INFO") -> None:
         self.shared.event(t, f"{self.law}: {text}", level=level)
 
+    def spectrum(self, frequency: np.ndarray, columns: Mapping[str, np.ndarray]) -> None:
+        """The law's spectra (``twin.telemetry.spectra``), at its end."""
+        spectrum = getattr(self.shared, "spectrum", None)
+        if spectrum is not None:
+            spectrum(frequency, {self.prefix + k: v for k, v in columns.items()})
+
     def style(self, entity: str, *, name: str | list[str],
-              color: tuple[int, int, int] | list[tuple[int, int, int]] | None = None
-              ) -> None:
+              color: tuple[int, int, int] | list[tuple[int, int, int]] | None = None,
+              marker: str | None = None) -> None:
         """The law's series in the law's colour, named ``<law>: <name>`` (a reference
         keeps its own colour)."""
         style = getattr(self.shared, "style", None)
@@ -362,7 +368,7 @@ class _LawSink:
         if not entity.endswith("/reference"):
             colours = [self.colour] * len(names)
         style(self.prefix + entity, name=[f"{self.law}: {n}" for n in names],
-              color=colours or None)
+              color=colours or None, **({"marker": marker} if marker is not None else {}))
 
     def close(self) -> None:
         """The shared sink stays open for the next law."""

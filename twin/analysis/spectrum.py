@@ -2,7 +2,8 @@
 engineers read them (an amplitude spectral density in µm/√Hz against frequency).
 
 ``amplitude_density`` is Welch's estimate (Hann windows of ``segment`` seconds, half
-overlapping, the mean removed): ``√PSD`` of each column, summed over the columns in power
+overlapping, the mean removed), the one a run records (``twin.telemetry.spectra.
+WelchDensity``): ``√PSD`` of each column, summed over the columns in power
 (``√(PSD_x + PSD_y)``), so that its square integrates to the signals' total variance
 (Parseval). ``peak`` names the frequency where it is largest above a lower bound (the
 slow part of a move is not a resonance).
@@ -11,7 +12,8 @@ slow part of a move is not a resonance).
 from __future__ import annotations
 
 import numpy as np
-from scipy.signal import welch
+
+from twin.telemetry.spectra import MIN_SAMPLES, WelchDensity
 
 __all__ = ["amplitude_density", "peak"]
 
@@ -23,7 +25,7 @@ def amplitude_density(t, values, *, segment: float = 1.0) -> tuple[np.ndarray, n
     Parameters
     ----------
     segment : float
-        Window length (s); shortened to the record when it is longer.
+        Window length (s); a record shorter than it is one window, zero-padded to it.
 
     Returns
     -------
@@ -34,12 +36,11 @@ def amplitude_density(t, values, *, segment: float = 1.0) -> tuple[np.ndarray, n
     """
     t = np.asarray(t, dtype=float)
     x = np.asarray(values, dtype=float).reshape(t.size, -1)
-    if t.size < 8:
+    if t.size < MIN_SAMPLES:
         return np.zeros(1), np.zeros(1)
-    dt = float(np.median(np.diff(t)))
-    n = int(min(t.size, max(8, round(segment / dt))))
-    f, p = welch(x, fs=1.0 / dt, window="hann", nperseg=n, noverlap=n // 2,
-                 detrend="constant", axis=0)
+    estimate = WelchDensity(float(np.median(np.diff(t))), width=x.shape[1], segment=segment)
+    estimate.feed(x)
+    f, p = estimate.density()
     return f, np.sqrt(np.sum(p, axis=1))
 
 

@@ -4,9 +4,13 @@ Between two controller periods the plant alternates, every drive interval, betwe
 kernel (``twin.drive.kernel.drive_step``, numba) and ``drive_substeps`` physics steps. In
 Python each alternation costs about a microsecond and a half of call overhead — as much as
 the whole drive model. Here the alternation runs inside one numba function that calls
-``mj_step`` of the MuJoCo shared library through ctypes, on the very ``mjModel``/``mjData``
-the Python bindings own (their addresses), so the state is the same memory and the result is
-bit-identical to the Python loop (``tests/plant/test_fast_paths.py``).
+``mj_step`` of the MuJoCo shared library, on the very ``mjModel``/``mjData`` the Python
+bindings own (their addresses), so the state is the same memory and the result is
+bit-identical to the Python loop (``tests/plant/test_fast_paths.py``). The library's
+``mj_step`` is found with ctypes and registered with LLVM under a symbol of its own
+(``MJ_STEP_SYMBOL``); the loop calls it by that name, so numba can cache the compiled loop
+like every other kernel (a function pointer baked into the code could not be cached: every
+process would compile the loop again, about a second).
 
 Forces MuJoCo's passive elements cannot give are applied before every physics step
 (:func:`passive_forces`, shared with the Python loop): the Stribeck part of break-away
@@ -26,9 +30,11 @@ import glob
 import math
 import os
 
+import llvmlite.binding as llvm
 import mujoco
 import numba
 import numpy as np
+from numba import types
 
 from twin.drive.kernel import drive_step
 from twin.drive.layout import S_ADC, S_CONDUCT, S_FAULT, S_I, S_VOUT
@@ -55,6 +61,10 @@ tendon's id, lost motion (1/0), the travel (min, max) (m), the screw body's qpos
 address (−1: none)."""
 
 
+MJ_STEP_SYMBOL = "xy_twin_mj_step"
+"""The name the compiled loop calls MuJoCo's ``mj_step`` by (registered with LLVM)."""
+
+
 def _load_mj_step():
     if not (hasattr(mujoco.MjModel, "_address") and hasattr(mujoco.MjData, "_address")):
         return None  # bindings that do not expose the struct addresses: keep the Python loop
@@ -67,10 +77,9 @@ def _load_mj_step():
         fn = ctypes.CDLL(paths[0]).mj_step
     except (OSError, AttributeError):
         return None
+    llvm.add_symbol(MJ_STEP_SYMBOL, ctypes.cast(fn, ctypes.c_void_p).value)
     # Pointers travel as 64-bit integers: identical in the x86-64 and AArch64 C ABIs.
-    fn.argtypes = [ctypes.c_uint64, ctypes.c_uint64]
-    fn.restype = None
-    return fn
+    return types.ExternalFunction(MJ_STEP_SYMBOL, types.void(types.uint64, types.uint64))
 
 
 _MJ_STEP = _load_mj_step()
@@ -235,7 +244,7 @@ def record_interval(i, t, state, table_pos, qpos, spring_adr, spring_ratio, samp
 if _MJ_STEP is not None:
     _c_mj_step = _MJ_STEP
 
-    @numba.njit
+    @numba.njit(cache=True)
     def _intervals(m_addr, d_addr, n, substeps, params, state, tables, dac_in, dac, u, noise,
                    log, n0, dt, enabled, passive, has_passive, chain, has_chain, torque,
                    sub_torque, scratch, rotor_frc, slide_frc, table_pos, table_vel, rotor_pos,

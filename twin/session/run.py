@@ -64,6 +64,7 @@ from twin.session.setup import (
 from twin.system.jsonio import output_dir, partial_path, record_id, write_json_atomic
 from twin.telemetry.channels import TelemetryWriter
 from twin.telemetry.sink import Sink
+from twin.telemetry.spectra import RunSpectra
 
 __all__ = ["Prepared", "RunResult", "RunSpec", "axis_models", "load_program",
            "measured_position", "model_options", "prepare", "run", "run_summary"]
@@ -225,19 +226,23 @@ class _Loop:
         self._reached = np.concatenate(([0.0], np.cumsum(lengths))) / max(lengths.sum(),
                                                                            1e-300)
         self._commands = commands
+        periods = mode_periods(p.cfg)        # the model's first elastic mode, per axis
         self.writer = TelemetryWriter(
             sink, p.path, truth_record=self.truth,
             fine_fields=FINE_FIELDS if p.plant is not None else (),
             feeds={item.line: item.feed for item in p.items or ()
                    if isinstance(item, Move | MotionBlock)},
             motor_ratio=[p.cfg.axes[ax].transmission.ratio for ax in AXES],
-            contour_tolerance=p.cfg.controller.contour_tolerance)
+            contour_tolerance=p.cfg.controller.contour_tolerance,
+            spectra=RunSpectra(self.period, p.plant.drive_dt if p.plant is not None else None,
+                               modes=[1.0 / period for period in periods])
+            if hasattr(sink, "spectrum") else None)       # a sink that records them
         self.names = {int(s): s.name for s in ControllerStatus}
         self.tick_loop: TickLoop | None = None
         # the twin's drive-rate samples: to the telemetry, into the elastic oscillation
         # (streamed: memory does not grow with the run), and kept only when asked
         self.meter = None if p.plant is None else OscillationMeter(
-            [max(1, round(period / p.plant.drive_dt)) | 1 for period in mode_periods(p.cfg)])
+            [max(1, round(period / p.plant.drive_dt)) | 1 for period in periods])
         self.kept: list[np.ndarray] | None = [] if keep_fine and p.plant is not None else None
         self._deflection = [_FINE_COLUMNS["screw_deflection"],
                             _FINE_COLUMNS["screw_deflection"] + 1]
@@ -379,6 +384,7 @@ class _Loop:
         p.driver.close()
         self.drain()
         self._flush()
+        self.writer.finish()            # the spectra of what was run
         # the recording is completed, but published under its final name only after the
         # summary is written: a .rrd never stands without its .json
         finish = getattr(self.sink, "finish", None)

@@ -11,8 +11,12 @@ The first tab of a run's layout, "Run", is what a run is judged by:
 - the event log (blocks, status changes, tool on/off).
 
 Then one drive tab per axis, split by unit (DAC and tacho V, converter voltage V, armature
-current A, motor speed rpm, conduction), and one motion tab per axis (position mm, velocity
-mm/min, screw deflection µm).
+current A, motor speed rpm, conduction), one motion tab per axis (position mm, velocity
+mm/min, screw deflection µm), and the spectra of the following error and of the screw
+deflection (``twin.telemetry.spectra``: dB re 1 µm/√Hz against frequency, x and y, a marker
+at the model's first elastic mode). The spectra lie on their own timeline, ``frequency_hz``:
+rerun's plots draw against the timeline chosen in the time panel, so the tab's name says
+which to choose.
 
 Every plot is framed on the data: the time axis on the recording's time span, the y axis on
 the range of what it shows (``twin.telemetry.extent.tick_range``: at least two labelled
@@ -32,9 +36,10 @@ import rerun.blueprint as rrb
 import rerun.encodings as rrd
 
 from twin.config import AXES
-from twin.telemetry.channels import SERIES
+from twin.telemetry.channels import AXIS_COLOURS, SERIES
 from twin.telemetry.extent import Extents, tick_range
 from twin.telemetry.sink import PROGRAMMED
+from twin.telemetry.spectra import DB_SPAN, FREQUENCY, QUANTITIES, spectrum_entity
 
 __all__ = ["PATH_TRANSFORM", "PathGrid", "default_blueprint", "experiment_blueprint",
            "frame_bounds", "overlay_blueprint", "path_view"]
@@ -121,6 +126,63 @@ def _motion(axis: str, ext: Extents | None) -> rrb.Container:
         _series(f"{a} screw deflection (µm)", [f"{base}/screw_deflection_um"], ext),
         name=f"{a} motion",
     )
+
+
+SPECTRA_TAB = f"Spectra (timeline {FREQUENCY})"
+"""The spectra's tab: its name says which timeline shows them."""
+
+
+def _spectrum(title: str, entities: Sequence[str], extents: Extents | None, *,
+              names: Mapping[str, str]) -> rrb.TimeSeriesView:
+    """A plot of the spectra ``entities`` and their elastic-mode markers (``<entity>_mode``)
+    against frequency: ``title``, its unit, the series' colours (``names``: entity → "name
+    colour") and the modes marked; framed on the band (from 0 Hz) and on whole 10 dB
+    steps from the highest level down ``DB_SPAN``."""
+    marks = [f"{e}_mode" for e in entities]
+    axis_x = axis_y = None
+    band = extents.band_range(*entities) if extents is not None else None
+    if band is not None:
+        axis_x = rrb.TimeAxis(view_range=rrd.TimeRange(
+            start=rrb.TimeRangeBoundary.absolute(seq=0),      # labels at 0, 10, 20 …
+            end=rrb.TimeRangeBoundary.absolute(seq=math.ceil(band[1]))))
+    y = extents.value_range(*entities, *marks) if extents is not None else None
+    if y is not None:
+        hi = 10.0 * math.ceil(y[1] / 10.0)
+        lo = min(10.0 * math.floor(max(y[0], y[1] - DB_SPAN) / 10.0), hi - 10.0)
+        axis_y = rrb.ScalarAxis(range=(lo - 2.0, hi + 2.0), zoom_lock=False)
+    modes = {}                     # axis → its marked mode (Hz), the same for every law
+    for m in marks:
+        found = extents.band.get(m.lstrip("/")) if extents is not None else None
+        if found is not None:
+            modes.setdefault(m.rsplit("/", 1)[1].removesuffix("_mode"), found[0])
+    marked = ("; ◆ first elastic mode (model) "
+              + ", ".join(f"{a} {f:.0f} Hz" for a, f in modes.items())) if modes else ""
+    return rrb.TimeSeriesView(       # the essentials first: a narrow panel cuts the end
+        name=f"{title} (dB re 1 µm/√Hz vs Hz): {', '.join(names[e] for e in entities)}"
+             f"{marked}",
+        origin="/", contents=[*entities, *marks], axis_x=axis_x, axis_y=axis_y,
+        plot_legend=_NO_LEGEND)
+
+
+def _spectra(ext: Extents | None, laws: Mapping[str, str] | None = None) -> rrb.Container:
+    """The spectra tab: the following error above the screw deflection, x and y in one
+    plot; or, with ``laws`` ({law: its colour's name}), one plot per quantity and axis
+    with one series per law (entities under ``laws/<law>/``)."""
+    rows: list[rrb.TimeSeriesView | rrb.Container] = []
+    for q, what in QUANTITIES.items():
+        if laws is None:
+            entities = [f"/{spectrum_entity(q, a)}" for a in AXES]
+            rows.append(_spectrum(f"{what.capitalize()} spectrum", entities, ext, names={
+                e: f"{a} {AXIS_COLOURS[a]}" for e, a in zip(entities, AXES, strict=True)}))
+            continue
+        plots = []
+        for a in AXES:
+            entities = [f"/laws/{law}/{spectrum_entity(q, a)}" for law in laws]
+            plots.append(_spectrum(f"{a.upper()} {what} spectrum", entities, ext, names={
+                e: f"{law} {colour}" for e, (law, colour) in zip(entities, laws.items(),
+                                                                 strict=True)}))
+        rows.append(rrb.Horizontal(*plots))
+    return rrb.Vertical(*rows, name=SPECTRA_TAB)
 
 
 def frame_bounds(extents: Extents | None, *patterns: str, margin: float = 0.06
@@ -224,7 +286,7 @@ def default_blueprint(extents: Extents | None = None) -> rrb.Blueprint:
     )
     return rrb.Blueprint(
         rrb.Tabs(run, *(_drive(a, ext) for a in AXES), *(_motion(a, ext) for a in AXES),
-                 active_tab=0),
+                 _spectra(ext), active_tab=0),
         collapse_panels=True,
     )
 
@@ -232,8 +294,9 @@ def default_blueprint(extents: Extents | None = None) -> rrb.Blueprint:
 def overlay_blueprint(laws: Mapping[str, str], extents: Extents | None = None
                       ) -> rrb.Blueprint:
     """A layout that overlays the laws (``{law: its colour's name}``): the paths, the
-    contour error, the velocity and the screw deflection of each axis, one entity subtree
-    per law (``laws/<law>/...``), framed on ``extents``."""
+    contour error, the velocity and the screw deflection of each axis ("Laws"), and the
+    spectra of each axis's following error and screw deflection (the spectra tab), one
+    entity subtree per law (``laws/<law>/...``), framed on ``extents``."""
     def plot(title: str, entity: str) -> rrb.TimeSeriesView:
         entities = [f"/laws/{law}/{entity}" for law in laws]
         names = {e: f"{law} {colour}" for e, (law, colour)
@@ -241,26 +304,26 @@ def overlay_blueprint(laws: Mapping[str, str], extents: Extents | None = None
         return _series(title, entities, extents, names=names)
 
     programmed = ", ".join(f"{law} {colour}" for law, colour in laws.items())
-    return rrb.Blueprint(
-        rrb.Horizontal(
-            rrb.Vertical(
-                path_view(extents, name=f"Paths (mm, Y up; grid and scale bar in mm): "
-                                        f"programmed grey; {programmed}",
-                          origin="/", contents=["/laws/**"], frame=("laws/**",)),
-                rrb.TextLogView(name="Events", origin="/events"),
-                row_shares=[4, 1],
-            ),
-            rrb.Vertical(
-                plot("Contour error (µm)", "errors/contour_um"),
-                *(plot(f"{a.upper()} velocity (mm/min)", f"axes/{a}/velocity/actual")
-                  for a in AXES),
-                *(plot(f"{a.upper()} screw deflection (µm)", f"axes/{a}/screw_deflection_um")
-                  for a in AXES),
-            ),
-            column_shares=[2, 3],
+    overlay = rrb.Horizontal(
+        rrb.Vertical(
+            path_view(extents, name=f"Paths (mm, Y up; grid and scale bar in mm): "
+                                    f"programmed grey; {programmed}",
+                      origin="/", contents=["/laws/**"], frame=("laws/**",)),
+            rrb.TextLogView(name="Events", origin="/events"),
+            row_shares=[4, 1],
         ),
-        collapse_panels=True,
+        rrb.Vertical(
+            plot("Contour error (µm)", "errors/contour_um"),
+            *(plot(f"{a.upper()} velocity (mm/min)", f"axes/{a}/velocity/actual")
+              for a in AXES),
+            *(plot(f"{a.upper()} screw deflection (µm)", f"axes/{a}/screw_deflection_um")
+              for a in AXES),
+        ),
+        column_shares=[2, 3],
+        name="Laws",
     )
+    return rrb.Blueprint(rrb.Tabs(overlay, _spectra(extents, laws), active_tab=0),
+                         collapse_panels=True)
 
 
 def experiment_blueprint(axis: str, extents: Extents | None = None) -> rrb.Blueprint:

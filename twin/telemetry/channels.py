@@ -6,8 +6,9 @@ axis reference/actual position and velocity, following error, DAC volts, tacho, 
 and DCU terms (once per controller period); armature current, converter voltage, conduction
 and screw deflection (once per drive interval: the converter's pulses and the screw's
 ringing lie above the controller's Nyquist rate); the contour error; the programmed and
-actual paths; events (block starts, status changes: trips, limit switches). The live
-contour error is measured against the path densified to chords within 1 nm
+actual paths; events (block starts, status changes: trips, limit switches); at the end, the
+spectra of the following error and the screw deflection (``twin.telemetry.spectra``). The
+live contour error is measured against the path densified to chords within 1 nm
 (``PathDistance``); the run summary's is exact.
 
 A recording holds the units an engineer reads (``SERIES`` names each entity's): positions
@@ -27,6 +28,7 @@ import numpy as np
 from twin.config import AXES
 from twin.controller.record import Record
 from twin.telemetry.sink import PROGRAMMED, Sink
+from twin.telemetry.spectra import RunSpectra
 from twin.units import MM, MM_PER_MIN, RPM, UM
 
 __all__ = ["COLOURS", "SERIES", "PathDistance", "TelemetryWriter", "error_colors",
@@ -36,6 +38,9 @@ COLOURS = {"grey": (120, 120, 120), "orange": (245, 125, 20), "blue": (40, 120, 
            "green": (40, 160, 60), "purple": (148, 103, 189), "brown": (140, 86, 75),
            "red": (214, 39, 40), "teal": (23, 160, 170)}
 """The colours of the recorded series, by the name the layout's titles use for them."""
+
+AXIS_COLOURS = {"x": "orange", "y": "blue"}
+"""The colour of each axis where one plot shows both (the spectra)."""
 
 SERIES: dict[str, tuple[str, tuple[tuple[str, str], ...]]] = {
     "axes/{a}/position/reference": ("mm", (("reference", "grey"),)),
@@ -213,14 +218,18 @@ class TelemetryWriter:
     contour_tolerance : float
         Contour tolerance (m): the colour scale of the actual path (green at 0, yellow at
         the tolerance, red from twice it).
+    spectra : RunSpectra, optional
+        Fed with the following error and the screw deflection as they are sent;
+        :meth:`finish` sends the spectra.
     """
 
     def __init__(self, sink: Sink, path: Sequence, *, truth_record: Record | None = None,
                  fine_fields: Sequence[tuple[str, int]] = (),
                  feeds: Mapping[int, float | None] | None = None,
                  motor_ratio: Sequence[float] | None = None,
-                 contour_tolerance: float = 20e-6):
+                 contour_tolerance: float = 20e-6, spectra: RunSpectra | None = None):
         self.sink = sink
+        self.spectra = spectra
         self.feeds = dict(feeds or {})
         self.motor_ratio = None if motor_ratio is None else np.asarray(motor_ratio, float)
         self.contour_tolerance = contour_tolerance
@@ -287,6 +296,9 @@ class TelemetryWriter:
             cols[f"{base}/screw_deflection_um"] = to_shown("µm",
                                                           rows[:, c["screw_deflection"] + k])
         self.sink.scalars(rows[:, c["t"]], cols)
+        if self.spectra is not None:
+            d = c["screw_deflection"]
+            self.spectra.feed("screw_deflection", rows[:, d:d + len(AXES)])
 
     def flush(self, record: Record, *, status_names: Mapping[int, str] | None = None
               ) -> tuple[dict[str, np.ndarray], dict[str, np.ndarray] | None] | None:
@@ -319,6 +331,8 @@ class TelemetryWriter:
                     cols[f"{base}/drive/motor_speed"] = to_shown(
                         "rpm", tr["table_velocity"][:, k] / self.motor_ratio[k])
         cols.update(self._feed_columns(c, tr))
+        if self.spectra is not None:
+            self.spectra.feed("following_error", c["following_error"])
         colors = None
         if self.path:
             contour = self._distance(c["position"])
@@ -332,6 +346,14 @@ class TelemetryWriter:
         self._sent = n
         self.wall += time.perf_counter() - t0
         return c, (tr or None)
+
+    def finish(self) -> None:
+        """Send the run's spectra (after the last :meth:`flush`; ``RunSpectra.send``), x
+        and y in their colours."""
+        if self.spectra is not None:
+            t0 = time.perf_counter()
+            self.spectra.send(self.sink, colours={a: COLOURS[AXIS_COLOURS[a]] for a in AXES})
+            self.wall += time.perf_counter() - t0
 
     def _feed_columns(self, c: Mapping[str, np.ndarray], tr: Mapping[str, np.ndarray]
                       ) -> dict[str, np.ndarray]:

@@ -65,12 +65,14 @@ class Extents:
     ``values[entity]``: (min, max) of its scalars (all series of an entity together; NaN
     ignored). ``bounds[entity]``: ((x min, y min), (x max, y max)) of its 2-D points and
     polylines. ``time``: (first, last) sample time (s) of anything with a time.
+    ``band[entity]``: (lowest, highest) frequency (Hz) of a spectrum.
     """
 
     def __init__(self) -> None:
         self.values: dict[str, tuple[float, float]] = {}
         self.bounds: dict[str, tuple[np.ndarray, np.ndarray]] = {}
         self.time: tuple[float, float] | None = None
+        self.band: dict[str, tuple[float, float]] = {}
 
     def add_time(self, t: np.ndarray) -> None:
         """Widen the time span by the sample times ``t`` (s)."""
@@ -81,8 +83,24 @@ class Extents:
                                                             max(self.time[1], hi))
 
     def add_scalars(self, t: np.ndarray, columns: Mapping[str, np.ndarray]) -> None:
-        """Widen each entity's value range by its column (any shape; NaN ignored)."""
+        """Widen the time span by ``t`` and each entity's value range by its column."""
         self.add_time(t)
+        self.add_values(columns)
+
+    def add_spectrum(self, frequency: np.ndarray, columns: Mapping[str, np.ndarray]) -> None:
+        """Widen each entity's band by the frequencies ``frequency`` (Hz) and its value
+        range by its column (a spectrum: no time)."""
+        f = np.asarray(frequency, dtype=np.float64)
+        if f.size:
+            lo, hi = float(f.min()), float(f.max())
+            for entity in columns:
+                old = self.band.get(entity)
+                self.band[entity] = (lo, hi) if old is None else (min(old[0], lo),
+                                                                  max(old[1], hi))
+        self.add_values(columns)
+
+    def add_values(self, columns: Mapping[str, np.ndarray]) -> None:
+        """Widen each entity's value range by its column (any shape; NaN ignored)."""
         for entity, values in columns.items():
             v = np.asarray(values, dtype=np.float64)
             v = v[np.isfinite(v)]
@@ -121,6 +139,14 @@ class Extents:
         if not found:
             return None
         return (min(r[0] for r in found), max(r[1] for r in found))
+
+    def band_range(self, *patterns: str) -> tuple[float, float] | None:
+        """(lowest, highest) frequency (Hz) over the spectra matching ``patterns``; None if
+        none has data."""
+        found = [b for e, b in self.band.items() if self._matches(e, patterns)]
+        if not found:
+            return None
+        return (min(b[0] for b in found), max(b[1] for b in found))
 
     def point_bounds(self, *patterns: str) -> tuple[np.ndarray, np.ndarray] | None:
         """((x, y) min, (x, y) max) over the entities matching ``patterns``; None if none."""

@@ -2,7 +2,8 @@
 served gRPC endpoint — or a file and a live viewer at once.
 
 Everything is sent with ``send_columns`` in batches, on one timeline ``sim_time``; nothing is
-logged row by row in the cyclic path, so telemetry stays a small share of a run.
+logged row by row in the cyclic path, so telemetry stays a small share of a run. A run's
+spectra go once, at its end, on a timeline of their own (``FREQUENCY``, whole hertz).
 """
 
 from __future__ import annotations
@@ -22,6 +23,7 @@ from twin.system.jsonio import partial_path
 from twin.telemetry.blueprint import PATH_TRANSFORM, PathGrid, default_blueprint, frame_bounds
 from twin.telemetry.extent import Extents
 from twin.telemetry.sink import PROGRAMMED
+from twin.telemetry.spectra import FREQUENCY
 from twin.telemetry.viewer import ViewerUnavailable, start_rerun
 
 __all__ = ["APPLICATION_ID", "TIMELINE", "RerunSink"]
@@ -44,6 +46,9 @@ GRID_COLOUR = (215, 215, 215)
 
 LIVE_FLUSH_TIMEOUT = 5.0
 """Seconds a live viewer may take to accept what was sent before it counts as gone."""
+
+MARKER_SIZE = 6.0
+"""Radius of a plot's point markers (UI points), e.g. a spectrum's elastic-mode marker."""
 
 _LEVELS = {"INFO": "INFO", "WARN": "WARN", "ERROR": "ERROR", "DEBUG": "DEBUG"}
 
@@ -300,6 +305,19 @@ class RerunSink:
             return
         self._send_points(np.asarray(t, dtype=np.float64), columns, colors)
 
+    def spectrum(self, frequency: np.ndarray, columns: Mapping[str, np.ndarray]) -> None:
+        """Send scalar columns against frequency (Hz, whole numbers) on the ``FREQUENCY``
+        timeline, e.g. a run's spectra at its end (``twin.telemetry.spectra``)."""
+        if self.failed is not None or self._finished:
+            return
+        hz = np.asarray(frequency, dtype=np.int64)
+        self.extents.add_spectrum(hz, columns)
+        index = [rr.TimeColumn(FREQUENCY, sequence=hz)]
+        for rec in self._streams():
+            for entity, values in columns.items():
+                rec.send_columns(entity, indexes=index, columns=rr.Scalars.columns(
+                    scalars=np.asarray(values, dtype=np.float64)))
+
     def event(self, t: float, text: str, *, level: str = "INFO") -> None:
         """Log a text event on the ``events`` entity at time ``t`` (s)."""
         if self.failed is not None:
@@ -309,15 +327,19 @@ class RerunSink:
             rec.log("events", rr.TextLog(text, level=_LEVELS.get(level.upper(), "INFO")))
 
     def style(self, entity: str, *, name: str | list[str],
-              color: tuple[int, int, int] | list[tuple[int, int, int]] | None = None
-              ) -> None:
+              color: tuple[int, int, int] | list[tuple[int, int, int]] | None = None,
+              marker: str | None = None) -> None:
         """Name (and colour) the scalar series of an entity in the viewer (a list of names,
-        and of colours, for an entity that carries several series)."""
+        and of colours, for an entity that carries several series); with ``marker`` (a
+        rerun marker shape: "diamond", "circle" ...) draw them as points, not lines."""
         kwargs: dict = {"names": [name] if isinstance(name, str) else list(name)}
         if color is not None:
             kwargs["colors"] = [color] if isinstance(color, tuple) else list(color)
+        style = (rr.SeriesLines(**kwargs) if marker is None else
+                 rr.SeriesPoints(**kwargs, markers=[marker] * len(kwargs["names"]),
+                                 marker_sizes=[MARKER_SIZE] * len(kwargs["names"])))
         for rec in self._streams():
-            rec.log(entity, rr.SeriesLines(**kwargs), static=True)
+            rec.log(entity, style, static=True)
 
     def finish(self) -> None:
         """Flush and complete the file, still under its ``.partial`` name (a run writes its

@@ -50,7 +50,9 @@ class Sink(Protocol):
 
         A sink that writes a file may also have ``finish()``: complete the recording
         without publishing it under its final name. A run calls it, writes its summary,
-        then calls ``close()``, so that a recording never stands without its summary."""
+        then calls ``close()``, so that a recording never stands without its summary.
+        A sink that records spectra has ``spectrum(frequency, columns)`` (whole hertz;
+        ``twin.telemetry.spectra``): a run sends its spectra there before ``finish()``."""
         ...
 
 
