@@ -101,12 +101,14 @@ def test_the_calibrated_model_does_on_the_machine_what_its_own_file_does(over_mo
         assert errors["calibrated"] <= 1.25 * errors["oracle"], builtin
 
 
+# a whole fit in a subprocess: on a loaded 2-core machine more than the suite's 600 s
+@pytest.mark.timeout(1500)
 def test_fitting_the_recorded_experiments_again_gives_the_same_machine(over_modbus,
                                                                        tmp_path):
     _true, _path, out, result = over_modbus
     again = tmp_path / "again.toml"
     proc = twin_cli("identify", "--machine", BASE, "--from-log", result["record"], "-o",
-                 str(again), "--json")
+                 str(again), "--json", timeout=1400.0)
     assert proc.returncode == 0, proc.stderr
     # piped, not on a terminal: the fit still says where it is, stage by stage
     stages = [ln.split(":")[0] for ln in proc.stderr.splitlines() if ":" in ln]
