@@ -220,6 +220,7 @@ def train(method: str, *, machine: str | MachineConfig, program: str = "compact"
     ConfigError
         ``resume`` and a checkpoint that fails its check.
     """
+    from stable_baselines3.common.logger import Logger
     from stable_baselines3.common.vec_env import DummyVecEnv, SubprocVecEnv
 
     deadline = time.perf_counter() + budget_s - SAVE_S
@@ -241,6 +242,8 @@ def train(method: str, *, machine: str | MachineConfig, program: str = "compact"
         else:
             model = algo("MlpPolicy", vec, seed=seed, verbose=0, tensorboard_log=tb,
                          **_hyper(method, n_envs, rollout))
+        if tb is None:   # SB3's own default logger makes an empty /tmp/SB3-<time> folder
+            model.set_logger(Logger(folder=None, output_formats=[]))
         left = total_steps - int(model.num_timesteps)
         if left > 0:
             model.learn(left, callback=_callbacks(out, checkpoint_steps, n_envs, deadline,

@@ -103,13 +103,14 @@ def test_over_modbus_against_twin_hil_server_as_on_sim():
                           "--set", "accelerometer.sample_rate=800", "--rt-priority", "10"
                           ) as server:
         url = f"modbus://127.0.0.1:{server.info['port']}?map={accel}"
-        hil = measure(cfg, driver=url, axis="x", noise=False, **COARSE)
         # a measurement whose ticks ran late (a host loaded several times over) is done
-        # again, as an engineer repeats a disturbed one; the one with more ticks on time
-        # is compared
-        if hil.info["deadlines"]["on_time_ratio"] < 0.99:
-            again = measure(cfg, driver=url, axis="x", noise=False, **COARSE)
-            hil = max((hil, again), key=lambda m: m.info["deadlines"]["on_time_ratio"])
+        # again, as an engineer repeats a disturbed one, at most three times; the one with
+        # the most ticks on time is compared
+        tries = []
+        while len(tries) < 3 and (not tries or
+                                  tries[-1].info["deadlines"]["on_time_ratio"] < 0.99):
+            tries.append(measure(cfg, driver=url, axis="x", noise=False, **COARSE))
+        hil = max(tries, key=lambda m: m.info["deadlines"]["on_time_ratio"])
     assert hil.info["deadlines"]["paced"] and np.array_equal(hil.frequency, sim.frequency)
     good = (hil.coherence >= 0.5) & (sim.coherence >= 0.5)
     assert good.sum() >= 0.5 * len(good), hil.info["deadlines"]
@@ -118,10 +119,11 @@ def test_over_modbus_against_twin_hil_server_as_on_sim():
         return (1 - g) / (2 * COARSE["averages"] * g)
     sigma = np.sqrt(variance(hil.coherence[good]) + variance(sim.coherence[good]))
     deviation = np.abs(hil.response[good] / sim.response[good] - 1)
-    assert np.mean(deviation <= 3 * sigma + 0.02) >= 0.95
+    assert np.mean(deviation <= 3 * sigma + 0.02) >= 0.95, hil.info["deadlines"]
     sd = hil.info["resonance_sd_hz"][0] or 0.0   # its spread over the realisations
     assert abs(hil.resonances[0].frequency - sim.resonances[0].frequency) <= max(
-        0.02 * sim.resonances[0].frequency, 3.0 * sd)
+        0.02 * sim.resonances[0].frequency, 3.0 * sd), (hil.resonances, sim.resonances,
+                                                        hil.info["deadlines"])
 
 
 @pytest.mark.parametrize("seed", [11] if CI else [11, 12, 13, 14])

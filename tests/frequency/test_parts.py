@@ -12,7 +12,8 @@ from scipy import signal
 
 from twin.analysis.frequency import estimate
 from twin.analysis.frequency.excitation import mls, multisine, period_length, prbs
-from twin.analysis.frequency.measure import _unseen, plan_room
+from twin.analysis.frequency.measure import plan_room
+from twin.analysis.frequency.modes import unseen as _unseen
 from twin.config import AccelerometerConfig, load_machine
 from twin.drive.design import axis_inertia
 from twin.drive.linear import speed_response, speed_transfer_function

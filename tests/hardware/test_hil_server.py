@@ -22,12 +22,15 @@ from pymodbus.client import ModbusTcpClient
 from twin.hardware.hil_process import spawn_hil_server
 from twin.hardware.realtime import fifo_priority
 from twin.session.run import RunSpec, prepare, run
+from twin.telemetry.spectra import spectrum_entity
 
 UNIT = 1
 TRUTH_ONLY = {*(f"/axes/{a}/{n}" for a in "xy" for n in
                 ("drive/armature_current", "drive/converter_voltage", "drive/conduction",
                  "drive/motor_speed", "screw_deflection_um", "velocity/actual")),
-              "/feed/actual"}
+              "/feed/actual",
+              *("/" + spectrum_entity("screw_deflection", a, mode=m)
+                for a in "xy" for m in (False, True))}
 
 
 @contextlib.contextmanager

@@ -19,12 +19,13 @@ __all__ = ["register"]
 Axis = choices("MeasureAxis", ("x", "y"))
 Loop = choices("MeasureLoop", ("mechanics", "speed", "position"))
 Sensor = choices("MeasureSensor", ("accelerometer", "motor"))
-Signal = choices("MeasureSignal", ("multisine", "prbs"))
+Signal = choices("MeasureSignal", ("multisine", "prbs", "hammer"))
 
 _OPTIONS = {"amplitude": "--amplitude", "offset": "--offset", "f_max": "--f-max",
             "f_min": "--f-min", "averages": "--averages", "sensor": "--sensor",
             "driver": "--driver", "axis": "--axis", "loop": "--loop",
-            "excitation": "--excitation", "out": "--out"}
+            "excitation": "--excitation", "out": "--out",
+            "hammer_force": "--hammer-force", "hammer_duration": "--hammer-duration"}
 """The options a refusal of ``measure`` may name, by the field it raised on."""
 
 
@@ -44,15 +45,22 @@ def measure(
                                   "the table (mounted on the twin for the test); motor: the "
                                   "encoder and tacho alone."),
     excitation: Signal = typer.Option("multisine", "--excitation", help="multisine "
-                                      "(random-phase realisations) or PRBS."),
+                                      "(random-phase realisations), PRBS, or hammer: an "
+                                      "impact test, the table struck while the drives "
+                                      "hold (sim drivers only; accelerance per newton)."),
+    hammer_force: float | None = typer.Option(None, "--hammer-force", help="hammer: peak "
+                                              "force of a blow (N); default 2000."),
+    hammer_duration: float | None = typer.Option(None, "--hammer-duration", help="hammer: "
+                                                 "length of a blow (ms; a half-sine, "
+                                                 "usable to ≈ 1.3/length); default 2."),
     amplitude: float | None = typer.Option(None, "--amplitude", help="Peak of the "
                                            "excitation as table speed (mm/s); default a "
                                            "quarter of the speed limit."),
     offset: float | None = typer.Option(None, "--offset", help="Table speed kept meanwhile "
                                         "(mm/s), so that friction does not reverse; default "
                                         "half the speed limit."),
-    averages: int = typer.Option(8, "--averages", help="Realisations (multisine) or "
-                                 "periods (PRBS) averaged."),
+    averages: int = typer.Option(8, "--averages", help="Realisations (multisine), "
+                                 "periods (PRBS) or blows (hammer) averaged."),
     f_min: float | None = typer.Option(None, "--f-min", help="Lowest line (Hz); sets the "
                                        "resolution. Default 1 Hz."),
     f_max: float | None = typer.Option(None, "--f-max", help="Highest line (Hz), at most the "
@@ -80,7 +88,9 @@ def measure(
             amplitude=None if amplitude is None else amplitude * 1e-3,
             offset=None if offset is None else offset * 1e-3, averages=averages,
             f_min=f_min, f_max=f_max, excitation=excitation.value, out_dir=out,
-            controller_model=controller_model, noise=noise, progress=say)
+            controller_model=controller_model, noise=noise, hammer_force=hammer_force,
+            hammer_duration=None if hammer_duration is None else hammer_duration * 1e-3,
+            progress=say)
     except ExperimentAborted as exc:
         if as_json:
             sys.stdout.write(json_text(refusal(exc, "ABORTED")) + "\n")
@@ -108,7 +118,7 @@ def _summary(doc: dict) -> dict:
 def _print(doc: dict) -> None:
     table = Table(title=f"axis {doc['axis']}: resonances ({doc['sensor']}, at "
                         f"{doc['position_mm']:.1f} mm)")
-    for col in ("frequency (Hz)", "damping ζ", "peak (dB)"):
+    for col in ("frequency (Hz)", "damping ζ", "peak over rigid (dB)"):
         table.add_column(col, justify="right")
     for r in doc["resonances"]:
         table.add_row(f"{r['frequency_hz']:.2f}", f"{r['damping']:.3f}",

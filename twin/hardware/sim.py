@@ -67,7 +67,13 @@ class SimDriver:
         if self.schedule is not None:
             t = self.schedule.next()
             duration, self._now = t - self._now, t
-        self.plant.step(outputs.dac_volts if enable else self._zero, duration)
+        self._advance(outputs.dac_volts if enable else self._zero, duration)
+
+    def _advance(self, dac_volts: np.ndarray, duration: float) -> None:
+        """Advance the plant by ``duration`` (s) under ``dac_volts`` (V): the one place a
+        subclass changes how a period is stepped (a modal hammer's blow within it,
+        ``twin.session.hammer``)."""
+        self.plant.step(dac_volts, duration)
 
     def close(self) -> None:
         """Disable the drives (the plant keeps its state for inspection)."""

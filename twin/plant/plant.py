@@ -110,6 +110,8 @@ class Plant:
         self._rotor_pos, self._rotor_vel = d.qpos[rotor[0]], d.qvel[rotor[1]]
         self._torque = d.qfrc_applied[rotor[1]]
         self._slide_force = d.qfrc_applied[table[1]]
+        self._slide_joints = [m.joint(a).id for a in AXES]
+        self._table_body = int(m.body("y_carriage").id)
         self._warning_count = d.warning.number  # a live view of the counters
 
         axes = [config.axes[a] for a in AXES]
@@ -272,6 +274,18 @@ class Plant:
         self.drives.enable(flag)
         plant_loop.readout(self.drives.kernel_arrays()[1], self._out)
         self._ro = self._out.tolist()
+
+    def set_table_force(self, force: np.ndarray) -> None:
+        """Push on the table (the Y carriage, where the accelerometer sits) with ``force``
+        (N, shape (2,): along the X and the Y slide), held by every physics step until
+        changed; a reset clears it. A modal hammer's blow (``twin.session.hammer``): an
+        outside force on the body, not one of the machine's own."""
+        f = np.asarray(force, dtype=float)
+        if f.shape != (2,) or not np.all(np.isfinite(f)):
+            raise ValueError(f"force must be 2 finite values (N), got {force!r}")
+        d = self.data
+        d.xfrc_applied[self._table_body, :3] = (f[0] * d.xaxis[self._slide_joints[0]]
+                                                + f[1] * d.xaxis[self._slide_joints[1]])
 
     def step(self, dac_volts: np.ndarray, duration: float) -> StepStatus:
         """Apply DAC voltages for ``duration`` and advance drives and mechanics.

@@ -3,10 +3,11 @@ measure with (SINUMERIK's measuring functions, TwinCAT's validation Bode plot, K
 resonance test).
 
 ``measure`` excites one axis through ``MachineIO`` (the twin, or real I/O), with a
-multisine or a PRBS about a speed offset, averages whole periods and returns a
-``FrequencyResponse``: the response with its coherence, the linearised prediction of the
-controller's belief, the resonances the sensor saw (``Resonance``), the position loop's
-margins, and the modes the sensor cannot see.
+multisine or a PRBS about a speed offset (or, on the twin, strikes its table with a modal
+hammer while the drives hold: ``twin.analysis.frequency.hammer``), averages whole periods
+and returns a ``FrequencyResponse``: the response with its coherence, the linearised
+prediction of the controller's belief, the resonances the sensor saw (``Resonance``), the
+position loop's margins, and the modes the sensor cannot see.
 """
 
 from twin.analysis.frequency.result import (
@@ -20,7 +21,7 @@ from twin.analysis.frequency.result import (
 __all__ = ["EXCITATIONS", "LOOPS", "SENSORS", "FrequencyResponse", "Margins", "Resonance",
            "measure"]
 
-EXCITATIONS = ("multisine", "prbs")
+EXCITATIONS = ("multisine", "prbs", "hammer")
 
 
 def measure(machine, *, driver: str = "sim", axis: str = "x", loop: str = "mechanics",
@@ -28,6 +29,7 @@ def measure(machine, *, driver: str = "sim", axis: str = "x", loop: str = "mecha
             offset: float | None = None, averages: int = 8, f_min: float | None = None,
             f_max: float | None = None, excitation: str = "multisine",
             out_dir=None, controller_model=None, noise: bool = True,
+            hammer_force: float | None = None, hammer_duration: float | None = None,
             progress=None) -> FrequencyResponse:
     """Measure the frequency response of one axis (see the module docstring).
 
@@ -58,7 +60,11 @@ def measure(machine, *, driver: str = "sim", axis: str = "x", loop: str = "mecha
         The band (Hz): ``f_min`` sets the resolution (default 1 Hz); ``f_max`` at most the
         loop's Nyquist frequency (the accelerometer's, for what an accelerometer sees;
         default 0.75/T there, else the controller's Nyquist frequency).
-    excitation : {"multisine", "prbs"}
+    excitation : {"multisine", "prbs", "hammer"}
+        ``hammer``: an impact test (``twin.analysis.frequency.hammer``): the table struck
+        ``averages`` times while the drives hold position, the response the accelerance
+        A/F ((m/s²)/N, ``loop`` mechanics, ``sensor`` accelerometer); ``sim`` drivers only
+        (over Modbus it is refused: the twin cannot strike a real machine).
     out_dir : path, optional
         Where ``measure-<id>/`` goes (JSON, Bode PNG, ``.rrd``); None: nothing written.
     controller_model : str or Path, optional
@@ -66,6 +72,10 @@ def measure(machine, *, driver: str = "sim", axis: str = "x", loop: str = "mecha
         ``machine``.
     noise : bool
         ``sim`` drivers: the machine file's sensor noise.
+    hammer_force : float, optional
+        ``hammer``: peak force of a blow (N); default 2000 N.
+    hammer_duration : float, optional
+        ``hammer``: length of a blow (s); default 2 ms.
     progress : callable(str), optional
 
     Raises
@@ -82,4 +92,5 @@ def measure(machine, *, driver: str = "sim", axis: str = "x", loop: str = "mecha
     return run(machine, driver=driver, axis=axis, loop=loop, sensor=sensor,
                amplitude=amplitude, offset=offset, averages=averages, f_min=f_min,
                f_max=f_max, excitation=excitation, out_dir=out_dir,
-               controller_model=controller_model, noise=noise, progress=progress)
+               controller_model=controller_model, noise=noise, hammer_force=hammer_force,
+               hammer_duration=hammer_duration, progress=progress)

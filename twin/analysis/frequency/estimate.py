@@ -274,9 +274,12 @@ def fit_mode(frequency: np.ndarray, response: np.ndarray, *, iterations: int = 8
     return complex(roots[0] * scale)
 
 
-def peaks(frequency: np.ndarray, ratio_db: np.ndarray, *, prominence: float = 1.0
-          ) -> list[int]:
+def peaks(frequency: np.ndarray, ratio_db: np.ndarray, *, prominence: float = 1.0,
+          noise: np.ndarray | None = None) -> list[int]:
     """Indices of the lines where the response over the rigid twin's (dB) has a peak at
-    least ``prominence`` dB above its surroundings."""
-    found, _ = find_peaks(np.asarray(ratio_db, dtype=float), prominence=prominence)
+    least ``prominence`` dB above its surroundings; with ``noise`` (each line's random
+    error, dB) at least ``prominence`` plus three of its own line's."""
+    found, props = find_peaks(np.asarray(ratio_db, dtype=float), prominence=prominence)
+    if noise is not None:
+        found = found[props["prominences"] >= prominence + 3.0 * np.asarray(noise)[found]]
     return [int(i) for i in found]

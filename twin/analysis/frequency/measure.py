@@ -12,7 +12,7 @@ from typing import Any
 
 import numpy as np
 
-from twin.analysis.frequency import estimate
+from twin.analysis.frequency import estimate, hammer, modes
 from twin.analysis.frequency.excitation import (
     Excitation,
     multisine,
@@ -20,31 +20,27 @@ from twin.analysis.frequency.excitation import (
     prbs,
 )
 from twin.analysis.frequency.prediction import (
-    closed_loop_modes,
     design_loop,
     predict,
 )
 from twin.analysis.frequency.record import run_excitation
-from twin.analysis.frequency.result import LOOPS, SENSORS, FrequencyResponse, Resonance
+from twin.analysis.frequency.result import LOOPS, SENSORS, FrequencyResponse
 from twin.config import AXES, MachineConfig, load_machine
 from twin.controller.loop_defaults import loop_gains
 from twin.errors import ConfigError
 from twin.hardware.register_map import MAPS
-from twin.plant.model import axis_mechanics
 from twin.session.machine_io import move_to, open_experiment_driver
 from twin.session.setup import axis_models, measured_position
 
 __all__ = ["EXCITATIONS", "MARGIN", "measure", "plan_room"]
 
-EXCITATIONS = ("multisine", "prbs")
+EXCITATIONS = ("multisine", "prbs", "hammer")
 MARGIN = 1e-3
 """Room kept between the measurement and the end switches (m)."""
 HOLD = 0.2e-3
 """How far the axis that is not measured may move from where it is held (m)."""
 MAX_PERIOD = 2**16
 """Most controller periods in one period of the excitation (the lowest f_min)."""
-USABLE = 0.5
-"""Coherence from which a line enters the resonance fit (weighted by its γ²/(1 − γ²))."""
 UNITS = {"mechanics": "m/(s²·V)", "speed": "m/(s·V)", "position": "1"}
 
 
@@ -126,85 +122,6 @@ def _excursion(values: np.ndarray, period: float, amplitude: float, offset: floa
     return lo - pad, hi + pad
 
 
-def _unseen(belief: MachineConfig, axis: str, position: float, sensor: str, loop: str,
-            top: float) -> list[str]:
-    """The belief's elastic modes this measurement cannot see, each with the reason."""
-    chain = axis_mechanics(belief, axis, position)
-    free = chain.frequencies("free") / (2.0 * math.pi)
-    locked = chain.frequencies("locked") / (2.0 * math.pi)
-    motor = sensor == "motor" or loop == "position"
-    out = []
-    for i, f in enumerate(free):
-        if motor and i < len(locked) and 40.0 * math.log10(f / locked[i]) < 1.0:
-            out.append(f"mode {i + 1} at {f:.1f} Hz: the motor barely moves in it (its "
-                       f"anti-resonance at {locked[i]:.2f} Hz, "
-                       f"{40.0 * math.log10(f / locked[i]):.3f} dB deep: the rotor's "
-                       f"reflected mass {chain.reflected_mass:.3g} kg against "
-                       f"{chain.moving_mass:.3g} kg); mount an accelerometer")
-        elif top <= 0.0:
-            out.append(f"mode {i + 1} at {f:.1f} Hz: no line of the measurement reached "
-                       f"a coherence of {estimate.COHERENT:g} (noise or distortion)")
-        elif f > top:
-            out.append(f"mode {i + 1} at {f:.1f} Hz: above the measured band "
-                       f"({top:.1f} Hz, the highest line with a coherence of "
-                       f"{estimate.COHERENT:g})")
-    return out
-
-
-def _resonances(f: np.ndarray, h: np.ndarray, coherence: np.ndarray, rigid: np.ndarray,
-                axis: str, seen_by: str) -> list[Resonance]:
-    """The resonances: peaks of |H/H_rigid| (dB) on the lines with γ² ≥ ``USABLE``, each
-    the pole of a second-order model fitted to H/H_rigid (the measurement over the rigid
-    twin's prediction: what the speed loop does to both divides out) over half to twice
-    its frequency (at least its eight nearest lines), each line weighted by its
-    signal-to-noise ratio γ²/(1 − γ²)."""
-    usable = coherence >= USABLE
-    if usable.sum() < 8:
-        return []
-    fg, ratio = f[usable], h[usable] / rigid[usable]
-    trust = np.sqrt(coherence[usable] / np.maximum(1.0 - coherence[usable], 1e-4))
-    level = 20.0 * np.log10(np.abs(ratio))
-    found = []
-    for i in estimate.peaks(fg, level):
-        near = (fg >= fg[i] / 2.0) & (fg <= fg[i] * 2.0)
-        if near.sum() < 8:                # too coarse a grid: the eight nearest lines
-            near = np.zeros(len(fg), dtype=bool)
-            near[np.argsort(np.abs(fg - fg[i]))[:8]] = True
-        pole = estimate.fit_mode(fg[near], ratio[near], weight=trust[near])
-        if pole is None:
-            continue
-        freq, zeta = abs(pole) / (2.0 * math.pi), -pole.real / abs(pole)
-        if not (fg[near].min() <= freq <= fg[near].max() and 0.0 < zeta < 1.0):
-            continue
-        found.append(Resonance(freq, zeta, float(level[i]), axis, seen_by))
-    return sorted(found, key=lambda r: r.frequency)
-
-
-def _jackknife(spec: estimate.Spectra, resonances: list[Resonance], rigid: np.ndarray,
-               axis: str, seen_by: str) -> list[float | None]:
-    """The standard deviation of each resonance's frequency (Hz) by the jackknife over the
-    averaged periods: the fit repeated with each left out, √((P − 1)/P·Σ(f_i − f̄)²); None
-    where a leave-one-out fit lost it or fewer than three periods were averaged."""
-    periods = len(spec.dac)
-    if periods < 3 or not resonances:
-        return [None] * len(resonances)
-    runs = []
-    for p in range(periods):
-        h, g = spec.without(p).response()
-        runs.append([r.frequency for r in _resonances(spec.frequency, h, g, rigid, axis,
-                                                      seen_by)])
-    out: list[float | None] = []
-    for r in resonances:
-        near = [min(run, key=lambda f: abs(f - r.frequency)) for run in runs if run]
-        near = [f for f in near if abs(f - r.frequency) < 0.25 * r.frequency]
-        if len(near) < periods:
-            out.append(None)
-            continue
-        f = np.array(near)
-        out.append(float(math.sqrt((periods - 1) / periods * np.sum((f - f.mean()) ** 2))))
-    return out
-
-
 def _options(base: MachineConfig, belief: MachineConfig, axis: str, loop: str,
              sensor: str, excitation: str, averages: int, amplitude: float | None,
              offset: float | None, f_min: float | None, f_max: float | None
@@ -220,7 +137,6 @@ def _options(base: MachineConfig, belief: MachineConfig, axis: str, loop: str,
     _choice("axis", axis, AXES)
     _choice("loop", loop, LOOPS)
     _choice("sensor", sensor, SENSORS)
-    _choice("excitation", excitation, EXCITATIONS)
     if not (isinstance(averages, int) and 1 <= averages <= 1000):
         raise ConfigError("averages", f"must be a whole number 1 … 1000, got {averages!r}")
     period = base.controller.period
@@ -258,11 +174,20 @@ def measure(machine, *, driver: str = "sim", axis: str = "x", loop: str = "mecha
             offset: float | None = None, averages: int = 8, f_min: float | None = None,
             f_max: float | None = None, excitation: str = "multisine",
             out_dir=None, controller_model=None, noise: bool = True,
+            hammer_force: float | None = None, hammer_duration: float | None = None,
             progress: Callable[[str], None] | None = None) -> FrequencyResponse:
     """See ``twin.analysis.frequency.measure``."""
     say = progress or (lambda _m: None)
     base = _machine(machine)
     belief = _machine(controller_model) if controller_model is not None else base
+    _choice("excitation", excitation, EXCITATIONS)
+    for name, value in (("hammer_force", hammer_force), ("hammer_duration", hammer_duration)):
+        if value is not None and excitation != "hammer":
+            raise ConfigError(name, f"is a setting of the hammer: only with --excitation "
+                              f"hammer, not {excitation}")
+    if excitation == "hammer":
+        return _tap_test(base, belief, driver, axis, loop, sensor, averages, hammer_force,
+                         hammer_duration, f_min, f_max, out_dir, noise, say)
     amplitude, offset, f_min, f_max = _options(base, belief, axis, loop, sensor,
                                                excitation, averages, amplitude, offset,
                                                f_min, f_max)
@@ -277,8 +202,7 @@ def measure(machine, *, driver: str = "sim", axis: str = "x", loop: str = "mecha
         values = np.tile(exc.values, 1 + averages)
         measured = list(range(1, 1 + averages))
     lo, hi = _excursion(values, period, amplitude, offset, loop)
-    middle = np.array([0.5 * sum(base.axes[a].mechanics.travel) for a in AXES])
-    plan_room(base, axis, (lo, hi), middle)   # room anywhere at all: before the machine
+    plan_room(base, axis, (lo, hi), _middle(base))   # room anywhere at all: before the machine
     if out_dir is not None:
         from twin.system.jsonio import output_dir
         output_dir(out_dir)
@@ -325,7 +249,7 @@ def measure(machine, *, driver: str = "sim", axis: str = "x", loop: str = "mecha
     prediction = predict(belief, axis, position, loop, seen_by, f, gains)
     rigid = predict(belief, axis, position, loop, seen_by, f, gains, rigid=True)
     good = coherence >= estimate.COHERENT
-    resonances = _resonances(f, response, coherence, rigid, axis, seen_by)
+    resonances = modes.resonances(f, response, coherence, rigid, axis, seen_by)
     margins = None
     info: dict[str, Any] = {}
     if loop == "position":
@@ -334,11 +258,11 @@ def measure(machine, *, driver: str = "sim", axis: str = "x", loop: str = "mecha
         design = estimate.margins(dense, design_loop(axis_models(belief)[k], gains, axis,
                                                      period, dense))
         info["design_margins"] = design.to_dict()
-    info["resonance_sd_hz"] = _jackknife(spec, resonances, rigid, axis, seen_by)
+    info["resonance_sd_hz"] = modes.jackknife(spec, resonances, rigid, axis, seen_by)
     info["accelerometer_rate_hz"] = (base.accelerometer.sample_rate
                                      if seen_by == "accelerometer" else None)
     top = float(f[good].max()) if good.any() else 0.0
-    unseen = _unseen(belief, axis, position, seen_by, loop, top)
+    unseen = modes.unseen(belief, axis, position, seen_by, loop, top)
     info.update(_info(base, belief, driver, exc, amplitude, offset, averages, rec, f,
                       response, prediction, good, axis, position))
     result = FrequencyResponse(f, response, coherence, prediction, resonances, margins,
@@ -349,12 +273,31 @@ def measure(machine, *, driver: str = "sim", axis: str = "x", loop: str = "mecha
     return result
 
 
+def _middle(base: MachineConfig) -> np.ndarray:
+    """The middle of each axis' travel (m)."""
+    return np.array([0.5 * sum(base.axes[a].mechanics.travel) for a in AXES])
+
+
+def _tap_test(base: MachineConfig, belief: MachineConfig, driver: str, axis: str, loop: str,
+              sensor: str, averages: int, force: float | None, duration: float | None,
+              f_min: float | None, f_max: float | None, out_dir, noise: bool,
+              say: Callable[[str], None]) -> FrequencyResponse:
+    """``--excitation hammer``: its settings checked, then the tap test at mid-travel
+    (``twin.session.hammer``)."""
+    _choice("axis", axis, AXES)
+    if not (isinstance(averages, int) and 1 <= averages <= 1000):
+        raise ConfigError("averages", f"must be a whole number 1 … 1000, got {averages!r}")
+    opts = hammer.check(driver, loop, sensor, force, duration, f_min, f_max, averages,
+                        base.accelerometer.sample_rate)
+    target, window = plan_room(base, axis, hammer.REACH, _middle(base))
+    return hammer.tap_test(base, belief, driver, axis, opts, target, window,
+                           out_dir=out_dir, noise=noise, say=say)
+
+
 def _info(base: MachineConfig, belief: MachineConfig, driver: str, exc: Excitation,
           amplitude: float, offset: float, averages: int, rec, f: np.ndarray,
           response: np.ndarray, prediction: np.ndarray, good: np.ndarray, axis: str,
           position: float) -> dict[str, Any]:
-    ratio = response[good] / prediction[good]
-    modes = closed_loop_modes(belief, axis, position)
     return {
         "machine": base.name, "controller_model": belief.name, "driver": driver,
         "excitation": {"kind": exc.kind, "ticks_per_period": exc.length,
@@ -363,14 +306,7 @@ def _info(base: MachineConfig, belief: MachineConfig, driver: str, exc: Excitati
                        "averages": averages},
         "machine_time_s": len(rec.slot) * exc.period,
         "accelerometer_samples_lost": int(rec.lost),
-        "agreement": {
-            "lines_coherent": int(good.sum()),
-            "max_gain_error_db": float(np.max(np.abs(20 * np.log10(np.abs(ratio)))))
-            if len(ratio) else None,
-            "max_phase_error_deg": float(np.max(np.abs(np.degrees(np.angle(ratio)))))
-            if len(ratio) else None},
-        "analytic_modes": [{"frequency_hz": abs(s) / (2 * math.pi),
-                            "damping": -s.real / abs(s)} for s in modes],
+        **modes.compared(response, prediction, good, belief, axis, position),
         "deadlines": None if rec.stats is None else rec.stats.to_dict(),
     }
 

@@ -41,8 +41,9 @@ from twin.drive.design import axis_inertia
 from twin.drive.linear import speed_response
 from twin.plant.model import axis_mechanics
 
-__all__ = ["ALIASES", "chain_response", "closed_loop_modes", "design_loop", "loop_response",
-           "predict", "regulator_response", "rigid_response", "sampled", "table_response"]
+__all__ = ["ALIASES", "accelerance", "chain_response", "closed_loop_modes", "design_loop",
+           "drive_impedance", "loop_response", "predict", "regulator_response",
+           "rigid_response", "sampled", "table_response"]
 
 ALIASES = 60
 """Aliases summed on each side for a sampled response (the terms fall as 1/n³ or faster)."""
@@ -178,6 +179,44 @@ def predict(cfg: MachineConfig, axis: str, position: float, loop: str, sensor: s
         return speed
     period = cfg.controller.period
     return speed * (1.0 - np.exp(-2j * math.pi * f * period)) / period
+
+
+def drive_impedance(cfg: MachineConfig, axis: str, s: np.ndarray) -> np.ndarray:
+    """The torque the drive's closed speed loop opposes to the rotor's speed with its
+    reference held, Z(s) = −τ/ω (N·m·s/rad), at ``s``: the drive is linear in its reference
+    U and the rotor's speed, τ = A·U − Z·ω, so ω/U = Y·A/(1 + Y·Z) under any load Y, and
+    ``speed_response`` under two loads gives A and Z (the drive's loop is written once)."""
+    ax = cfg.axes[axis]
+    s = np.asarray(s, dtype=complex)
+    moving = cfg.moving_masses()[axis]
+    loads = [1.0 / (ax.mechanics.rotor_inertia * s), 0.5 / (ax.mechanics.rotor_inertia * s)]
+    q = [y / speed_response(ax, s, y, moving_mass=moving) for y in loads]
+    z_over_a = (q[0] - q[1]) / (loads[0] - loads[1])
+    return z_over_a / (q[0] - loads[0] * z_over_a)
+
+
+def accelerance(cfg: MachineConfig, axis: str, position: float, frequency: np.ndarray, *,
+                rigid: bool = False) -> np.ndarray:
+    """The table's acceleration per force on the table, A/F ((m/s²)/N), at ``frequency``
+    (Hz): what a modal hammer measures, the drive holding the rotor by its closed speed loop
+    (``drive_impedance``; the position loop, far slower than the modes, left open), the
+    elastic chain at the nut ``position`` (m) (``rigid``: the rigid chain)."""
+    ax = cfg.axes[axis]
+    s = 2j * math.pi * np.asarray(frequency, dtype=float)
+    r = ax.transmission.ratio
+    held = drive_impedance(cfg, axis, s) / r**2 + ax.mechanics.rotor_viscous / r**2
+    if rigid:
+        mass = axis_inertia(ax, cfg.moving_masses()[axis]) / r**2
+        return s / (mass * s + held + ax.mechanics.slide_viscous)
+    mass, stiffness, damping = axis_mechanics(cfg, axis, position).matrices("free")
+    damping = damping.copy()
+    damping[-1, -1] += ax.mechanics.slide_viscous
+    dynamic = (mass[None] * (s**2)[:, None, None] + damping[None] * s[:, None, None]
+               + stiffness[None])
+    dynamic[:, 0, 0] += held * s
+    unit = np.zeros((len(s), len(mass)), dtype=complex)
+    unit[:, -1] = 1.0
+    return s**2 * np.linalg.solve(dynamic, unit[..., None])[:, -1, 0]
 
 
 def closed_loop_modes(cfg: MachineConfig, axis: str, position: float, *,

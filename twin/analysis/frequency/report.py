@@ -22,6 +22,8 @@ _SHOWN = {"mechanics": ("table acceleration per DAC volt", "dB re 1 (m/s²)/V", 
           "speed": ("table speed per DAC volt", "dB re 1 (mm/s)/V", 1e3),
           "position": ("position loop opened at the DAC, L", "dB", 1.0)}
 """What a Bode plot's magnitude shows: its title, axis label, and the scale from SI."""
+_ACCELERANCE = ("accelerance, table acceleration per hammer force", "dB re 1 (m/s²)/N", 1.0)
+"""The same for an impact test (its unit ``m/(s²·N)``)."""
 
 
 def plot_bode(result: FrequencyResponse, path: str | Path) -> Path:
@@ -32,7 +34,7 @@ def plot_bode(result: FrequencyResponse, path: str | Path) -> Path:
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    title, label, scale = _SHOWN[result.loop]
+    title, label, scale = _ACCELERANCE if result.unit == "m/(s²·N)" else _SHOWN[result.loop]
     f = result.frequency
     good = result.coherence >= COHERENT
     mag = 20.0 * np.log10(np.abs(result.response) * scale)
@@ -84,11 +86,14 @@ def plot_bode(result: FrequencyResponse, path: str | Path) -> Path:
 
 def record_signals(rec: Recording, result: FrequencyResponse, path: str | Path) -> Path:
     """The run as a rerun recording: the DAC (V), the regulator's share (V), the encoder
-    position (mm, from the first tick), the tacho (V) and the accelerometer (m/s²)."""
+    position (mm, from the first tick), the tacho (V) and the accelerometer (m/s²); of an
+    impact test the hammer's force sensor (N) as well."""
     from twin.telemetry.rerun_sink import RerunSink
 
-    t = rec.slot * (result.info["excitation"]["resolution_hz"] ** -1
-                    / result.info["excitation"]["ticks_per_period"])
+    exc = result.info["excitation"]
+    period = result.info.get("controller_period_s") or (
+        1.0 / (exc["resolution_hz"] * exc["ticks_per_period"]))
+    t = rec.slot * period
     a = result.axis
     with RerunSink(path, recording_id="measure", recording_name=f"measure axis {a}",
                    blueprint=False) as sink:
@@ -100,7 +105,9 @@ def record_signals(rec: Recording, result: FrequencyResponse, path: str | Path) 
             if rate:
                 ta = rec.accel_sequence / rate - float(rec.time[0])
                 sink.scalars(ta, {f"accelerometer/{a}": rec.accel})
-        sink.event(0.0, f"{result.loop} loop, {result.info['excitation']['kind']}")
+                if exc["kind"] == "hammer":     # the force sensor, on the same clock
+                    sink.scalars(ta, {f"hammer_force/{a}": rec.excitation})
+        sink.event(0.0, f"{result.loop} loop, {exc['kind']}")
     return Path(path)
 
 
