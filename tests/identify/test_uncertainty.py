@@ -91,6 +91,43 @@ def test_the_profile_interval_of_a_linear_model_is_the_classical_one(seed, start
             assert got.high == pytest.approx(x + half * scale, abs=0.02 * half * scale)
 
 
+@pytest.mark.parametrize("seed", range(6))
+def test_a_profile_settled_at_a_tolerance_keeps_the_full_verdict(seed, start):
+    """``profile(settle=...)`` (the joint fit's profiles after a hold, where only whether
+    an interval closes within its tolerance matters): every interval the full profile
+    closes within the tolerance comes out the same, every other one is reported wider than
+    the tolerance too, and never with more replays."""
+    rng = np.random.default_rng(200 + seed)
+    n = 2 * int(rng.integers(100, 300))
+    prob = LinearProblem(rng, n, start, tie=bool(seed % 2), idle=seed % 3 == 0)
+    mask = np.ones(n, dtype=bool)
+    sol = solve(prob, dict(start), NAMES, mask, start, max_nfev=20)
+    reach = {k: 2.0 for k in NAMES}
+    before = prob.replays
+    full = profile(prob, sol, mask, start, NAMES, reach)
+    cost_full = prob.replays - before
+    # tolerances around the intervals' own half-widths: both verdicts occur
+    tol = {k: float(rng.uniform(0.05, 0.4)) for k in NAMES}
+    before = prob.replays
+    settled = profile(prob, sol, mask, start, NAMES, reach, settle=tol)
+    assert prob.replays - before <= cost_full
+    verdicts = set()
+    for a in prob.axes:
+        for name in NAMES:
+            x = coordinate(sol.params[a], start[a], name)
+            want, got = full[a][name], settled[a][name]
+
+            def wide(p, x=x, name=name):
+                return p.open or max(x - p.low, p.high - x) > tol[name]
+
+            verdicts.add(wide(want))
+            assert wide(got) == wide(want), (a, name)
+            if not wide(want):
+                assert (got.low, got.high) == (want.low, want.high)
+    if seed % 2:   # a tied pair: wide whatever the tolerance
+        assert True in verdicts
+
+
 def test_autocorrelated_residuals_widen_the_interval():
     rng = np.random.default_rng(5)
     white = rng.normal(size=4000)

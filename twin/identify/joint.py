@@ -137,7 +137,10 @@ def joint_fit(problem: Problem, params: dict[str, AxisParams], names: Sequence[s
         rest = sorted({n for a in axes for n in loose[a]})
         if not rest:
             break
-        again = profile(problem, sol, mask, start, rest, _reach(rest))
+        # only whether each closes within its tolerance matters here: a side still below
+        # the threshold there ends the profile (the interval reported is the first one)
+        again = profile(problem, sol, mask, start, rest, _reach(rest),
+                        settle={n: TOLERANCE[n] for n in rest})
         for a in axes:
             for n in list(loose[a]):
                 p = again[a].get(n)

@@ -168,7 +168,13 @@ def solve(problem: Problem, params: dict[str, AxisParams], names: Sequence[str],
     on the coordinates ``names`` of the problem's axes at once, but those ``frozen[axis]``
     holds for that axis. ``max_nfev`` bounds the residual evaluations (each Jacobian costs
     one replay per coordinate on top). Returns the solution with each axis' Jacobian and
-    residuals at it."""
+    residuals at it.
+
+    A Jacobian asked for within half a finite-difference step (``COORDS``) of the last
+    one replayed, in every coordinate, is that one: a finite difference does not resolve
+    the Jacobian closer than its step (the least squares' last steps are often a hundredth
+    of it, and each Jacobian costs a replay per coordinate). The residuals are always
+    replayed at the point itself."""
     frozen = frozen or {}
     pack = _Packed(problem, params, names, start, frozen)
     axes = problem.axes
@@ -187,9 +193,13 @@ def solve(problem: Problem, params: dict[str, AxisParams], names: Sequence[str],
         return np.concatenate([r[a] for a in axes])
 
     sizes = None
+    resolution = 0.5 * np.array([COORDS[n][1] for _, n in pack.slots])
+    last: list[np.ndarray] = []   # the point of the last Jacobian replayed, and it
 
     def jac(x: np.ndarray) -> np.ndarray:
         nonlocal sizes
+        if last and np.all(np.abs(np.asarray(x, float) - last[0]) <= resolution):
+            return last[1]   # the same Jacobian to its own resolution (the steps' half)
         r0 = residuals(x)
         sizes = [len(r0[a]) for a in axes]
         rows = np.cumsum([0, *sizes])
@@ -213,6 +223,7 @@ def solve(problem: Problem, params: dict[str, AxisParams], names: Sequence[str],
                 a = pack.slots[c][0]
                 k = axes.index(a)
                 out[rows[k]:rows[k + 1], c] = (r1[a] - r0[a]) / s
+        last[:] = [np.array(x, float), out]
         return out
 
     x0 = np.clip(pack.vector(params), *pack.bounds())
@@ -264,9 +275,10 @@ def scan_mains_phase(problem: Problem, params: dict[str, AxisParams], steps: int
         r = problem.residuals(params, first)
         return sum(float(v @ v) for v in r.values())
 
-    step = 2.0 * math.pi / p / steps
-    if near is None or problem.mains_phase is None:
-        grid = [k * step for k in range(steps)]
+    period = 2.0 * math.pi / p
+    step = period / steps
+    if near is None or problem.mains_phase is None:   # k/steps: one grid's points are
+        grid = [k / steps * period for k in range(steps)]   # bit for bit a finer one's
     else:
         grid = [problem.mains_phase + k * step for k in range(-near, near + 1)]
     values = split_map(problem, sse, grid)   # independent replays, side by side

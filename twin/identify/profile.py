@@ -24,7 +24,7 @@ from dataclasses import dataclass
 import numpy as np
 from scipy.stats import f as f_dist
 
-from twin.identify.lsq import BOUNDS, Solution, coordinate, with_coordinates
+from twin.identify.lsq import BOUNDS, COORDS, Solution, coordinate, with_coordinates
 from twin.identify.parallel import split_map
 from twin.identify.replay import AxisParams, Problem
 
@@ -130,13 +130,15 @@ def own_coordinate(name: str) -> str:
 
 
 def profile(problem: Problem, sol: Solution, mask: np.ndarray, start: dict[str, AxisParams],
-            names: Sequence[str], reach: dict[str, float]) -> dict[str, dict[str, Profile]]:
+            names: Sequence[str], reach: dict[str, float],
+            settle: dict[str, float] | None = None) -> dict[str, dict[str, Profile]]:
     """``profile_of`` each quantity of ``names``, the quantities split over the processes
     ``parallel.split_map`` may use (each quantity's profile is independent of the
     others': the same intervals as one after the other)."""
     names = list(names)
     groups = [names[0::2], names[1::2]] if len(names) > 1 else [names]
-    parts = split_map(problem, lambda g: profile_of(problem, sol, mask, start, g, reach),
+    parts = split_map(problem, lambda g: profile_of(problem, sol, mask, start, g, reach,
+                                                     settle),
                       groups)
     out: dict[str, dict[str, Profile]] = {a: {} for a in problem.axes}
     for part in parts:
@@ -146,8 +148,8 @@ def profile(problem: Problem, sol: Solution, mask: np.ndarray, start: dict[str, 
 
 
 def profile_of(problem: Problem, sol: Solution, mask: np.ndarray,
-               start: dict[str, AxisParams], names: Sequence[str], reach: dict[str, float]
-               ) -> dict[str, dict[str, Profile]]:
+               start: dict[str, AxisParams], names: Sequence[str], reach: dict[str, float],
+               settle: dict[str, float] | None = None) -> dict[str, dict[str, Profile]]:
     """The profile intervals of the quantities ``names`` (``QUANTITY``; in
     ``lsq.coordinate`` units) of every axis whose own coordinate is free in ``sol``.
 
@@ -161,11 +163,22 @@ def profile_of(problem: Problem, sol: Solution, mask: np.ndarray,
     reach : dict of str to float
         How far from the optimum (in the quantity's coordinate) the profile is searched:
         an interval wider than that is reported open.
+    settle : dict of str to float, optional
+        Where only whether the interval closes within a half-width matters (``joint``:
+        a quantity profiled again after another was held is identified given it only if
+        its interval closes within ``TOLERANCE``): a side whose point at that distance or
+        beyond is still below the threshold ends the quantity's profile there, open on that
+        side (the cost does not rise by the threshold within the half-width: the points a
+        full profile would add cannot close it).
 
     Each side takes one point where the linearised profile crosses the threshold; the end
     is placed where that point's rise says (the square root of the rise is linear in the
     distance for a quadratic cost), and checked by a second point where the first rose to
-    less than half or more than twice the threshold; each point costs two replays.
+    less than half or more than twice the threshold; each point costs two replays (a point
+    is a real replay with the others re-fitted, so its rise is at most the profile's: a
+    rise below the threshold is certain). A side whose room to the coordinate's bound is
+    below a thousandth of its finite-difference step ends at the bound, without a point.
+    The first points of both sides come before the second ones.
     """
     axes = list(problem.axes)
     crit = {a: threshold(sol.res[a], int(sol.free[a].sum())) for a in axes}
@@ -200,48 +213,72 @@ def profile_of(problem: Problem, sol: Solution, mask: np.ndarray,
                                                                                  math.inf)
         ends = {a: [math.nan, math.nan] for a in todo}
         better: dict[str, tuple[float, AxisParams] | None] = {a: None for a in todo}
+        tiny = 1e-3 * COORDS[own_coordinate(name)][1]
+        limit, delta = [], []
         for side, sign in enumerate((-1.0, 1.0)):
-            limit = {a: max(0.0, min(reach[name], (hi_b - x0[a]) if sign > 0
-                                     else (x0[a] - lo_b))) for a in todo}
+            room = {a: max(0.0, min(reach[name], (hi_b - x0[a]) if sign > 0
+                                    else (x0[a] - lo_b))) for a in todo}
             for a in todo:
-                if limit[a] <= 0.0:   # at the bound: the interval ends there
+                if room[a] <= tiny:   # at the bound: the interval ends there
                     ends[a][side] = x0[a]
-            delta = {a: min(half[a], limit[a]) for a in todo if limit[a] > 0.0}
-            first: dict[str, tuple[float, float]] = {}
-            for attempt in range(2):
-                if not delta:
-                    break
+            limit.append(room)
+            delta.append({a: min(half[a], room[a]) for a in todo if room[a] > tiny})
+        first: list[dict[str, tuple[float, float]]] = [{}, {}]
+        settled: set[str] = set()
+        for attempt in range(2):   # the first point of both sides, then the second ones
+            for side, sign in enumerate((-1.0, 1.0)):
+                todo_side = {a: d for a, d in delta[side].items() if a not in settled}
+                if not todo_side:
+                    delta[side] = {}
+                    continue
                 rise, moved = _point(problem, sol, mask, start, fixed, dirs,
-                                     {a: sign * d for a, d in delta.items()}, sse0)
-                nxt = {}
-                for a, d in delta.items():
-                    r = rise[a]
-                    if r < -IMPROVE * crit[a] and (better[a] is None or r < better[a][0]):
-                        better[a] = (r, moved[a])
-                    q, qr = math.sqrt(crit[a]), math.sqrt(max(r, 0.0))
-                    if r >= crit[a]:   # the end lies inside: secant on sqrt(rise)
-                        d0, q0 = first.get(a, (0.0, 0.0))
-                        if d0 >= d:
-                            d0, q0 = 0.0, 0.0
-                        est = d0 + (d - d0) * (q - q0) / (qr - q0) if qr > q0 else d
-                        ends[a][side] = x0[a] + sign * est
-                        if attempt == 0 and r > 2.0 * crit[a]:
-                            first[a] = (d, qr)
-                            nxt[a] = est
-                    elif d >= limit[a] * (1.0 - 1e-9):
-                        ends[a][side] = math.nan   # open within the reach
-                    else:   # below the threshold: on, as far as the square root says
-                        est = d * q / qr if qr > 0.0 else limit[a]
-                        close = r > 0.5 * crit[a] or attempt == 1
-                        ends[a][side] = (x0[a] + sign * est if close and est < limit[a]
-                                         else math.nan)
-                        if attempt == 0 and r <= 0.5 * crit[a]:
-                            first[a] = (d, qr)
-                            nxt[a] = min(est * 1.05, limit[a])
-                delta = nxt
+                                     {a: sign * d for a, d in todo_side.items()}, sse0)
+                delta[side] = _ends(todo_side, rise, moved, crit, limit[side], first[side],
+                                    ends, x0, side, sign, attempt, better)
+                if settle is not None:   # below the threshold beyond the tolerance:
+                    for a, d in todo_side.items():   # wide, whatever the other points say
+                        if rise[a] < crit[a] and d >= settle[name] * (1.0 - 1e-9):
+                            ends[a][side] = math.nan
+                            settled.add(a)
         for a in todo:
             out[a][name] = Profile(ends[a][0], ends[a][1], half[a], better[a])
     return out
+
+
+def _ends(delta: dict[str, float], rise: dict[str, float], moved: dict[str, AxisParams],
+          crit: dict[str, float], limit: dict[str, float], first: dict[str, tuple[float, float]],
+          ends: dict[str, list[float]], x0: dict[str, float], side: int, sign: float,
+          attempt: int, better: dict[str, tuple[float, AxisParams] | None]
+          ) -> dict[str, float]:
+    """One profile point's verdict per axis (``profile_of``): the end it places on its
+    side, a lower point than the optimum (``better``), and where the next point of the side
+    goes (returned; none where this one settles the end)."""
+    nxt = {}
+    for a, d in delta.items():
+        r = rise[a]
+        if r < -IMPROVE * crit[a] and (better[a] is None or r < better[a][0]):
+            better[a] = (r, moved[a])
+        q, qr = math.sqrt(crit[a]), math.sqrt(max(r, 0.0))
+        if r >= crit[a]:   # the end lies inside: secant on sqrt(rise)
+            d0, q0 = first.get(a, (0.0, 0.0))
+            if d0 >= d:
+                d0, q0 = 0.0, 0.0
+            est = d0 + (d - d0) * (q - q0) / (qr - q0) if qr > q0 else d
+            ends[a][side] = x0[a] + sign * est
+            if attempt == 0 and r > 2.0 * crit[a]:
+                first[a] = (d, qr)
+                nxt[a] = est
+        elif d >= limit[a] * (1.0 - 1e-9):
+            ends[a][side] = math.nan   # open within the reach
+        else:   # below the threshold: on, as far as the square root says
+            est = d * q / qr if qr > 0.0 else limit[a]
+            close = r > 0.5 * crit[a] or attempt == 1
+            ends[a][side] = (x0[a] + sign * est if close and est < limit[a]
+                             else math.nan)
+            if attempt == 0 and r <= 0.5 * crit[a]:
+                first[a] = (d, qr)
+                nxt[a] = min(est * 1.05, limit[a])
+    return nxt
 
 
 def _point(problem: Problem, sol: Solution, mask: np.ndarray, start: dict[str, AxisParams],

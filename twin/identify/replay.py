@@ -264,12 +264,31 @@ class Problem:
         """Per tick: the first tick of its piece of the plan."""
         self.replays = 0
         self.mains_phase: float | None = None
+        self._recent: dict[tuple, tuple[np.ndarray, np.ndarray]] = {}
+
+    RECENT = 8
+    """Replays kept (the latest): the same parameters at the same mains phase again (a
+    coarse phase grid's points in a finer one, a fit's own start) are not replayed."""
 
     def simulate(self, params: dict[str, AxisParams], until: int
                  ) -> tuple[np.ndarray, np.ndarray]:
+        """The replay of ``params`` (positions, tacho volts) over the first ``until``
+        ticks; one of the same parameters and mains phase over as many ticks or more is
+        reused (a replay's first ticks do not depend on its later ones)."""
+        key = (self.mains_phase, tuple(tuple(asdict(params[a]).values())
+                                       for a in AXES if a in params))
+        kept = self._recent.get(key)
+        if kept is not None and len(kept[0]) >= until:
+            return kept[0][:until], kept[1][:until]
         self.replays += 1
-        return replay(candidate(self.base, params), self.log, until=until,
-                      mains_phase=self.mains_phase)
+        pos, tacho = replay(candidate(self.base, params), self.log, until=until,
+                            mains_phase=self.mains_phase)
+        pos.flags.writeable = tacho.flags.writeable = False
+        self._recent.pop(key, None)
+        self._recent[key] = (pos, tacho)
+        while len(self._recent) > self.RECENT:
+            self._recent.pop(next(iter(self._recent)))
+        return pos, tacho
 
     def residuals(self, params: dict[str, AxisParams], mask: np.ndarray
                   ) -> dict[str, np.ndarray]:
