@@ -15,7 +15,7 @@ from scipy.stats import f as f_dist
 
 from twin.config import load_machine
 from twin.identify.joint import joint_fit
-from twin.identify.lsq import coordinate, solve, with_coordinate
+from twin.identify.lsq import coordinate, solve
 from twin.identify.profile import autocorrelation_time, profile
 from twin.identify.replay import base_params
 
@@ -126,33 +126,6 @@ def test_a_profile_settled_at_a_tolerance_keeps_the_full_verdict(seed, start):
                 assert (got.low, got.high) == (want.low, want.high)
     if seed % 2:   # a tied pair: wide whatever the tolerance
         assert True in verdicts
-
-
-@pytest.mark.parametrize("seed", range(3))
-def test_a_fit_again_near_a_solution_takes_its_jacobian(seed, start):
-    """``solve(prior=...)``: started within half a finite-difference step of a solution,
-    the least squares takes that solution's Jacobian instead of replaying one (its
-    residuals are replayed): the same least-squares solution for no Jacobian's replays;
-    started farther, the Jacobian is replayed."""
-    rng = np.random.default_rng(300 + seed)
-    n = 2 * int(rng.integers(100, 300))
-    prob = LinearProblem(rng, n, start)
-    mask = np.ones(n, dtype=bool)
-    sol = solve(prob, dict(start), NAMES, mask, start, max_nfev=20)
-    before = prob.replays
-    again = solve(prob, sol.params, NAMES, mask, start, max_nfev=3, prior=sol)
-    assert prob.replays - before <= 3          # residuals only, no column replayed
-    for a in prob.axes:
-        np.testing.assert_array_equal(again.jac[a], sol.jac[a])
-        for name in NAMES:
-            assert coordinate(again.params[a], start[a], name) == pytest.approx(
-                coordinate(sol.params[a], start[a], name), abs=1e-4)
-    moved = {a: with_coordinate(p, start[a], "resistance",
-                                coordinate(p, start[a], "resistance") + 0.2)
-             for a, p in sol.params.items()}
-    before = prob.replays
-    solve(prob, moved, NAMES, mask, start, max_nfev=3, prior=sol)
-    assert prob.replays - before > len(NAMES)   # a Jacobian replayed
 
 
 def test_autocorrelated_residuals_widen_the_interval():

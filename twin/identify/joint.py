@@ -131,9 +131,8 @@ def joint_fit(problem: Problem, params: dict[str, AxisParams], names: Sequence[s
                 current[a] = _set(current[a], start[a], n, kept[a][n])
             loose[a] = [] if last else loose[a][1:]
         frozen = {a: {own_coordinate(n) for n in held[a]} for a in axes}
-        # the last fit's Jacobian stands where the holds moved nothing by half a step
         sol = solve(problem, current, coords, mask, start, max_nfev=max_nfev + 1,
-                    frozen=frozen, prior=sol)
+                    frozen=frozen)
         current = dict(sol.params)
         rest = sorted({n for a in axes for n in loose[a]})
         if not rest:

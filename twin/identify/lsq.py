@@ -163,8 +163,7 @@ class _Packed:
 
 def solve(problem: Problem, params: dict[str, AxisParams], names: Sequence[str],
           mask: np.ndarray, start: dict[str, AxisParams], *, max_nfev: int = 8,
-          frozen: dict[str, set[str]] | None = None, prior: Solution | None = None
-          ) -> Solution:
+          frozen: dict[str, set[str]] | None = None) -> Solution:
     """Least squares (``scipy.optimize.least_squares``, trust-region reflective, bounded)
     on the coordinates ``names`` of the problem's axes at once, but those ``frozen[axis]``
     holds for that axis. ``max_nfev`` bounds the residual evaluations (each Jacobian costs
@@ -175,9 +174,7 @@ def solve(problem: Problem, params: dict[str, AxisParams], names: Sequence[str],
     one replayed, in every coordinate, is that one: a finite difference does not resolve
     the Jacobian closer than its step (the least squares' last steps are often a hundredth
     of it, and each Jacobian costs a replay per coordinate). The residuals are always
-    replayed at the point itself. ``prior``: a solution of the same problem on the same
-    ticks whose Jacobian counts as the last one replayed (the fit again after a hold that
-    moved no coordinate by half a step)."""
+    replayed at the point itself."""
     frozen = frozen or {}
     pack = _Packed(problem, params, names, start, frozen)
     axes = problem.axes
@@ -197,12 +194,11 @@ def solve(problem: Problem, params: dict[str, AxisParams], names: Sequence[str],
 
     sizes = None
     resolution = 0.5 * np.array([COORDS[n][1] for _, n in pack.slots])
-    last: list[np.ndarray] = [] if prior is None else _seed(pack, prior)
+    last: list[np.ndarray] = []   # the point of the last Jacobian replayed, and it
 
     def jac(x: np.ndarray) -> np.ndarray:
         nonlocal sizes
-        if (last and np.all(np.abs(np.asarray(x, float) - last[0]) <= resolution)
-                and len(fun(x)) == last[1].shape[0]):
+        if last and np.all(np.abs(np.asarray(x, float) - last[0]) <= resolution):
             return last[1]   # the same Jacobian to its own resolution (the steps' half)
         r0 = residuals(x)
         sizes = [len(r0[a]) for a in axes]
@@ -257,28 +253,6 @@ def solve(problem: Problem, params: dict[str, AxisParams], names: Sequence[str],
                 on[i] = True
         jacs[a], free[a] = j, on
     return Solution(out_params, pack.names, jacs, res, free)
-
-
-def _seed(pack: _Packed, prior: Solution) -> list[np.ndarray]:
-    """``prior``'s point and Jacobian in ``pack``'s free coordinates (empty where it lacks
-    one of them, or where a coordinate held now moved by more than half its step since)."""
-    if any(n not in prior.names for _, n in pack.slots):
-        return []
-    for a in pack.problem.axes:
-        for n in pack.names:
-            moved = abs(coordinate(pack.base_params[a], pack.start[a], n)
-                        - coordinate(prior.params[a], pack.start[a], n))
-            if moved > 0.5 * COORDS[n][1]:
-                return []
-    blocks = [prior.jac[a] for a in pack.problem.axes]
-    rows = np.cumsum([0, *[len(b) for b in blocks]])
-    out = np.zeros((rows[-1], len(pack.slots)))
-    for c, (a, n) in enumerate(pack.slots):
-        k = pack.problem.axes.index(a)
-        out[rows[k]:rows[k + 1], c] = prior.jac[a][:, prior.names.index(n)]
-        if not prior.free[a][prior.names.index(n)]:
-            return []   # a coordinate held there: its column was not replayed
-    return [pack.vector(prior.params), out]
 
 
 def scan_mains_phase(problem: Problem, params: dict[str, AxisParams], steps: int = 36, *,
