@@ -266,9 +266,10 @@ class Problem:
         self.mains_phase: float | None = None
         self._recent: dict[tuple, tuple[np.ndarray, np.ndarray]] = {}
 
-    RECENT = 8
-    """Replays kept (the latest): the same parameters at the same mains phase again (a
-    coarse phase grid's points in a finer one, a fit's own start) are not replayed."""
+    RECENT = 48
+    """Replays kept (the latest): the same parameters at the same mains phase again (the
+    models' coarse phase screen, 3 × 12 replays of the steps, in a kept model's full scan;
+    a fit's own start) are not replayed. At most 48 × 120 kB on tomsk_xy."""
 
     def simulate(self, params: dict[str, AxisParams], until: int
                  ) -> tuple[np.ndarray, np.ndarray]:
