@@ -40,11 +40,10 @@ class of ``twin.analysis.studies.cam_classes`` (small text, densely chorded smal
   jerk-limited law;
 * per program: blocks, median chord, the blends' radius percentiles p10/p50/p90 (mm).
 
-Then the chord-independence table: full circles of r = 0.5 … 20 mm as a G3 arc, as chords
-of 0.001 … 0.5 mm (written exactly) and as chords within a chordal tolerance of 0.001 …
-0.02 mm (written with 3 decimals, as CAM posts do); a polygon whose sagitta exceeds the
-blend tolerance is not that circle within tolerance and is left out; the feed moves'
-cycle time per law and its spread over the representations; and the planner's
+Then the chord-independence table (`twin.analysis.studies.circles`): full circles of
+r = 0.5 … 20 mm as a G3 arc, as chords of 0.001 … 0.5 mm (written exactly) and as chords
+within a chordal tolerance of 0.001 … 0.02 mm (written with 3 decimals, as CAM posts do);
+the feed moves' cycle time per law and its spread over the representations; and the planner's
 throughput on a 100 000-block chord program in memory (also with every block's profile
 made, as the interpolator makes it) and streamed from a file through the G-code reader
 (peak RSS).
@@ -70,7 +69,7 @@ import numpy as np
 
 from twin.analysis.studies import cam
 from twin.analysis.studies.cam_classes import CLASSES
-from twin.analysis.studies.nest import chord_length
+from twin.analysis.studies.circles import RADII, chord_independence
 from twin.config import load_machine
 from twin.controller.gcode import parse
 from twin.controller.geometry import Arc, Line
@@ -358,44 +357,6 @@ def programs(args) -> dict[str, str]:
     for name, make in CLASSES.items():
         for k in range(args.instances):
             out[f"{name}_{k}"] = make(rng)[0]
-    return out
-
-
-def circle_time(cfg, text: str, law: str) -> float:
-    """The feed moves' cycle time of a circle program (s)."""
-    return cycle_time(plan(cfg, text, law)[0], feed_only=True)
-
-
-RADII = (0.5, 1.0, 2.0, 5.0, 10.0, 20.0)
-CHORDS = (0.001, 0.01, 0.1, 0.5)
-"""Chord lengths (mm), written with 9 decimals: the geometry of chording alone."""
-TOLERANCES = (0.001, 0.005, 0.01, 0.02)
-"""Chordal tolerances (mm), written with 3 decimals as CAM posts write them: the rounding
-tilts every chord a little, so the blends' radii scatter (issue 30's +53 %)."""
-
-
-def chord_independence(cfg, laws, radii=RADII) -> dict:
-    """Per law and radius, the circle's cycle time as G3 and as chords (s), and the spread
-    (max/min − 1). ``c…``: chords of that length (mm); ``t…``: chords within that chordal
-    tolerance (mm). A polygon whose sagitta exceeds the blend tolerance is not that circle
-    within tolerance and is left out."""
-    blend_tol = cfg.controller.contour_tolerance * cfg.controller.corner_blend * 1e3   # mm
-    out = {}
-    for law in laws:
-        rows = {}
-        for r in radii:
-            times = {"G3": circle_time(cfg, cam.circle(r), law)}
-            for chord in CHORDS:
-                if chord * chord / (8.0 * r) <= blend_tol:
-                    times[f"c{chord:g}"] = circle_time(cfg, cam.circle(r, chord=chord), law)
-            for tol in TOLERANCES:
-                if tol <= blend_tol:
-                    times[f"t{tol:g}"] = circle_time(cfg, cam.circle(
-                        r, chord=chord_length(r, tol), decimals=3), law)
-            v = list(times.values())
-            rows[f"r{r:g}"] = {"s": {k: round(x, 4) for k, x in times.items()},
-                               "spread": round(max(v) / min(v) - 1.0, 4)}
-        out[law] = {"radii": rows, "worst_spread": max(x["spread"] for x in rows.values())}
     return out
 
 

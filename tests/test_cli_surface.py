@@ -80,6 +80,9 @@ BAD = [
     (("measure", "--sensor", "motor", "--f-max", "150"), "--f-max: must lie in (0, 100] "
                                                           "Hz"),
     (("measure", "--f-min", "0.05"), "--amplitude: axis x: the measurement travels"),
+    (("measure", "--excitation", "prbs", "--periods", "2"),
+     "--periods: is a setting of the multisine"),
+    (("measure", "--periods", "0"), "--periods: must be a whole number 1 … 100, got 0"),
     (("measure", "--amplitude", "500"), "--amplitude: must lie in (0, 15] mm/s"),
 ]
 

@@ -17,6 +17,7 @@ import pytest
 
 from twin.config import load_machine
 from twin.controller import controller as controller_module
+from twin.controller.compensation import NO_COMPENSATION
 from twin.controller.controller import Controller, ControllerStatus
 from twin.controller.cyclic import steady_tick
 from twin.controller.geometry import Line
@@ -86,6 +87,22 @@ def test_lines_arcs_and_dwells_give_the_same_bits(law, both, tmp_path):
     assert reference.summary["status"] == "FINISHED"
     _same(reference.record, compiled.record)
     assert share > 0.85, f"the kernel took only {share:.0%} of the ticks"
+
+
+@pytest.mark.parametrize("shaper", ["zv", "ei"])
+def test_shaped_and_compensated_runs_give_the_same_bits(shaper, both, tmp_path):
+    """Both ticks call the one compensation and shaper cores: the records agree bit for
+    bit with the reference offsets on (laser_belt: its belt mode, friction and stretch)."""
+    program = tmp_path / "shapes.ngc"
+    program.write_text(GCODE)
+    spec = RunSpec(machine="laser_belt", program=str(program), profile=f"trapezoid+{shaper}",
+                   overrides={"controller.compensation.smoothing": True,
+                              "controller.compensation.stretch": True})
+    reference, compiled, share = both(spec, tmp_path)
+    assert reference.summary["status"] == "FINISHED"
+    _same(reference.record, compiled.record)
+    # the settling after the end (the shaper's delay, then in position) is Python's
+    assert share > 0.5, f"the kernel took only {share:.0%} of the ticks"
 
 
 @pytest.mark.parametrize("law", LAWS)
@@ -276,8 +293,8 @@ def test_a_closed_switch_leaves_the_state_untouched():
                        interp._tau + interp.period, 3, ctrl.period, *(
                            getattr(interp.reference, f) for f in
                            ("position", "velocity", "acceleration", "jerk")),
-                       *NO_TAPS, reg._par, reg._st, reg.output, reg.error, reg.terms,
-                       reg._code_min, reg._code_max, ctrl._held,
+                       *NO_COMPENSATION, *NO_TAPS, reg._par, reg._st, reg.output, reg.error,
+                       reg.terms, reg._code_min, reg._code_max, ctrl._held,
                        ctrl.outputs.dac_volts, chunk, row, 0, 0)
     assert code == controller_module.FALLBACK
     after = (enc.state_int, enc.position, reg._st, reg.output, interp.reference.position)

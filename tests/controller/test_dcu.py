@@ -288,3 +288,18 @@ def test_alpha_shape_is_validated():
     with pytest.raises(ConfigError) as info:
         error_coefficients(MODELS["servo"], T, kp=0.0)
     assert info.value.field == "kp"
+
+
+def test_the_canonical_state_space_is_scipys():
+    """``controller.linear`` builds the controller canonical form itself (importing
+    ``scipy.signal`` costs every process a second): equal to ``scipy.signal.tf2ss`` on
+    random proper transfer functions of order 1-5."""
+    from twin.controller.linear import _canonical
+
+    rng = np.random.default_rng(7)
+    for _ in range(200):
+        m = int(rng.integers(1, 6))
+        den = rng.normal(size=m + 1)
+        num = rng.normal(size=int(rng.integers(1, m + 2)))
+        for ours, ref in zip(_canonical(num, den), scipy.signal.tf2ss(num, den), strict=True):
+            np.testing.assert_allclose(ours, ref, rtol=1e-12, atol=1e-12)

@@ -303,6 +303,56 @@ def test_pass_through_items_keep_order_and_force_stops():
     assert isinstance(items[-1], ProgramEnd)
 
 
+@pytest.mark.parametrize("seed", [8, 9])
+def test_a_stop_dwell_waits_before_events_and_where_a_rapid_meets_a_move(seed):
+    """``stop_dwell``: a Dwell of that length right before each Event (after motion) and
+    between a rapid and the next move; none in stop mode, none without it, and the
+    blocks themselves are the planner's without it."""
+    prog = list(mixed_program(seed))
+    plain = list(tomsk_planner().plan(prog))
+    items = list(tomsk_planner(stop_dwell=0.07).plan(prog))
+    def key(bs):
+        return [(tuple(b.segment.start), tuple(b.segment.end), b.v_start, b.v_nominal,
+                 b.v_end, b.line) for b in blocks_of(bs)]
+
+    assert key(items) == key(plain)
+    added = {i for i, item in enumerate(items)
+             if isinstance(item, Dwell) and item.duration == 0.07}
+    wanted, last = set(), None        # last: the previous block's rapid flag since a stop
+    for i, item in enumerate(items):
+        if isinstance(item, PlannedBlock):
+            rapid = item.feed is None
+            if last is not None and (last or rapid) and item.v_start == 0.0:
+                wanted.add(i - 1)
+            last = rapid
+        elif isinstance(item, Event) and last is not None:
+            wanted.add(i - 1)
+            last = None
+        elif not (isinstance(item, Dwell) and i in added):
+            last = None
+    assert added == wanted and added
+    stop = list(tomsk_planner(mode="stop", stop_dwell=0.07).plan(prog))
+    assert not [i for i in stop if isinstance(i, Dwell) and i.duration == 0.07]
+    with pytest.raises(ConfigError, match="stop_dwell"):
+        tomsk_planner(stop_dwell=-1.0)
+
+
+@pytest.mark.parametrize("radius", [2e-3, 5e-3, 20e-3])
+def test_the_quartic_curve_cap_is_the_analytic_speed(radius):
+    """``curve_quartic`` q caps an arc of curvature κ at v⁴κ³·q ≤ 1, and a blend also by
+    ``curve_acceleration`` (v²κ ≤ A_c); an unblended arc is not capped by A_c then."""
+    q, a_c = 2e-3, 0.05
+    caps = SegmentLimits(CONTOUR, (CONTOUR, CONTOUR), curve_acceleration=a_c, curve_quartic=q)
+    arc = Arc((0.0, 0.0), (2.0 * radius, 0.0), (radius, 0.0), ccw=True)
+    v, _, _ = caps.curve_caps(arc, 10.0)
+    k = 1.0 / radius
+    expect = min(CONTOUR.max_velocity, math.sqrt(CENTRIPETAL * CONTOUR.max_acceleration / k),
+                 (1.0 / (q * k**3)) ** 0.25, (CRUISE_JERK * CONTOUR.max_jerk / k**2) ** (1 / 3))
+    assert v == pytest.approx(expect, rel=1e-12)
+    v_blend, _, _ = caps.curve_caps(arc, 10.0, blend=True)
+    assert v_blend == pytest.approx(min(expect, math.sqrt(a_c / k)), rel=1e-12)
+
+
 def test_nothing_after_program_end_is_read():
     consumed = []
 

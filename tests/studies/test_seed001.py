@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import math
+import os
 
 import numpy as np
 import pytest
@@ -11,6 +12,8 @@ from twin.analysis.studies import seed001_corner, seed001_laser
 from twin.analysis.studies.nest import nest
 from twin.controller.gcode import parse
 from twin.controller.planner import segment_of
+
+CI = bool(os.environ.get("CI"))
 
 
 @pytest.fixture(scope="module")
@@ -70,3 +73,26 @@ def test_short_laser_job_lookahead_is_not_slower_than_stop():
     assert runs["lookahead_calibrated"]["cycle_time_s"] <= runs["lookahead"]["cycle_time_s"]
     # at least the pure cutting time at 50 mm/s
     assert runs["stop"]["cycle_time_s"] > r["nest"]["cut_length_mm"] / 50.0
+
+
+@pytest.mark.parametrize("seed", range(3) if CI else range(12))
+def test_random_nests_are_programs_of_their_parts(seed):
+    """``random_nest`` (the class of seed 001's job with random grids, kinds and sizes) is
+    reproducible; each part's lines hold whole contours (every M3 closed by an M5) and the
+    parts follow one another; an unknown kind is refused."""
+    from twin.analysis.studies.nest import KINDS, Part, layout, random_nest
+
+    job, parts = random_nest(seed)
+    again, _ = random_nest(seed)
+    assert again.gcode == job.gcode and len(job.part_lines) == len(parts) >= 2
+    lines = job.gcode.splitlines()
+    assert all(p.kind in KINDS and 0.0 <= p.size <= 1.0 for p in parts)
+    previous = 0
+    for first, last in job.part_lines:
+        assert first > previous and last >= first
+        body = lines[first - 1:last]
+        assert body.count("M3") == body.count("M5")
+        previous = last
+    assert lines.count("M3") == job.contours
+    with pytest.raises(ValueError, match="unknown part kind"):
+        layout([Part("gear", 0.0, 0.0, 100.0, 100.0, 0.5)])

@@ -25,7 +25,8 @@ _OPTIONS = {"amplitude": "--amplitude", "offset": "--offset", "f_max": "--f-max"
             "f_min": "--f-min", "averages": "--averages", "sensor": "--sensor",
             "driver": "--driver", "axis": "--axis", "loop": "--loop",
             "excitation": "--excitation", "out": "--out",
-            "hammer_force": "--hammer-force", "hammer_duration": "--hammer-duration"}
+            "hammer_force": "--hammer-force", "hammer_duration": "--hammer-duration",
+            "periods": "--periods"}
 """The options a refusal of ``measure`` may name, by the field it raised on."""
 
 
@@ -61,6 +62,10 @@ def measure(
                                         "half the speed limit."),
     averages: int = typer.Option(8, "--averages", help="Realisations (multisine), "
                                  "periods (PRBS) or blows (hammer) averaged."),
+    periods: int | None = typer.Option(None, "--periods", help="multisine: periods "
+                                       "measured per realisation (each realisation runs "
+                                       "the other way). Default 8 with the accelerometer, "
+                                       "else 1."),
     f_min: float | None = typer.Option(None, "--f-min", help="Lowest line (Hz); sets the "
                                        "resolution. Default 1 Hz."),
     f_max: float | None = typer.Option(None, "--f-max", help="Highest line (Hz), at most the "
@@ -87,6 +92,7 @@ def measure(
             machine, driver=driver, axis=axis.value, loop=loop.value, sensor=sensor.value,
             amplitude=None if amplitude is None else amplitude * 1e-3,
             offset=None if offset is None else offset * 1e-3, averages=averages,
+            periods=periods,
             f_min=f_min, f_max=f_max, excitation=excitation.value, out_dir=out,
             controller_model=controller_model, noise=noise, hammer_force=hammer_force,
             hammer_duration=None if hammer_duration is None else hammer_duration * 1e-3,
@@ -118,11 +124,12 @@ def _summary(doc: dict) -> dict:
 def _print(doc: dict) -> None:
     table = Table(title=f"axis {doc['axis']}: resonances ({doc['sensor']}, at "
                         f"{doc['position_mm']:.1f} mm)")
-    for col in ("frequency (Hz)", "damping ζ", "peak over rigid (dB)"):
+    for col in ("frequency (Hz)", "± sd (Hz)", "damping ζ", "peak over rigid (dB)"):
         table.add_column(col, justify="right")
-    for r in doc["resonances"]:
-        table.add_row(f"{r['frequency_hz']:.2f}", f"{r['damping']:.3f}",
-                      f"{r['peak_db']:+.1f}")
+    spread = doc.get("resonance_sd_hz") or [None] * len(doc["resonances"])
+    for r, sd in zip(doc["resonances"], spread, strict=True):
+        table.add_row(f"{r['frequency_hz']:.2f}", "–" if sd is None else f"{sd:.2f}",
+                      f"{r['damping']:.3f}", f"{r['peak_db']:+.1f}")
     err.print(table)
     for name, m in (("measured", doc["margins"]), ("design", doc.get("design_margins"))):
         if m:

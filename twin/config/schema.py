@@ -31,6 +31,7 @@ from twin.config.axis import (
     TransmissionConfig,
 )
 from twin.config.build import from_dict, set_path, to_raw
+from twin.config.compensation_settings import CompensationSettings
 from twin.config.fields import Validated, choice, flag, num, range_text, spec
 from twin.config.shaper_settings import ShaperAxes
 from twin.errors import ConfigError
@@ -257,6 +258,7 @@ class ControllerSettings(Validated):
     timing: TimingConfig = field(default_factory=TimingConfig)
     deadlines: DeadlineConfig = field(default_factory=DeadlineConfig)
     shaper: ShaperAxes = field(default_factory=ShaperAxes)
+    compensation: CompensationSettings = field(default_factory=CompensationSettings)
 
     def _check(self) -> None:
         self.shaper.check_nyquist(self.period)

@@ -27,6 +27,13 @@ or spline meets anything (CAM arcs meet their lines tangentially; a kink there i
 at the node limit); a deflection below ``MIN_ANGLE`` (straight on: nothing to round) or a
 blend whose radius would fall below ``MIN_RADIUS`` (a reversal).
 
+Chorded curves are faired first (`twin.controller.fair`, ``fairing``): CAM's rounding of
+the vertices to the post's digits tilts short chords, and the deflections and the blends'
+radii would scatter with it (a curvature step at every chord). Each vertex of a chorded
+curve moves onto the circle fitted through its neighbours, by at most a tenth of the
+tolerance, and the blend at a moved vertex takes the moves of it and its neighbours off its
+tolerance: the rounded path stays within the tolerance of the programmed polygon.
+
 The contour tolerance is shared: the geometric rounding takes ``share`` of it (default one
 half) and the rest is left to the servo, whose dynamic error on the rounded path the
 acceleration limits bound (issue 12).
@@ -42,6 +49,7 @@ import math
 from collections.abc import Iterable, Iterator
 from typing import Any, NamedTuple
 
+from twin.controller.fair import FairedLine, fair
 from twin.controller.gcode.items import PathControl
 from twin.controller.geometry import Arc, Line
 from twin.errors import ConfigError
@@ -54,6 +62,8 @@ MIN_RADIUS = 1e-7
 """A blend tighter than this (m) is not made: the node stays a kink (an exact stop)."""
 _SNAP = 1e-9
 """What is left of a line between its two blends below this (m) is nothing."""
+_STILL = (0.0, 0.0)
+"""The moves of a line's vertices that fairing did not touch."""
 
 
 def blend_radius(angle: float, room: float, tolerance: float) -> float:
@@ -95,7 +105,8 @@ class _Pending:
     """A line waiting for its successor: as programmed (``segment``, ``origin``, ``end``),
     and its start as already trimmed by the blend before it (``start``)."""
 
-    __slots__ = ("end", "feed", "half", "line", "origin", "segment", "start", "ux", "uy")
+    __slots__ = ("end", "feed", "half", "line", "moved", "origin", "segment", "start", "ux",
+                 "uy")
 
 
 class Blender:
@@ -105,16 +116,20 @@ class Blender:
     ----------
     tolerance : float
         Largest deviation of a blend from its vertex, δ_b (m), > 0.
+    fairing : bool
+        Fair the vertices of chorded curves first (`twin.controller.fair`); the blends
+        then keep within δ_b of the programmed polygon, the vertices' moves included.
 
     Use ``blend(blocks)`` on an iterable of ``BlendedBlock``s (or ``(segment, feed, line)``
     tuples) and barriers: anything that is not a tuple (a dwell, an event, the program end)
     flushes the pending line unblended and passes through in order.
     """
 
-    def __init__(self, tolerance: float):
+    def __init__(self, tolerance: float, *, fairing: bool = True):
         if not (math.isfinite(tolerance) and tolerance > 0.0):
             raise ConfigError("tolerance", f"must be finite and > 0 (m), got {tolerance!r}")
         self.default = self.tolerance = float(tolerance)
+        self.fairing = fairing
         self.blends = 0
         """Number of arcs inserted so far."""
 
@@ -125,7 +140,8 @@ class Blender:
         comes after the pending line, flushed unblended: what was read before it still runs.
         """
         pend: _Pending | None = None
-        source = iter(blocks)
+        source = iter(fair(blocks, self.tolerance, self._path_tolerance) if self.fairing
+                      else blocks)
         while True:
             try:
                 item = next(source)
@@ -157,6 +173,7 @@ class Blender:
             nxt.ux, nxt.uy = seg._ux, seg._uy
             nxt.half = 0.5 * seg.length
             nxt.feed, nxt.line = feed, line
+            nxt.moved = item[3] if type(item) is FairedLine else _STILL
             if pend is None:
                 pend = nxt
                 continue
@@ -195,7 +212,9 @@ class Blender:
         if angle < MIN_ANGLE or self.tolerance == 0.0:
             return None
         room = min(a.half, b.half)
-        radius = blend_radius(angle, room, self.tolerance)
+        # the vertices' own moves (fairing) come off the tolerance: within δ_b in all
+        tolerance = self.tolerance - max(a.moved[0], a.moved[1], b.moved[1])
+        radius = blend_radius(angle, room, tolerance)
         if not radius >= MIN_RADIUS:
             return None
         reach = radius * math.tan(0.5 * angle)

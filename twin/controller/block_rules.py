@@ -93,6 +93,11 @@ class BlockRules:
         Whether the law limits jerk (curve caps and the curvature-step rule).
     view : float
         Twice the braking distance from the top feed (m): a run is not grown beyond it.
+    curve_acceleration, curve_quartic : float
+        The caps on curves of input shapers (``SegmentLimits``).
+    curve_step : float
+        The largest step v²·|Δκ| of the normal acceleration at a node (m/s²): the input
+        shapers' transient under the smoothing compensation; default none.
 
     Attributes
     ----------
@@ -103,11 +108,13 @@ class BlockRules:
     def __init__(self, limits: Limits, axis_limits: tuple[Limits, Limits], *,
                  rapid_velocity: float, tolerance: float, corner_model: CornerModel,
                  period: float | None, jerk: bool, view: float,
-                 curve_acceleration: float = math.inf):
+                 curve_acceleration: float = math.inf, curve_quartic: float = 0.0,
+                 curve_step: float = math.inf):
         self.limits, self.rapid_velocity, self.tolerance = limits, rapid_velocity, tolerance
         self.corner_model = corner_model
         self._caps = SegmentLimits(limits, axis_limits, jerk=jerk,
-                                   curve_acceleration=curve_acceleration)
+                                   curve_acceleration=curve_acceleration,
+                                   curve_quartic=curve_quartic)
         # a kink's velocity step per axis and on the contour: v·|Δt̂_k| ≤ A_k·T
         self._step = None if period is None else (
             axis_limits[0].max_acceleration * period, axis_limits[1].max_acceleration * period,
@@ -127,6 +134,7 @@ class BlockRules:
         # a sliver: ℓ·√(A·|κ|) ≤ SLIVER_JERK·J·T², written ℓ·√|κ| ≤ SLIVER_JERK·J·T²/√A
         self._sliver = None if self._jerk_step is None else (
             SLIVER_JERK * j_total * period * period / math.sqrt(limits.max_acceleration))
+        self._curve_step = float(curve_step)
         self._view = view
         self._limits_cache: dict[tuple[float, float, float], Limits] = {}
         self.count = 0
@@ -158,7 +166,7 @@ class BlockRules:
             else:
                 _, _, b.t0x, b.t0y, b.k0, _ = seg.frame(0.0)
                 _, _, b.t1x, b.t1y, b.k1, _ = seg.frame(seg.length)
-            v_nom, acc, jerk = self._caps.curve_caps(seg, v_cap)
+            v_nom, acc, jerk = self._caps.curve_caps(seg, v_cap, blend)
         b.v_nom = v_nom
         if b.k0 != 0.0:                     # a curve's caps are its own: no reuse
             lim = tangential_limits(v_nom, acc, jerk)
@@ -213,12 +221,18 @@ class BlockRules:
             jump = math.sqrt(self._jerk_step / dk)
             if jump < emax:
                 emax = jump
+        if dk > 0.0 and self._curve_step < math.inf:      # v²·|Δκ| ≤ the shapers' step
+            jump = math.sqrt(self._curve_step / dk)
+            if jump < emax:
+                emax = jump
         return emax
 
-    def joins(self, run: WindowBlock, b: WindowBlock) -> int:
+    def joins(self, run: WindowBlock, b: WindowBlock, rest: bool = False) -> int:
         """Whether ``b`` may join ``run`` (one speed change across them): both feed moves,
         a node that limits nothing, caps within ``RUN_CAP_SHARE`` (``JOINS``); but not
-        once the run is as long as the view (``TOO_LONG``); else ``APART``."""
+        once the run is as long as the view (``TOO_LONG``); else ``APART``. ``rest``: the
+        run starts at a stop; while it is so short that the node cannot bind
+        (`slow_node`), neither the node nor the run's higher limits keep ``b`` apart."""
         if b.rapid or run.rapid:
             return APART
         cap = run.v_nom
@@ -227,15 +241,30 @@ class BlockRules:
         if slowed * (1.0 / lo - 1.0 / hi) > (1.0 - RUN_CAP_SHARE) * max(
                 (run.length + b.length) / lo, self._view / hi):
             return APART
+        start = rest and self.slow_node(run, b, run.length)
         share, short = RUN_LIMIT_SHARE, (1.0 - RUN_CAP_SHARE) * (run.length + b.length)
-        if (b.acc < share * run.acc or b.jerk < share * run.jerk) and run.length > short:
+        if ((b.acc < share * run.acc or b.jerk < share * run.jerk) and run.length > short
+                and not start):
             return APART                # the run's changes would be slowed
         if (b.acc * share > run.acc or b.jerk * share > run.jerk) and b.length > short:
             return APART                # the block's would
         last = run.members[-1] if run.members else run
-        if self.node_cap(last, b) < (cap if cap < b.v_nom else b.v_nom):
+        if not start and self.node_cap(last, b) < (cap if cap < b.v_nom else b.v_nom):
             return APART
         return TOO_LONG if run.length >= self._view else JOINS
+
+    def slow_node(self, run: WindowBlock, b: WindowBlock, length: float) -> bool:
+        """Whether the node from ``run`` to ``b`` cannot bind because it lies ``length``
+        (m) from a stop: a profile that starts or ends at rest passes it at most at
+        √(2·A·length) (A the contour acceleration, above every block's tangential limit),
+        and the node's cap is no lower (a curvature step where a contour's first or last
+        chord meets its curve: a separate run there would end its speed change at the
+        node, as a G2/G3 contour's does not)."""
+        if b.rapid or run.rapid:
+            return False
+        last = run.members[-1] if run.members else run
+        cap = self.node_cap(last, b)
+        return 2.0 * self.limits.max_acceleration * length <= cap * cap
 
 
 def step_speed(step: tuple[float, float, float], dx: float, dy: float) -> float:

@@ -46,6 +46,14 @@ from typing import Any
 import numpy as np
 
 from twin.config import AXES, AxisConfig, ControllerSettings, MachineConfig
+from twin.controller.compensation import (
+    NO_COMPENSATION,
+    ReferenceCompensation,
+    compensation_table,
+    curve_quartic,
+    curve_step_acceleration,
+    loop_variance,
+)
 from twin.controller.corner import CornerModel, NoCornerLimit
 from twin.controller.cyclic import FALLBACK, steady_tick, warm_up
 from twin.controller.encoder import EncoderUnwrapper
@@ -73,6 +81,22 @@ _START_TOLERANCE = 1e-6
 """Largest distance (m) between the table and the first point of a program it may run."""
 _FAULTS = {RegulatorStatus.FOLLOWING_ERROR: ControllerStatus.FOLLOWING_ERROR,
            RegulatorStatus.INVALID_INPUT: ControllerStatus.INVALID_INPUT}
+
+
+def _shaped_planning(settings: ControllerSettings, shaper: ReferenceShaper
+                     ) -> dict[str, Any]:
+    """The planner's options an active shaper asks for: exact stops wait its duration,
+    curves are capped so that it cuts them within its share of the contour tolerance; with
+    the smoothing compensation only its fourth-order error and its transients at curvature
+    steps are left to cap."""
+    tolerance, share = settings.contour_tolerance, settings.shaper.curve_share
+    out: dict[str, Any] = {
+        "stop_dwell": shaper.duration,
+        "curve_acceleration": curve_acceleration(shaper.shapers, tolerance, share)}
+    if settings.compensation.smoothing:
+        out["curve_quartic"] = curve_quartic(shaper.shapers, tolerance, share)
+        out["curve_step"] = curve_step_acceleration(shaper.shapers, tolerance, share)
+    return out
 
 
 class Controller(ManualCommands):
@@ -183,10 +207,16 @@ class Controller(ManualCommands):
             shapers = axis_shapers(settings.shaper, believed, self.period)
         shaper = ReferenceShaper(shapers, self.period)
         shaped: dict[str, Any] = {}
+        comp = settings.compensation
+        loop = ([loop_variance(models[k], gains, self.period, k) for k in range(2)]
+                if comp.smoothing else [0.0, 0.0])
+        self.compensation = ReferenceCompensation(
+            compensation_table(comp, believed, shaper.shapers, loop, self.period),
+            self.period)
+        """ReferenceCompensation: the reference's offsets (``settings.compensation``)."""
         if shaper.active and not isinstance(corner_model, NoCornerLimit):
             corner_model = ShapedCornerModel(corner_model, shaper.shapers)
-            shaped["curve_acceleration"] = curve_acceleration(
-                shaper.shapers, settings.contour_tolerance, settings.shaper.curve_share)
+            shaped = _shaped_planning(settings, shaper)
         options: dict[str, Any] = {"law": profile or settings.profile,
                                    "mode": planner or settings.planner,
                                    "lookahead": lookahead or settings.lookahead,
@@ -227,6 +257,7 @@ class Controller(ManualCommands):
         self._start = [float(p) for p in self.interpolator.reference.position]
         if self.shaper is not None:
             self.shaper.reset(self._start)
+        self.compensation.reset()
 
     @classmethod
     def from_machine(cls, cfg: MachineConfig, program: Iterable[Any] | None,
@@ -329,12 +360,14 @@ class Controller(ManualCommands):
         shaper = self.shaper
         taps = NO_TAPS if shaper is None else (shaper.index, shaper.weight, shaper.history,
                                                shaper.state)
+        comp = self.compensation
+        offsets = (comp.par, comp.state) if comp.active else NO_COMPENSATION
         code = steady_tick(
             inputs.encoder_counts, inputs.tacho_volts, inputs.limit_min, inputs.limit_max,
             bool(inputs.drive_ready), self._limits_prev, enc.state_int, enc.state_float,
             enc.position, geo, pieces, starts, table, coef, tau, self._ticks + 1,
-            self.period, ref.position, ref.velocity, ref.acceleration, ref.jerk, *taps,
-            reg._par,
+            self.period, ref.position, ref.velocity, ref.acceleration, ref.jerk, *offsets,
+            *taps, reg._par,
             reg._st, reg.output, reg.error, reg.terms, reg._code_min,
             reg._code_max, self._held, self.outputs.dac_volts, chunk, row, cur.index,
             cur.line)
@@ -376,8 +409,15 @@ class Controller(ManualCommands):
             status = self._safety(inputs, ref.velocity)
         if status < ControllerStatus.FINISHED and status != ControllerStatus.IDLE:
             istatus = interp.update()
-            if self.shaper is not None and type(interp) is Interpolator:
-                self.shaper.apply(ref.position, ref.velocity, ref.acceleration, ref.jerk)
+            if type(interp) is Interpolator:
+                comp = self.compensation if self.compensation.active else None
+                if comp is not None:
+                    comp.apply(0, ref.position, ref.velocity, ref.acceleration, ref.jerk)
+                if self.shaper is not None:
+                    self.shaper.apply(ref.position, ref.velocity, ref.acceleration,
+                                      ref.jerk)
+                if comp is not None:
+                    comp.apply(1, ref.position, ref.velocity, ref.acceleration, ref.jerk)
             rstatus = reg.update(ref.position, ref.velocity, ref.acceleration, ref.jerk, pos)
             if rstatus >= RegulatorStatus.FOLLOWING_ERROR:
                 status = _FAULTS[RegulatorStatus(rstatus)]
@@ -487,6 +527,7 @@ class Controller(ManualCommands):
         self.regulator.reset(here)
         if self.shaper is not None:
             self.shaper.reset(here)
+        self.compensation.reset()
         self._held[0] = self._held[1] = 0.0
 
     def run(self, io: MachineIO, *, max_time: float = math.inf) -> ControllerStatus:

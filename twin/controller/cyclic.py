@@ -38,6 +38,7 @@ import numba
 import numpy as np
 
 from twin.controller._spline_curve import _GL_W, _GL_X, _MAX_NEWTON, _NEWTON_DONE
+from twin.controller.compensation import NO_COMPENSATION, compensate_reference
 from twin.controller.geometry import Arc, Line, arc_point
 from twin.controller.profiles.profile import Blend, BlendPart, Polynomial
 from twin.controller.regulator import _regulate
@@ -296,9 +297,9 @@ def reference_at(geo, pieces, starts, table, coef, tau, ref_p, ref_v, ref_a, ref
 @numba.njit(cache=True)
 def steady_tick(counts, tacho, limit_min, limit_max, drive_ready, limits_prev, enc_int,
                 enc_float, pos, geo, pieces, starts, table, coef, tau, ticks, period,
-                ref_p, ref_v, ref_a, ref_j, sh_index, sh_weight, sh_history, sh_state, par,
-                st, reg_out, reg_err, terms, code_min, code_max, held, dac, chunk, row, block,
-                line):
+                ref_p, ref_v, ref_a, ref_j, cp_par, cp_state, sh_index, sh_weight, sh_history,
+                sh_state, par, st, reg_out, reg_err, terms, code_min, code_max, held, dac,
+                chunk, row, block, line):
     """One steady tick of ``Controller.tick`` (see the module docstring).
 
     Returns ``FALLBACK`` (and changes nothing) when a switch is closed or was closed last
@@ -307,8 +308,10 @@ def steady_tick(counts, tacho, limit_min, limit_max, drive_ready, limits_prev, e
     answer is ``32·regulator code + controller status``.
 
     ``enc_int`` (3, n) int64: last raw sample, unwrapped count, counter width; ``enc_float``
-    (2, n): origin (m), counts per metre. ``sh_*``: the input shapers' taps and history
-    (``shaping.shape_reference``, the one implementation both ticks call; no taps: none).
+    (2, n): origin (m), counts per metre. ``cp_*``: the reference compensations'
+    parameters and state (``compensation.compensate_reference``). ``sh_*``: the input
+    shapers' taps and history (``shaping.shape_reference``). Both are the one
+    implementation the Python tick calls as well; no parameters or taps: nothing.
     """
     if not drive_ready:
         return FALLBACK
@@ -324,7 +327,9 @@ def steady_tick(counts, tacho, limit_min, limit_max, drive_ready, limits_prev, e
         pos[k] = enc_float[0, k] + enc_int[1, k] / enc_float[1, k]
     # 2. safety passed (checked above); 3. interpolation
     reference_at(geo, pieces, starts, table, coef, tau, ref_p, ref_v, ref_a, ref_j)
+    compensate_reference(cp_par, cp_state, period, 0, ref_p, ref_v, ref_a, ref_j)
     shape_reference(sh_index, sh_weight, sh_history, sh_state, ref_p, ref_v, ref_a, ref_j)
+    compensate_reference(cp_par, cp_state, period, 1, ref_p, ref_v, ref_a, ref_j)
     # 4. regulation
     rc = _regulate(par, st, ref_p, ref_v, ref_a, ref_j, pos, reg_out, reg_err, terms,
                    code_min, code_max)
@@ -378,6 +383,7 @@ def warm_up() -> None:
     steady_tick(np.zeros(2, dtype=np.int64), two, flags, flags, False,
                 np.zeros(4, dtype=bool), np.zeros((3, 2), dtype=np.int64), np.ones((2, 2)),
                 two, np.zeros(G_SIZE), np.zeros((1, P_SIZE)), np.zeros(1), table, table, 0.0, 1,
-                1e-3, two, two, two, two, *NO_TAPS, np.zeros((2, 12)), np.zeros((2, 5)), two,
-                two, np.zeros((2, 5)), 0, 0, two, two, np.zeros((1, 31)), 0, 0, 0)
+                1e-3, two, two, two, two, *NO_COMPENSATION, *NO_TAPS, np.zeros((2, 12)),
+                np.zeros((2, 5)), two, two, np.zeros((2, 5)), 0, 0, two, two, np.zeros((1, 31)),
+                0, 0, 0)
     _warm = True

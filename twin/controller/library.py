@@ -11,11 +11,11 @@ AB, slow down on BC), a 90° corner (seed 001's corner study), and a full circle
 
 from __future__ import annotations
 
+import functools
 from collections.abc import Iterable, Sequence
 from typing import Any
 
 import numpy as np
-from scipy.optimize import brentq
 
 from twin.config import MachineConfig
 from twin.controller.gcode import Dwell
@@ -70,6 +70,8 @@ def _continuing(previous: np.ndarray, section: np.ndarray) -> np.ndarray:
 
     reach = 0.5 * float(np.linalg.norm(chord))
     out = section.copy()
+    from scipy.optimize import brentq  # here: half a second of every process' start
+
     out[1] = section[1] + brentq(turn, -reach, reach, xtol=1e-15) * normal
     return out
 
@@ -87,10 +89,13 @@ def _tangent_sections(*sections: Sequence[Sequence[float]]) -> tuple[np.ndarray,
 # Shape of the default program in units of the program scale L, relative to its start O:
 # O-A-B-C as three natural splines that meet tangentially at A and B (the second point of
 # A-B and of B-C is placed for it, within 0.01·L of (1.0, 0.45) and (1.7, 0.8)).
-_OA, _AB, _BC = _tangent_sections(
-    ((0.0, 0.0), (0.25, 0.05), (0.5, 0.15), (0.75, 0.3)),
-    ((0.75, 0.3), (1.0, 0.45), (1.25, 0.6), (1.5, 0.7)),
-    ((1.5, 0.7), (1.7, 0.8), (1.85, 0.95), (1.9, 1.1)))
+@functools.cache
+def _sections() -> tuple[np.ndarray, ...]:
+    """O-A, A-B and B-C (built when first asked for: it needs a root finder)."""
+    return _tangent_sections(
+        ((0.0, 0.0), (0.25, 0.05), (0.5, 0.15), (0.75, 0.3)),
+        ((0.75, 0.3), (1.0, 0.45), (1.25, 0.6), (1.5, 0.7)),
+        ((1.5, 0.7), (1.7, 0.8), (1.85, 0.95), (1.9, 1.1)))
 _D = (1.9, 1.6)
 _E = (1.3, 1.6)
 _CIRCLE_RADIUS = 0.3
@@ -119,12 +124,13 @@ def default_program(cfg: MachineConfig, start: Sequence[float]) -> list[Any]:
     def pts(rel: Iterable[Sequence[float]]) -> np.ndarray:
         return o + scale * np.asarray(rel, dtype=float)
 
-    c, d, e = pts([_BC[-1]])[0], pts([_D])[0], pts([_E])[0]
+    oa, ab, bc = _sections()
+    c, d, e = pts([bc[-1]])[0], pts([_D])[0], pts([_E])[0]
     centre = e - np.array([0.0, _CIRCLE_RADIUS * scale])
     return [
-        MotionBlock(SplinePath(pts(_OA)), 0.5 * v),     # O-A: accelerate, cruise
-        MotionBlock(SplinePath(pts(_AB)), 0.9 * v),     # A-B: faster contour speed
-        MotionBlock(SplinePath(pts(_BC)), 0.4 * v),     # B-C: slow down
+        MotionBlock(SplinePath(pts(oa)), 0.5 * v),     # O-A: accelerate, cruise
+        MotionBlock(SplinePath(pts(ab)), 0.9 * v),     # A-B: faster contour speed
+        MotionBlock(SplinePath(pts(bc)), 0.4 * v),     # B-C: slow down
         MotionBlock(Line(c, d), 0.7 * v),               # corner at D: 90° left turn
         MotionBlock(Line(d, e), 0.7 * v),
         MotionBlock(Arc(e, e, centre, ccw=True), 0.6 * v),  # full circle

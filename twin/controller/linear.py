@@ -28,13 +28,31 @@ from collections.abc import Sequence
 
 import numpy as np
 import scipy.linalg
-import scipy.optimize
-import scipy.signal
 
 from twin.errors import ConfigError
 
 __all__ = ["LinearAxisModel", "position_gain", "power_series_ratio"]
 
+
+
+def _canonical(num: np.ndarray, den: np.ndarray) -> tuple[np.ndarray, np.ndarray,
+                                                          np.ndarray, np.ndarray]:
+    """State space (A, B, C, D) of num(p)/den(p) (numpy order, deg num ≤ deg den) in the
+    controller canonical form, the one ``scipy.signal.tf2ss`` returns (importing
+    ``scipy.signal`` costs every process a second at start)."""
+    den = np.asarray(den, dtype=float)
+    num = np.asarray(num, dtype=float)
+    num, den = num / den[0], den / den[0]
+    m = den.size - 1
+    num = np.concatenate([np.zeros(m + 1 - num.size), num])
+    d = num[0]
+    a = np.zeros((m, m))
+    a[0, :] = -den[1:]
+    a[1:, :-1] = np.eye(m - 1)
+    b = np.zeros((m, 1))
+    b[0, 0] = 1.0
+    c = (num[1:] - d * den[1:])[None, :]
+    return a, b, c, np.array([[d]])
 
 def power_series_ratio(num: Sequence[float], den: Sequence[float], count: int) -> np.ndarray:
     """First Taylor coefficients of ``num(x) / den(x)`` at ``x = 0`` (series division).
@@ -221,7 +239,7 @@ class LinearAxisModel:
         else:
             # exact ZOH of [x; u; s]' = [[A, B, 0], [0, 0, 0], [C, D, 0]]·[x; u; s], where
             # x is the speed-loop state, u the held reference and s the position in the tick
-            a, bb, c, dd = scipy.signal.tf2ss(self._num, vden)
+            a, bb, c, dd = _canonical(self._num, vden)
             big = np.zeros((m + 2, m + 2))
             big[:m, :m] = a
             big[:m, m] = bb[:, 0]
@@ -359,7 +377,9 @@ def position_gain(model: LinearAxisModel, period: float, *,
 
         if offset(grid[i + 1]) > 0.0:
             return float(grid[i + 1])
-        return scipy.optimize.brentq(offset, grid[i], grid[i + 1])
+        from scipy.optimize import brentq  # here: half a second of every process' start
+
+        return brentq(offset, grid[i], grid[i + 1])
 
     candidates = []
     pm_cross = crossing(-math.pi + phase_margin)

@@ -64,7 +64,11 @@ block with its lowest cap and its lowest tangential acceleration and jerk, one
 ``plan_move`` covers it, and each block gets its part of that move (``PlannedBlock.piece``;
 the acceleration runs on across the nodes and the limits hold across them, being the
 run's). A run is cut once it is as long as the view (twice the braking distance), and a
-short last part of a curve is merged back into the part before it.
+short last part of a curve is merged back into the part before it. A contour's first
+chord joins its curve's run, and its last chord does when a stop follows it, where the
+stop keeps the node between them too slow to bind (`BlockRules.slow_node`: a profile
+from or to rest passes a node d from the stop at most at √(2·A·d)): a circle sent as
+chords then runs one speed change from rest to rest, as the G3 arc does.
 
 Streaming and incremental
 -------------------------
@@ -188,6 +192,21 @@ class Planner:
     curve_acceleration : float
         A further cap of the centripetal acceleration on curves (m/s²): what input shapers
         allow (``twin.controller.shaped_corner.curve_acceleration``); default none.
+    curve_quartic : float
+        The cap on curves that the shapers' fourth-order error sets once the smoothing
+        compensation removes the second-order one (``SegmentLimits``); 0: none.
+    curve_step : float
+        The largest step of the normal acceleration v²·|Δκ| a node between feed moves may
+        have (m/s²): with the smoothing compensation the shapers' transient where the
+        curvature jumps (``twin.controller.compensation.curve_step_acceleration``); default
+        none.
+    stop_dwell : float
+        Time the reference stands still at an exact stop of the look-ahead mode before the
+        next move (s): before a machine function (an ``Event``: M3/M5, tool on/off) and
+        where a rapid meets another move. With input shapers the controller sets their
+        duration: the shaped reference then arrives at the stop before the next move
+        leaves it, instead of mixing the two directions (a cut corner at the pierce point).
+        Default 0: none.
     work_zone : WorkZone, optional
         Soft limits; None: unchecked.
     min_feed : float
@@ -206,8 +225,12 @@ class Planner:
                  corner_model: CornerModel | None = None, work_zone: WorkZone | None = None,
                  min_feed: float = 1e-6, max_program_time: float = 86400.0,
                  period: float | None = None, blend: float = 0.5,
-                 curve_acceleration: float = math.inf):
+                 curve_acceleration: float = math.inf, curve_quartic: float = 0.0,
+                 curve_step: float = math.inf, stop_dwell: float = 0.0):
         check_law(law)
+        if not (math.isfinite(stop_dwell) and stop_dwell >= 0.0):
+            raise ConfigError("stop_dwell", f"must be finite and >= 0 (s), got {stop_dwell!r}")
+        self.stop_dwell = float(stop_dwell)
         if mode not in MODES:
             raise ConfigError("mode", f"must be one of {MODES}, got {mode!r}")
         if isinstance(lookahead, bool) or not isinstance(lookahead, int) or lookahead < 1:
@@ -238,7 +261,8 @@ class Planner:
         self._rules = BlockRules(limits, self.axis_limits, rapid_velocity=self.rapid_velocity,
                                  tolerance=self.tolerance, corner_model=self.corner_model,
                                  period=self.period, jerk=law != "trapezoid", view=self._view,
-                                 curve_acceleration=curve_acceleration)
+                                 curve_acceleration=curve_acceleration,
+                                 curve_quartic=curve_quartic, curve_step=curve_step)
         self.min_feed = float(min_feed)
         self.max_program_time = float(max_program_time)
         self._time_bound = 0.0
@@ -311,6 +335,8 @@ class Planner:
         exact_stop = False
         run: WindowBlock | None = None       # the run being grown
         held: WindowBlock | None = None      # a run closed for its length, its successor to come
+        rest = False                         # the run starts at a stop
+        tail: WindowBlock | None = None      # a short block after the run: a stop next?
         while True:
             if out:
                 yield from out
@@ -324,6 +350,14 @@ class Planner:
                 break
             if type(item) is BlendedBlock:
                 block = block_of(*item)
+                after_stop = last is None
+                if tail is not None:            # the run ends at a rapid, or goes on
+                    if block.rapid:
+                        absorb(run, tail)
+                    else:
+                        end_run(window, held, run)
+                        run, held, rest = open_run(tail), None, False
+                    tail = None
                 if block.rapid:
                     last = None
                 else:
@@ -343,6 +377,9 @@ class Planner:
                 continue
             else:
                 last = None
+                if tail is not None:            # a stop: the short block ends the run
+                    absorb(run, tail)
+                    tail = None
                 if run is not None:
                     end_run(window, held, run)
                     run = held = None
@@ -357,9 +394,12 @@ class Planner:
             if not runs:
                 append(window, block)
                 continue
-            joins = joins_of(run, block) if run is not None else APART
+            joins = joins_of(run, block, rest) if run is not None else APART
             if joins == JOINS:
                 absorb(run, block)
+                continue
+            if joins == APART and run is not None and self._tail(run, block):
+                tail = block                    # joins if a stop follows (`_tail`)
                 continue
             if joins == TOO_LONG:              # the same curve goes on: hold this part
                 if held is not None:
@@ -368,7 +408,9 @@ class Planner:
             elif run is not None:
                 end_run(window, held, run)
                 held = None
-            run = open_run(block)
+            run, rest = open_run(block), after_stop
+        if tail is not None:
+            absorb(run, tail)
         if run is not None:
             end_run(window, held, run)
         while window:
@@ -396,6 +438,8 @@ class Planner:
         all on the programmed segment); dwells, events and the program end pass through;
         nothing after the program end is read."""
         zone = self.work_zone
+        settle = self.stop_dwell if self.mode == "lookahead" else 0.0
+        last: bool | None = None         # the last motion's rapid flag; None: at rest
         for item in _read_ahead(items):
             kind = type(item)
             if kind is Move:                 # segments_from_program, inlined
@@ -408,6 +452,9 @@ class Planner:
             else:
                 if kind is Dwell:
                     self._spend(item.duration, item.line, "its dwell")
+                elif settle > 0.0 and last is not None and not isinstance(item, ProgramEnd):
+                    yield Dwell(settle, item.line)
+                last = None
                 yield item
                 if isinstance(item, ProgramEnd):
                     return
@@ -415,6 +462,9 @@ class Planner:
             if zone is not None:
                 zone.check(seg, line)
             self._account(seg.length, feed, line)
+            if settle > 0.0 and last is not None and (last or feed is None):
+                yield Dwell(settle, line)
+            last = feed is None
             yield BlendedBlock(seg, feed, line)
 
     def _account(self, length: float, feed: float | None, line: int) -> None:
@@ -433,6 +483,14 @@ class Planner:
                                 f"{self._time_bound:.6g} s with {what} so far, beyond the "
                                 f"machine's {self.max_program_time:g} s "
                                 "(controller.max_program_time)")
+
+    def _tail(self, run: WindowBlock, b: WindowBlock) -> bool:
+        """Whether ``b``, kept apart from ``run``, would join it if a stop followed: so
+        short that its node cannot bind at a stop's end (`BlockRules.slow_node`: a
+        contour's last chord after its curve), and no lower in its caps than the run
+        (joining lowers nothing of the run's)."""
+        return (b.v_nom >= run.v_nom and b.acc >= run.acc and b.jerk >= run.jerk
+                and self._rules.slow_node(run, b, b.length))
 
     def _end_run(self, window: deque[WindowBlock], held: WindowBlock | None,
                  run: WindowBlock) -> None:

@@ -69,14 +69,20 @@ class SegmentLimits:
     curve_acceleration : float
         A further cap of the centripetal acceleration v²κ (m/s²): the input shapers'
         (``twin.controller.shaped_corner.curve_acceleration``); default none.
+    curve_quartic : float
+        q (s⁴/m): a cap ``v²κ ≤ 1/√(q·κ)`` on curves, the shapers' fourth-order error once
+        the smoothing compensation removed the second-order one
+        (``twin.controller.compensation.curve_quartic``); 0: none. When set,
+        ``curve_acceleration`` caps only the blends (the rounded kinks).
     """
 
     def __init__(self, limits: Limits, axis_limits: Sequence[Limits], *, jerk: bool = True,
-                 curve_acceleration: float = math.inf):
+                 curve_acceleration: float = math.inf, curve_quartic: float = 0.0):
         self.limits = limits
         self.axis_limits = tuple(axis_limits)
         self.jerk = jerk
         self.curve_acceleration = float(curve_acceleration)
+        self.curve_quartic = float(curve_quartic)
         self._axis_caps = tuple((lim.max_velocity, lim.max_acceleration, lim.max_jerk)
                                 for lim in self.axis_limits)
         if len(self._axis_caps) != 2:
@@ -112,8 +118,10 @@ class SegmentLimits:
             j = yj / ay
         return v, a, j
 
-    def curve_caps(self, seg: Segment, v_cap: float) -> tuple[float, float, float]:
-        """Caps of an arc (exact) or any other curved segment (sampled)."""
+    def curve_caps(self, seg: Segment, v_cap: float, blend: bool = False
+                   ) -> tuple[float, float, float]:
+        """Caps of an arc (exact) or any other curved segment (sampled); ``blend``: the
+        arc rounds a kink (``twin.controller.blend``)."""
         lx, ly = self.axis_limits
         a_tot, j_tot = self._curve_totals
         if type(seg) is Arc:
@@ -127,7 +135,16 @@ class SegmentLimits:
         if my * v > ly.max_velocity:
             v = ly.max_velocity / my
         if kappa > 0.0:
-            v = min(v, math.sqrt(min(CENTRIPETAL * a_tot, self.curve_acceleration) / kappa))
+            a_cap = CENTRIPETAL * a_tot
+            if self.curve_quartic > 0.0:
+                # compensated: the shapers' fourth-order error on a curve; a blend is a
+                # corner, shorter than the shapers, which the compensation cannot reach
+                a_cap = min(a_cap, 1.0 / math.sqrt(self.curve_quartic * kappa))
+                if blend:
+                    a_cap = min(a_cap, self.curve_acceleration)
+            else:
+                a_cap = min(a_cap, self.curve_acceleration)
+            v = min(v, math.sqrt(a_cap / kappa))
             if self.jerk:
                 v = min(v, (CRUISE_JERK * j_tot / math.hypot(kappa * kappa, dkappa))
                         ** (1.0 / 3.0))

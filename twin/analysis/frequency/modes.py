@@ -18,15 +18,21 @@ from twin.plant.model import axis_mechanics
 
 __all__ = ["USABLE", "compared", "jackknife", "resonances", "unseen"]
 
+NEAR = 0.15
+"""How far (a fraction of its frequency) a resonance may lie from a mode of the belief and
+still stand for it in ``unseen``: a belief off by more has the mode unseen and an unknown
+resonance found."""
 USABLE = 0.5
 """Coherence from which a line enters the resonance fit (weighted by its γ²/(1 − γ²))."""
 
 
 def compared(response: np.ndarray, prediction: np.ndarray, good: np.ndarray,
-             belief: MachineConfig, axis: str, position: float) -> dict[str, Any]:
+             belief: MachineConfig, axis: str, position: float,
+             poles: list[complex] | None = None) -> dict[str, Any]:
     """The record's ``agreement`` (the measurement against the prediction on the ``good``
     lines: their count, the largest gain (dB) and phase (degrees) error) and
-    ``analytic_modes`` (``closed_loop_modes`` of the belief at ``position``: Hz, ζ)."""
+    ``analytic_modes`` (``poles``, default ``closed_loop_modes`` of the belief at
+    ``position``: Hz, ζ)."""
     ratio = response[good] / prediction[good]
     return {
         "agreement": {
@@ -37,17 +43,25 @@ def compared(response: np.ndarray, prediction: np.ndarray, good: np.ndarray,
             if len(ratio) else None},
         "analytic_modes": [{"frequency_hz": abs(s) / (2 * math.pi),
                             "damping": -s.real / abs(s)}
-                           for s in closed_loop_modes(belief, axis, position)],
+                           for s in (closed_loop_modes(belief, axis, position)
+                                     if poles is None else poles)],
     }
 
 
 def unseen(belief: MachineConfig, axis: str, position: float, sensor: str, loop: str,
-            top: float) -> list[str]:
-    """The belief's elastic modes this measurement cannot see, each with the reason."""
+            top: float, found: list[float] | None = None,
+            poles: list[complex] | None = None) -> list[str]:
+    """The belief's elastic modes this measurement cannot see, each with the reason; with
+    ``found`` (the resonances' frequencies, Hz) also those inside the measured band that
+    no resonance within ``NEAR`` of their closed-loop frequency stands for (their peak did
+    not stand out of the noise; ``poles``: those closed-loop modes, if computed already)."""
     chain = axis_mechanics(belief, axis, position)
     free = chain.frequencies("free") / (2.0 * math.pi)
     locked = chain.frequencies("locked") / (2.0 * math.pi)
     motor = sensor == "motor" or loop == "position"
+    if found is not None and poles is None:
+        poles = closed_loop_modes(belief, axis, position)
+    near = [abs(p) / (2.0 * math.pi) for p in poles] if found is not None and poles else []
     out = []
     for i, f in enumerate(free):
         if motor and i < len(locked) and 40.0 * math.log10(f / locked[i]) < 1.0:
@@ -63,6 +77,11 @@ def unseen(belief: MachineConfig, axis: str, position: float, sensor: str, loop:
             out.append(f"mode {i + 1} at {f:.1f} Hz: above the measured band "
                        f"({top:.1f} Hz, the highest line with a coherence of "
                        f"{estimate.COHERENT:g})")
+        elif i < len(near) and not any(abs(g - near[i]) <= NEAR * near[i] for g in found):
+            out.append(f"mode {i + 1} at {near[i]:.1f} Hz (with the drive's speed loop): no "
+                       f"peak near it stood out of the "
+                       f"noise by three of its lines' random errors; raise --averages or "
+                       f"--amplitude, or strike the table (--excitation hammer)")
     return out
 
 
@@ -72,8 +91,8 @@ def resonances(f: np.ndarray, h: np.ndarray, coherence: np.ndarray, rigid: np.nd
     the pole of a second-order model fitted to H/H_rigid (the measurement over the rigid
     twin's prediction: what the speed loop does to both divides out) over half to twice
     its frequency (at least its eight nearest lines), each line weighted by its
-    signal-to-noise ratio γ²/(1 − γ²). With ``averages`` (P, the blows of a tap test) a
-    peak must stand out by three of its line's random errors besides
+    signal-to-noise ratio γ²/(1 − γ²). With ``averages`` (P, the periods or the blows
+    averaged) a peak must stand out by three of its line's random errors besides
     (20·log10(e)·√((1 − γ²)/(2·P·γ²)) dB): a noise bump is not a mode."""
     usable = coherence >= USABLE
     if usable.sum() < 8:

@@ -86,7 +86,7 @@ class Recording:
 
 class _Runner:
     def __init__(self, driver: MachineIO, base: MachineConfig, belief: MachineConfig,
-                 axis: str, loop: str, volts: np.ndarray, offset: float,
+                 axis: str, loop: str, volts: np.ndarray, offset: np.ndarray,
                  window: Sequence[tuple[float, float]], accelerometer: bool):
         self.driver, self.base, self.loop = driver, base, loop
         self.k = AXES.index(axis)
@@ -97,9 +97,9 @@ class _Runner:
         self.encoder = EncoderUnwrapper([base.axes[a].counts_per_metre for a in AXES],
                                         bits=[base.axes[a].encoder.bits for a in AXES])
         self.volts = volts
-        self.offset_volts = offset * belief.axes[axis].volts_per_speed
+        self.offset = offset
+        self.volts_per_speed = belief.axes[axis].volts_per_speed
         self.vel = np.zeros(2)
-        self.vel[self.k] = offset
         self.window = list(window)
         self.accelerometer = accelerometer
         self.out = Outputs()
@@ -124,6 +124,7 @@ class _Runner:
         inputs = self.driver.read()
         pos = self.encoder.update(inputs.encoder_counts)
         self._check(inputs, pos, slot)
+        self.vel[self.k] = self.offset[slot]
         clock = inputs.accel_clock if self.accelerometer else math.nan
         if self.accelerometer and inputs.accel_count:
             n = inputs.accel_count
@@ -146,7 +147,7 @@ class _Runner:
         if self.loop == "position":
             dac[self.k] += self.volts[slot]
         else:
-            dac[self.k] = self.offset_volts + self.volts[slot]
+            dac[self.k] = self.offset[slot] * self.volts_per_speed + self.volts[slot]
             fed_back = 0.0
         self.out.dac_volts[:] = dac
         self.out.enable = True
@@ -175,11 +176,12 @@ class _Runner:
 
 
 def run_excitation(driver: MachineIO, base: MachineConfig, belief: MachineConfig, *,
-                   axis: str, loop: str, volts: np.ndarray, offset: float,
+                   axis: str, loop: str, volts: np.ndarray, offset: float | np.ndarray,
                    window: Sequence[tuple[float, float]], accelerometer: bool,
                    paced: bool) -> Recording:
     """Run the excitation ``volts`` (V, one value per controller period) on ``axis`` about
-    the table speed ``offset`` (m/s), within ``window`` (each axis' (lowest, highest)
+    the table speed ``offset`` (m/s; one for the run or one per controller period), within
+    ``window`` (each axis' (lowest, highest)
     position, m), and return the record; the machine is stopped (outputs zero, drives
     disabled) however it ends.
 
@@ -188,8 +190,10 @@ def run_excitation(driver: MachineIO, base: MachineConfig, belief: MachineConfig
     ExperimentAborted
         A safety stop (see the module docstring).
     """
-    runner = _Runner(driver, base, belief, axis, loop, np.asarray(volts, dtype=float),
-                     offset, window, accelerometer)
+    volts = np.asarray(volts, dtype=float)
+    runner = _Runner(driver, base, belief, axis, loop, volts,
+                     np.broadcast_to(np.asarray(offset, dtype=float), volts.shape), window,
+                     accelerometer)
     runner.start()
     runner.stop()  # a clean enable edge: the drives start from their reset state
     stats = None

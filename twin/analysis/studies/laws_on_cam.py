@@ -15,7 +15,10 @@ twin runs much slower than the planner plans), the cycle time (first to last com
 motion) and the largest distance of the table's true path from the program
 (`twin.analysis.compare.true_contour_error`). ``BEFORE`` holds the same figures measured
 with this study's code on the planner before issue 30 (main at 985b40a), for the
-comparison the issue asks for.
+comparison the issue asks for. And the chord-independence table
+(`twin.analysis.studies.circles`): per law and radius, the spread of a circle's planned
+cycle time over its G3 arc and its chordings; ``BEFORE_CIRCLES`` holds the spreads of main
+at 7ef941c (before the chords were faired, `twin.controller.fair`).
 """
 
 from __future__ import annotations
@@ -27,6 +30,7 @@ import numpy as np
 
 from twin.analysis.compare import true_contour_error
 from twin.analysis.studies import cam
+from twin.analysis.studies.circles import chord_independence
 from twin.analysis.studies.common import run_items
 from twin.config import load_machine
 from twin.controller.gcode import parse
@@ -34,7 +38,7 @@ from twin.controller.planner import Planner
 from twin.controller.profiles import LAWS
 from twin.session.run import RunSpec
 
-__all__ = ["BEFORE", "MACHINE", "programs", "run_study"]
+__all__ = ["BEFORE", "BEFORE_CIRCLES", "MACHINE", "programs", "run_study"]
 
 MACHINE = "laser_belt"
 
@@ -66,6 +70,22 @@ BEFORE: dict[str, dict[str, Any]] = {
 }
 """``runs`` as `run_study` gives them, measured on main at 985b40a (the planner before
 issue 30)."""
+
+
+BEFORE_CIRCLES: dict[str, dict[str, float]] = {
+    "trapezoid": {"r0.5": 0.0895, "r1": 0.0779, "r2": 0.0661, "r5": 0.023, "r10": 0.004,
+                  "r20": 0.0012},
+    "parabolic": {"r0.5": 0.3436, "r1": 0.2504, "r2": 0.2102, "r5": 0.0643, "r10": 0.0336,
+                  "r20": 0.0009},
+    "cosine": {"r0.5": 0.3092, "r1": 0.2146, "r2": 0.1819, "r5": 0.0542, "r10": 0.0227,
+               "r20": 0.001},
+    "cubic": {"r0.5": 0.3129, "r1": 0.2108, "r2": 0.1832, "r5": 0.0551, "r10": 0.022,
+              "r20": 0.001},
+    "jerk-limited": {"r0.5": 0.2903, "r1": 0.1995, "r2": 0.185, "r5": 0.0522, "r10": 0.0233,
+                     "r20": 0.001},
+}
+"""Per law and radius the spread of ``chord_independence`` on main at 7ef941c (chords not
+faired, a contour's end chords planned apart from its curve)."""
 
 
 def programs(twin: bool, quick: bool = False) -> dict[str, str]:
@@ -115,7 +135,10 @@ def run_study(*, quick: bool = False) -> dict[str, Any]:
         for law in ("trapezoid", "jerk-limited") if quick else LAWS:
             runs[name][law] = {"planned_s": _planned(whole[name], law),
                                "twin": _run(short[name], law)}
+    circles = {} if quick else chord_independence(load_machine(MACHINE), LAWS)
     return {"study": "laws_on_cam",
             "title": "The acceleration laws on CAM output: chorded nest, small lettering",
             "machine": MACHINE, "runs": runs, "before": {} if quick else BEFORE,
+            "chord_independence": circles,
+            "chord_independence_before": {} if quick else BEFORE_CIRCLES,
             "quick": quick, "wall_time_s": time.perf_counter() - t0}

@@ -30,11 +30,27 @@ import math
 from collections.abc import Callable, Iterator
 from dataclasses import dataclass, field
 
-__all__ = ["Nest", "chord_length", "nest"]
+__all__ = ["KINDS", "Nest", "Part", "chord_length", "layout", "nest", "random_nest"]
 
 _FEED = 3000.0            # mm/min: 50 mm/s, seed 001's max cutting speed
 _CHORD_TOL = 0.02         # mm: chordal tolerance of the exported spline polylines
-_KINDS = ("flange", "bracket", "sprocket", "cam", "comb")
+KINDS = ("flange", "bracket", "sprocket", "cam", "comb")
+"""The part shapes a nest is made of."""
+_KINDS = KINDS
+
+
+@dataclass(frozen=True)
+class Part:
+    """One part of a nest: its ``kind`` (one of ``KINDS``), its cell's lower left corner
+    ``x``, ``y`` and size ``width`` × ``height`` (mm), and ``size`` 0 … 1 within the cell's
+    room for that kind."""
+
+    kind: str
+    x: float
+    y: float
+    width: float
+    height: float
+    size: float
 
 
 @dataclass
@@ -59,6 +75,8 @@ class Nest:
     contours: int = 0
     parts: int = 0
     blocks: int = 0
+    part_lines: list[tuple[int, int]] = field(default_factory=list)
+    """Per part cut, its first and last line of ``gcode`` (1-based)."""
     _lines: list[str] = field(default_factory=list, repr=False)
     _here: tuple[float, float] = (10.0, 10.0)
     _chord: float | None = None
@@ -250,20 +268,59 @@ def nest(cols: int = 6, rows: int = 4, *, width: float = 1020.0, height: float =
     """
     if cols < 1 or rows < 1:
         raise ValueError(f"cols and rows must be >= 1, got {cols} × {rows}")
-    if chord is not None and not chord > 0.0:
-        raise ValueError(f"chord must be > 0 mm, got {chord!r}")
-    job = Nest(_chord=chord)
-    job._lines = ["%", f"(xy-twin nest: {cols} x {rows} parts, laser_belt)",
-                  "G21 G90 G17 G94", f"F{_FEED:g}"]
     w, h = width / cols, height / rows
+    parts = []
     for row in range(rows):
         order = range(cols) if row % 2 == 0 else range(cols - 1, -1, -1)
         for col in order:
             k = row * cols + col
-            kind = _KINDS[(col + 2 * row) % len(_KINDS)]
-            size = ((7 * k) % 10) / 10.0
-            getattr(job, kind)(origin[0] + col * w, origin[1] + row * h, w, h, size)
+            parts.append(Part(_KINDS[(col + 2 * row) % len(_KINDS)], origin[0] + col * w,
+                              origin[1] + row * h, w, h, ((7 * k) % 10) / 10.0))
+    return layout(parts, title=f"xy-twin nest: {cols} x {rows} parts, laser_belt",
+                  chord=chord)
+
+
+def layout(parts: list[Part], *, title: str = "xy-twin nest", chord: float | None = None
+           ) -> Nest:
+    """The program that cuts ``parts`` in their order, from and back to the home position
+    (10, 10) mm; ``chord`` as in ``nest``.
+
+    Raises
+    ------
+    ValueError
+        An unknown kind, or a chordal tolerance that is not positive.
+    """
+    if chord is not None and not chord > 0.0:
+        raise ValueError(f"chord must be > 0 mm, got {chord!r}")
+    job = Nest(_chord=chord)
+    job._lines = ["%", f"({title})", "G21 G90 G17 G94", f"F{_FEED:g}"]
+    for part in parts:
+        if part.kind not in KINDS:
+            raise ValueError(f"unknown part kind {part.kind!r}; valid: {', '.join(KINDS)}")
+        first = len(job._lines) + 1
+        getattr(job, part.kind)(part.x, part.y, part.width, part.height, part.size)
+        job.part_lines.append((first, len(job._lines)))
     job._rapid(10.0, 10.0)
     job._lines += ["M30", "%"]
     job.gcode = "\n".join(job._lines) + "\n"
     return job
+
+
+def random_nest(seed: int, *, chord: float | None = None) -> tuple[Nest, list[Part]]:
+    """A nest of seed 001's class with random parameters: a grid of 2–4 × 1–3 cells of
+    80–220 mm, each a part of a random kind and size, its corner 12–100 mm from the
+    origin, cut row by row (serpentine). Returns the program and its parts."""
+    import numpy as np
+
+    rng = np.random.default_rng(seed)
+    cols, rows = int(rng.integers(2, 5)), int(rng.integers(1, 4))
+    w, h = float(rng.uniform(80.0, 220.0)), float(rng.uniform(80.0, 220.0))
+    origin = (float(rng.uniform(12.0, 100.0)), float(rng.uniform(12.0, 100.0)))
+    parts = []
+    for row in range(rows):
+        order = range(cols) if row % 2 == 0 else range(cols - 1, -1, -1)
+        for col in order:
+            kind = str(rng.choice(KINDS))
+            parts.append(Part(kind, origin[0] + col * w, origin[1] + row * h, w, h,
+                              float(rng.uniform(0.0, 1.0))))
+    return layout(parts, title=f"random nest seed {seed}", chord=chord), parts
