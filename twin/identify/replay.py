@@ -18,7 +18,6 @@ import numpy as np
 
 from twin.config import AXES, MachineConfig
 from twin.controller.encoder import EncoderUnwrapper
-from twin.controller.io import Inputs
 from twin.drive.design import design
 from twin.identify.log import IdentLog
 from twin.plant import Plant
@@ -129,8 +128,10 @@ def base_params(base: MachineConfig) -> dict[str, AxisParams]:
     return out
 
 
-def candidate(base: MachineConfig, params: dict[str, AxisParams]) -> MachineConfig:
-    """BASE with every field ``params`` sets replaced (validated as any machine file).
+def candidate(base: MachineConfig, params: dict[str, AxisParams], *,
+              mains_phase: float | None = None) -> MachineConfig:
+    """BASE with every field ``params`` sets replaced (validated as any machine file), and
+    the thyristor drives' ``mains_phase`` (rad) when given (as :func:`replay` sets it).
 
     The drive's speed regulator and reference filter are written out, never derived again
     from the candidate's inertia: the drive on a machine is set once, at commissioning, and
@@ -174,18 +175,20 @@ def candidate(base: MachineConfig, params: dict[str, AxisParams]) -> MachineConf
             sets[f"{pre}.regulators.implementation"] = "analog" if p.analog > 0.5 \
                 else "digital"
             sets[f"{pre}.motor.brush_drop"] = p.brush_drop
+    if mains_phase is not None and _thyristor(base):
+        sets.update({f"axes.{a}.converter.mains_phase": float(mains_phase) for a in AXES})
     return base.with_overrides(sets)
+
+
+def _thyristor(cfg: MachineConfig) -> bool:
+    """A thyristor drive on some axis: the mains phase matters."""
+    return any(cfg.axes[a].converter.kind == "thyristor" for a in AXES)
 
 
 def measured(log: IdentLog, base: MachineConfig) -> tuple[np.ndarray, np.ndarray]:
     """The log's positions (relative to its first tick, m) and tacho volts, (ticks, 2)."""
-    enc = EncoderUnwrapper([base.axes[a].counts_per_metre for a in AXES],
-                           bits=[base.axes[a].encoder.bits for a in AXES])
     counts = np.column_stack([log.data["counts_x"], log.data["counts_y"]]).astype(np.int64)
-    pos = np.empty((len(counts), 2))
-    enc.reset(counts[0])
-    for k, c in enumerate(counts):
-        pos[k] = enc.update(c)
+    pos = _positions(base, counts)
     tacho = np.column_stack([log.data["tacho_x"], log.data["tacho_y"]])
     return pos, tacho
 
@@ -202,36 +205,31 @@ def replay(cfg: MachineConfig, log: IdentLog, *, until: int | None = None,
     unknown, and the fit estimates it (``fit.mains_phase``).
     """
     n = log.ticks if until is None else min(until, log.ticks)
-    if mains_phase is not None and any(cfg.axes[a].converter.kind == "thyristor"
-                                       for a in AXES):
+    if mains_phase is not None and _thyristor(cfg):
         cfg = cfg.with_overrides({"axes.*.converter.mains_phase": float(mains_phase)})
     plant = Plant(cfg, noise=False)  # the measurement has the noise; the replay is its mean
     mid = np.array([0.5 * sum(cfg.axes[a].mechanics.travel) for a in AXES])
     plant.reset(positions=mid)
+    t = log.data["t"]
+    steps = np.diff(t, append=t[-1] + cfg.controller.period)
+    intervals = np.maximum(np.round(steps / plant.drive_dt), 1).astype(np.int64)
+    dac = np.column_stack([log.data["dac_x"], log.data["dac_y"]])
+    counts, tacho = plant.run_open_loop(dac[:n], log.data["enable"][:n] != 0.0,
+                                        intervals[:n])
+    return _positions(cfg, counts), tacho
+
+
+def _positions(cfg: MachineConfig, counts: np.ndarray) -> np.ndarray:
+    """Encoder counter samples (ticks, 2) unwrapped to positions relative to the first
+    (m), as the controller's ``EncoderUnwrapper`` reads them."""
     enc = EncoderUnwrapper([cfg.axes[a].counts_per_metre for a in AXES],
                            bits=[cfg.axes[a].encoder.bits for a in AXES])
-    period = cfg.controller.period
-    dt = plant.drive_dt
-    t = log.data["t"]
-    steps = np.diff(t, append=t[-1] + period)
-    steps = np.maximum(np.round(steps / dt), 1) * dt
-    dac = np.column_stack([log.data["dac_x"], log.data["dac_y"]])
-    enable = log.data["enable"] != 0.0
-    inputs = Inputs()
-    pos = np.empty((n, 2))
-    tacho = np.empty((n, 2))
-    plant.read_into(inputs)
-    enc.reset(inputs.encoder_counts)
-    enabled = True
-    for k in range(n):
-        plant.read_into(inputs)
-        pos[k] = enc.update(inputs.encoder_counts)
-        tacho[k] = inputs.tacho_volts
-        if enable[k] != enabled:
-            enabled = bool(enable[k])
-            plant.enable(enabled)
-        plant.step(dac[k], float(steps[k]))
-    return pos, tacho
+    pos = np.empty((len(counts), 2))
+    if len(counts):
+        enc.reset(counts[0])
+    for k, c in enumerate(counts.tolist()):
+        pos[k] = enc.update(c)
+    return pos
 
 
 def finite_params(params: dict[str, AxisParams]) -> bool:
@@ -282,8 +280,8 @@ class Problem:
         if kept is not None and len(kept[0]) >= until:
             return kept[0][:until], kept[1][:until]
         self.replays += 1
-        pos, tacho = replay(candidate(self.base, params), self.log, until=until,
-                            mains_phase=self.mains_phase)
+        pos, tacho = replay(candidate(self.base, params, mains_phase=self.mains_phase),
+                            self.log, until=until)
         pos.flags.writeable = tacho.flags.writeable = False
         self._recent.pop(key, None)
         self._recent[key] = (pos, tacho)
