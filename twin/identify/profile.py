@@ -29,7 +29,7 @@ from twin.identify.parallel import split_map
 from twin.identify.replay import AxisParams, Problem
 
 __all__ = ["FLOOR", "QUANTITY", "Profile", "autocorrelation_time", "noise_variance",
-           "own_coordinate", "profile", "profile_of", "threshold"]
+           "own_coordinate", "profile", "profile_of", "systematic_variance", "threshold"]
 
 LEVEL = 0.95
 """Confidence level of the intervals."""
@@ -69,6 +69,21 @@ otherwise get intervals of 0.1 % around a value its floor biases by 0.5 %."""
 def noise_variance(res: np.ndarray, parameters: int) -> float:
     """The residuals' variance per sample, s² = SSE/(n − p), but not below ``FLOOR``."""
     return max(float(res @ res) / max(len(res) - parameters, 1), FLOOR)
+
+
+def systematic_variance(res: np.ndarray, channels: int = 2) -> float:
+    """The part of the residuals' variance per sample that is not white noise (in their
+    scaled units): per channel of the ``channels`` series ``res`` is the concatenation of,
+    mean(r²) − mean(Δr²)/2 (for white noise of variance σ² both terms are σ²; a smooth
+    misfit adds its variance to the first and almost nothing to the second), not below 0;
+    the mean over the channels."""
+    out = 0.0
+    for part in np.split(res, channels):
+        if len(part) < 2:
+            continue
+        d = np.diff(part)
+        out += max(float(part @ part) / len(part) - 0.5 * float(d @ d) / len(d), 0.0)
+    return out / channels
 
 
 def threshold(res: np.ndarray, parameters: int, level: float = LEVEL) -> float:

@@ -147,6 +147,7 @@ def summary(result: Identification, base: MachineConfig, log: IdentLog) -> dict[
                                  "decided": d.decided} for a, d in result.dcm.items()},
         "nrmse": result.nrmse,
         "residual": result.residual,
+        "misfit": result.misfit,
         "mains_phase_rad": result.mains_phase,
         "not_identifiable": dict(NOT_IDENTIFIABLE),
         "machine_time_s": log.ticks * base.controller.period,
