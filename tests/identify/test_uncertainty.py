@@ -288,3 +288,56 @@ def test_intervals_of_axes_that_fit_their_data_hold_the_truth(start):
                 kept += inside
     assert kept and np.mean(kept) >= 0.9, np.mean(kept)
     assert clean_declared == 0
+
+
+class DeadZoneProblem(LinearProblem):
+    """A linear problem whose first coordinate acts through a dead zone of half-width w:
+    the data cannot tell any value in [−w, w] (the truth 0) from another, and the cost
+    rises only beyond it (a Coulomb friction the experiments barely break away from)."""
+
+    def __init__(self, rng: np.random.Generator, n: int, start, w: float):
+        super().__init__(rng, n, start)
+        self.w = w
+        for a in self.axes:
+            self.truth[a][0] = 0.0
+            self.y[a] = self.A[a] @ self.truth[a] + 3.0 * rng.normal(size=n)
+
+    def theta(self, p, a):
+        x = super().theta(p, a)
+        x[0] -= np.clip(x[0], -self.w, self.w)
+        return x
+
+
+@pytest.mark.parametrize("seed", range(3))
+def test_a_profile_flat_then_steep_ends_closed_and_not_inside_the_flat_part(seed, start):
+    """A side whose first point rose far above the threshold and whose second, inside it,
+    stayed below (the flat dead zone) ends closed (it was reported open) and never inside
+    what the data allow: against the exact profile (the others re-fitted by least squares
+    on a grid), the end lies at or beyond the exact one, and at most at the first point
+    (the reach)."""
+    from twin.identify.profile import threshold
+
+    rng = np.random.default_rng(60 + seed)
+    n = 2 * int(rng.integers(150, 400))
+    w = float(rng.uniform(0.3, 0.8))
+    prob = DeadZoneProblem(rng, n, start, w)
+    mask = np.ones(n, dtype=bool)
+    sol = solve(prob, dict(start), NAMES, mask, start, max_nfev=20)
+    prof = profile(prob, sol, mask, start, ["resistance"], {"resistance": 2.5})
+    for a in prob.axes:
+        A, y = prob.A[a], prob.y[a]
+        crit = threshold(sol.res[a], 4)
+        others = A[:, 1:]
+        best = float(np.sum((y - others @ np.linalg.lstsq(others, y, rcond=None)[0]) ** 2))
+        exact = []
+        for sign in (-1.0, 1.0):   # the exact profile beyond the zone, on a fine grid
+            grid = np.linspace(w, w + 2.0, 4001)
+            rise = [float(np.sum((y - sign * (g - w) * A[:, 0] - others @ np.linalg.lstsq(
+                others, y - sign * (g - w) * A[:, 0], rcond=None)[0]) ** 2)) - best
+                for g in grid[::40]]
+            k = int(np.argmax(np.array(rise) >= crit))
+            exact.append(sign * grid[::40][k])
+        got = prof[a]["resistance"]
+        assert math.isfinite(got.low) and math.isfinite(got.high), (a, got)
+        assert got.low <= exact[0] + 0.01 and got.high >= exact[1] - 0.01, (a, got, exact)
+        assert -2.5 <= got.low and got.high <= 2.5

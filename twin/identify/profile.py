@@ -189,9 +189,11 @@ def profile_of(problem: Problem, sol: Solution, mask: np.ndarray,
     Each side takes one point where the linearised profile crosses the threshold; the end
     is placed where that point's rise says (the square root of the rise is linear in the
     distance for a quadratic cost), and checked by a second point where the first rose to
-    less than half or more than twice the threshold; each point costs two replays (a point
-    is a real replay with the others re-fitted, so its rise is at most the profile's: a
-    rise below the threshold is certain). A side whose room to the coordinate's bound is
+    less than half or more than twice the threshold; where that second point fell below
+    the threshold inside a first that rose above it, a third halves the bracket and the
+    end is the nearest point above (``_ends``); each point costs two replays (a point is a real
+    replay with the others re-fitted about, so its rise is at least the profile's: a rise
+    below the threshold is certain). A side whose room to the coordinate's bound is
     below a thousandth of its finite-difference step ends at the bound, without a point.
     The first points of both sides come before the second ones.
     """
@@ -238,9 +240,9 @@ def profile_of(problem: Problem, sol: Solution, mask: np.ndarray,
                     ends[a][side] = x0[a]
             limit.append(room)
             delta.append({a: min(half[a], room[a]) for a in todo if room[a] > tiny})
-        first: list[dict[str, tuple[float, float]]] = [{}, {}]
+        seen: list[dict[str, list[tuple[float, float]]]] = [{}, {}]
         settled: set[str] = set()
-        for attempt in range(2):   # the first point of both sides, then the second ones
+        for attempt in range(POINTS):   # the first point of both sides, then the next ones
             for side, sign in enumerate((-1.0, 1.0)):
                 todo_side = {a: d for a, d in delta[side].items() if a not in settled}
                 if not todo_side:
@@ -248,7 +250,7 @@ def profile_of(problem: Problem, sol: Solution, mask: np.ndarray,
                     continue
                 rise, moved = _point(problem, sol, mask, start, fixed, dirs,
                                      {a: sign * d for a, d in todo_side.items()}, sse0)
-                delta[side] = _ends(todo_side, rise, moved, crit, limit[side], first[side],
+                delta[side] = _ends(todo_side, rise, moved, crit, limit[side], seen[side],
                                     ends, x0, side, sign, attempt, better)
                 if settle is not None:   # below the threshold beyond the tolerance:
                     for a, d in todo_side.items():   # wide, whatever the other points say
@@ -260,38 +262,63 @@ def profile_of(problem: Problem, sol: Solution, mask: np.ndarray,
     return out
 
 
+POINTS = 3
+"""Profile points per side at most: the first, the one that checks it, and one more only
+where the second fell below the threshold inside a first that rose above it (the end lies
+between them: the third halves that bracket)."""
+
+
 def _ends(delta: dict[str, float], rise: dict[str, float], moved: dict[str, AxisParams],
-          crit: dict[str, float], limit: dict[str, float], first: dict[str, tuple[float, float]],
-          ends: dict[str, list[float]], x0: dict[str, float], side: int, sign: float,
-          attempt: int, better: dict[str, tuple[float, AxisParams] | None]
-          ) -> dict[str, float]:
+          crit: dict[str, float], limit: dict[str, float],
+          seen: dict[str, list[tuple[float, float]]], ends: dict[str, list[float]],
+          x0: dict[str, float], side: int, sign: float, attempt: int,
+          better: dict[str, tuple[float, AxisParams] | None]) -> dict[str, float]:
     """One profile point's verdict per axis (``profile_of``): the end it places on its
     side, a lower point than the optimum (``better``), and where the next point of the side
-    goes (returned; none where this one settles the end)."""
+    goes (returned; none where this one settles the end).
+
+    ``seen[axis]`` collects the side's points, in order, as (distance, √rise). The end lies
+    beyond the furthest point below the threshold (certain: the others only re-fitted
+    about, a point's rise is at least the profile's). Where a point further out rose above
+    it, the end is placed on the secant of √rise between the two (exact for a quadratic
+    cost; the optimum counts as a point below). Where the point below was taken inside one
+    that had risen above (a profile flat, then steep: a dead zone), √rise is not linear
+    between them and their secant would end the interval inside the flat part, narrower
+    than the data allow: the end is then the nearest point above, after one more point
+    halfway between them. With no point above, the end is extrapolated from the furthest
+    point below."""
     nxt = {}
     for a, d in delta.items():
         r = rise[a]
         if r < -IMPROVE * crit[a] and (better[a] is None or r < better[a][0]):
             better[a] = (r, moved[a])
         q, qr = math.sqrt(crit[a]), math.sqrt(max(r, 0.0))
-        if r >= crit[a]:   # the end lies inside: secant on sqrt(rise)
-            d0, q0 = first.get(a, (0.0, 0.0))
-            if d0 >= d:
-                d0, q0 = 0.0, 0.0
-            est = d0 + (d - d0) * (q - q0) / (qr - q0) if qr > q0 else d
+        points = seen.setdefault(a, [(0.0, 0.0)])   # the optimum: no rise
+        points.append((d, qr))
+        k_below = max((k for k, p in enumerate(points) if p[1] < q),
+                      key=lambda k: points[k][0])
+        below = points[k_below]
+        above = [p for p in points if p[1] >= q and p[0] > below[0]]
+        inside = any(p in above for p in points[:k_below])   # below taken after above
+        if above and not inside:   # the end lies between: secant on sqrt(rise)
+            out = min(above, key=lambda p: p[0])
+            est = below[0] + (out[0] - below[0]) * (q - below[1]) / (out[1] - below[1])
             ends[a][side] = x0[a] + sign * est
             if attempt == 0 and r > 2.0 * crit[a]:
-                first[a] = (d, qr)
-                nxt[a] = est
+                nxt[a] = est   # a far first point's end checked by a second
+        elif above:   # a point below inside one above: the nearest above, after a halving
+            out = min(above, key=lambda p: p[0])
+            ends[a][side] = x0[a] + sign * out[0]
+            if attempt == 1:
+                nxt[a] = 0.5 * (below[0] + out[0])
         elif d >= limit[a] * (1.0 - 1e-9):
             ends[a][side] = math.nan   # open within the reach
         else:   # below the threshold: on, as far as the square root says
             est = d * q / qr if qr > 0.0 else limit[a]
-            close = r > 0.5 * crit[a] or attempt == 1
+            close = r > 0.5 * crit[a] or attempt >= 1
             ends[a][side] = (x0[a] + sign * est if close and est < limit[a]
                              else math.nan)
             if attempt == 0 and r <= 0.5 * crit[a]:
-                first[a] = (d, qr)
                 nxt[a] = min(est * 1.05, limit[a])
     return nxt
 
