@@ -189,3 +189,32 @@ def test_a_phase_is_disturbed_by_a_lost_slot_or_a_tick_half_a_period_late(skippe
                                                                            want):
     stats = TickStats(5e-3, 100, 100 - skipped, 0, skipped, 1.0, 2.0, late_us, 5e-4)
     assert disturbed(stats) is want
+
+
+class _SlowWrite(SimDriver):
+    """The twin behind a loop whose write now and then takes 8 ms (1.6 periods): the next
+    tick reads the machine at least 3 ms after its slot's deadline."""
+
+    writes = 0
+
+    def write(self, outputs):
+        self.writes += 1
+        super().write(outputs)
+        if self.writes % 50 == 25:
+            time.sleep(0.008)
+
+
+def test_a_paced_log_holds_when_each_tick_read_the_machine():
+    """A tick that ran late read the machine late, and its volts took over late: the log's
+    time is when its read went out, not its slot's deadline (a replay on the deadlines
+    applied the previous volts for a period too short). Ticks on time keep the period."""
+    base = load_machine("tomsk_xy")
+    plant = Plant(base, noise=False)
+    plant.reset()
+    period = base.controller.period
+    plan = [Piece("steps", "speed", 0.3, 1e-3), Piece("steps", "speed", 0.1, 0.0)]
+    log = run_plan(_SlowWrite(plant, period), base, plan, paced=True)
+    steps = np.diff(log.data["t"])
+    off_grid = np.abs(steps / period - np.round(steps / period)) * period
+    assert off_grid.max() >= 2e-3            # a late tick, at its own time
+    assert np.median(np.abs(steps - period)) < 2e-4   # the others on their slots
