@@ -165,13 +165,18 @@ class _Stalling(SimDriver):
         return super().read()
 
 
-def test_a_paced_phase_disturbed_by_a_stall_is_measured_again():
+def _paced_steps(driver):
+    """Two speed steps of tomsk_xy's twin run paced through ``driver`` (a SimDriver class)."""
     base = load_machine("tomsk_xy")
     plant = Plant(base, noise=False)
     plant.reset()
-    period = base.controller.period
     plan = [Piece("steps", "speed", 0.3, 1e-3), Piece("steps", "speed", 0.1, 0.0)]
-    log = run_plan(_Stalling(plant, period), base, plan, paced=True)
+    return run_plan(driver(plant, base.controller.period), base, plan, paced=True)
+
+
+def test_a_paced_phase_disturbed_by_a_stall_is_measured_again():
+    period = load_machine("tomsk_xy").controller.period
+    log = _paced_steps(_Stalling)
     reports = log.notes["deadlines"]
     first = reports[0]
     assert first["attempt"] == 0 and first["skipped"] >= 2   # the stall lost its slots
@@ -208,14 +213,11 @@ class _SlowWrite(SimDriver):
 def test_a_paced_log_holds_when_each_tick_read_the_machine():
     """A tick that ran late read the machine late, and its volts took over late: the log's
     time is when its read went out, not its slot's deadline (a replay on the deadlines
-    applied the previous volts for a period too short). Ticks on time keep the period."""
-    base = load_machine("tomsk_xy")
-    plant = Plant(base, noise=False)
-    plant.reset()
-    period = base.controller.period
-    plan = [Piece("steps", "speed", 0.3, 1e-3), Piece("steps", "speed", 0.1, 0.0)]
-    log = run_plan(_SlowWrite(plant, period), base, plan, paced=True)
-    steps = np.diff(log.data["t"])
-    off_grid = np.abs(steps / period - np.round(steps / period)) * period
-    assert off_grid.max() >= 1e-3            # a late tick, at its own time
-    assert np.median(np.abs(steps - period)) < 2e-4   # the others on their slots
+    applied the previous volts for a period too short). A loaded host makes more ticks late,
+    never early, so both checks hold under load."""
+    period = load_machine("tomsk_xy").controller.period
+    log = _paced_steps(_SlowWrite)
+    t = log.data["t"]
+    late = (t - t[0]) - np.arange(len(t)) * period     # after its slot (the first on time)
+    assert late.min() >= -1e-4     # no read logged before its slot (a loaded host: later)
+    assert late.max() >= 1e-3      # a tick after a slow write, at its own time (was 0)

@@ -49,9 +49,12 @@ import math
 from collections.abc import Iterable, Iterator
 from typing import Any, NamedTuple
 
-from twin.controller.fair import FairedLine, fair
+import numba
+import numpy as np
+
+from twin.controller.fair import FairedLines, fair
 from twin.controller.gcode.items import PathControl
-from twin.controller.geometry import Arc, Line
+from twin.controller.geometry import Arc, Line, arc_span, hypot
 from twin.errors import ConfigError
 
 __all__ = ["MIN_ANGLE", "MIN_RADIUS", "BlendedBlock", "Blender", "blend_radius"]
@@ -62,10 +65,14 @@ MIN_RADIUS = 1e-7
 """A blend tighter than this (m) is not made: the node stays a kink (an exact stop)."""
 _SNAP = 1e-9
 """What is left of a line between its two blends below this (m) is nothing."""
-_STILL = (0.0, 0.0)
-"""The moves of a line's vertices that fairing did not touch."""
+_ARC_TOL = 4.0 * _SNAP
+"""How far a blend's end may lie off its circle (m): rounding only."""
+_new = tuple.__new__
+"""``_new(BlendedBlock, (segment, feed, line, blend))``: the tuple without the Python-level
+``__new__`` of a NamedTuple (two per blended line)."""
 
 
+@numba.njit(cache=True)
 def blend_radius(angle: float, room: float, tolerance: float) -> float:
     """Radius of the blend at a kink of deflection ``angle`` (rad, 0 < angle < π) (m).
 
@@ -101,14 +108,6 @@ class BlendedBlock(NamedTuple):
     blend: bool = False
 
 
-class _Pending:
-    """A line waiting for its successor: as programmed (``segment``, ``origin``, ``end``),
-    and its start as already trimmed by the blend before it (``start``)."""
-
-    __slots__ = ("end", "feed", "half", "line", "moved", "origin", "segment", "start", "ux",
-                 "uy")
-
-
 class Blender:
     """Round the line-to-line kinks of a stream of motion blocks (see the module doc).
 
@@ -123,6 +122,10 @@ class Blender:
     Use ``blend(blocks)`` on an iterable of ``BlendedBlock``s (or ``(segment, feed, line)``
     tuples) and barriers: anything that is not a tuple (a dwell, an event, the program end)
     flushes the pending line unblended and passes through in order.
+
+    The contiguous feed lines come from `twin.controller.fair` in batches (faired, or as
+    programmed without ``fairing``), and each batch's corners are computed at once,
+    compiled (``_corners``); a line outside a batch (in G61) is never blended.
     """
 
     def __init__(self, tolerance: float, *, fairing: bool = True):
@@ -139,9 +142,9 @@ class Blender:
         An exception of the source (a G-code error further on, a move outside the work zone)
         comes after the pending line, flushed unblended: what was read before it still runs.
         """
-        pend: _Pending | None = None
-        source = iter(fair(blocks, self.tolerance, self._path_tolerance) if self.fairing
-                      else blocks)
+        pend: list | None = None            # the last line of the last batch (`_batch`)
+        source = iter(fair(blocks, self.tolerance, self._path_tolerance, self.fairing))
+        out: list[BlendedBlock] = []
         while True:
             try:
                 item = next(source)
@@ -149,45 +152,32 @@ class Blender:
                 break
             except Exception:
                 if pend is not None:
-                    yield self._flush(pend)
+                    yield _flush(pend)
                 raise
+            if type(item) is FairedLines:
+                try:
+                    pend = self._batch(pend, item, out)
+                finally:                    # a fault at a corner: what came before runs
+                    yield from out
+                    out.clear()
+                continue
+            if pend is not None:
+                yield _flush(pend)
+                pend = None
             if not isinstance(item, tuple):
-                if pend is not None:
-                    yield self._flush(pend)
-                    pend = None
                 if type(item) is PathControl:
                     self.tolerance = self._path_tolerance(item)
                 yield item
                 continue
-            seg, feed, line = item[0], item[1], item[2]
-            if type(seg) is not Line or feed is None:
-                if pend is not None:
-                    yield self._flush(pend)
-                    pend = None
-                yield item if type(item) is BlendedBlock else BlendedBlock(seg, feed, line)
-                continue
-            nxt = _Pending()
-            nxt.segment = seg
-            nxt.origin, nxt.end = seg._ends
-            nxt.start = nxt.origin
-            nxt.ux, nxt.uy = seg._ux, seg._uy
-            nxt.half = 0.5 * seg.length
-            nxt.feed, nxt.line = feed, line
-            nxt.moved = item[3] if type(item) is FairedLine else _STILL
-            if pend is None:
-                pend = nxt
-                continue
-            arc = self._corner(pend, nxt)
-            if arc is None:
-                yield self._flush(pend)
+            # not a batch's line (an arc, a rapid, a line in G61): nothing to blend
+            seg, feed = item[0], item[1]
+            if type(seg) is Line and feed is not None:
+                yield _new(BlendedBlock, (seg, feed, item[2], False))
             else:
-                trimmed, corner = arc
-                if trimmed is not None:
-                    yield trimmed
-                yield corner
-            pend = nxt
+                yield item if type(item) is BlendedBlock else _new(BlendedBlock,
+                                                                   (seg, feed, item[2], False))
         if pend is not None:
-            yield self._flush(pend)
+            yield _flush(pend)
 
     # ------------------------------------------------------------------ internals
     def _path_tolerance(self, control: PathControl) -> float:
@@ -197,47 +187,126 @@ class Blender:
             return 0.0
         return control.tolerance if control.tolerance else self.default
 
-    @staticmethod
-    def _flush(p: _Pending) -> BlendedBlock:
-        """The pending line from its trimmed start to its programmed end."""
-        seg = p.segment if p.start is p.origin else Line.between(p.start, p.end)
-        return BlendedBlock(seg, p.feed, p.line)
+    def _batch(self, pend: list | None, batch: FairedLines, out: list) -> list:
+        """Blend the kinks from the pending line through a batch of lines (``out`` gets the
+        blocks that are done); the new pending line: [segment, origin, end, start, start's
+        move, end's move, feed, line, trimmed] (its start trimmed by the blend before it
+        when ``trimmed``)."""
+        points, moved, lines = batch
+        k = 0
+        if pend is None:
+            seg, feed, line = lines[0]
+            if points[0] == points[1]:      # a line of zero length: its error
+                Line.between(points[0], points[1])
+            pend = [seg, points[0], points[1], points[0], moved[0], moved[1], feed, line,
+                    False]
+            k = 1
+        a_seg, (ox, oy), a_end, a_start, a_m0, a_m1, a_feed, a_line, a_trim = pend
+        corners = _corners(np.array(points[k:], dtype=float),
+                           np.array(moved[k:], dtype=float),
+                           (ox, oy, a_end[0], a_end[1], a_start[0], a_start[1], a_m0, a_m1),
+                           self.tolerance)
+        between, made, append, blends = Line.between, Arc.made, out.append, 0
+        a_origin = pend[1]
+        for c, (seg, feed, line), p0, p1, m0, m1 in zip(corners.tolist(), lines[k:],
+                                                        points[k:], points[k + 1:], moved[k:],
+                                                        moved[k + 1:], strict=False):
+            kind = c[0]
+            if kind == 0.0:                 # no blend: the line before to its end
+                append(_new(BlendedBlock, (between(a_start, a_end) if a_trim or a_m0 or a_m1
+                                           else a_seg, a_feed, a_line, False)))
+                start, trim = p0, False
+            elif kind < 0.0:                # a line of zero length: its error
+                between(p0, p1)
+            else:
+                p_in, start, center = (c[2], c[3]), (c[4], c[5]), (c[6], c[7])
+                ccw = c[11] > 0.0
+                if kind == 2.0:             # off its circle: Arc's error
+                    Arc.between(p_in, start, center, ccw=ccw, tol=_ARC_TOL)
+                if c[1]:                    # what is left of the line before
+                    append(_new(BlendedBlock, (between(a_start, p_in), a_feed, a_line, False)))
+                append(_new(BlendedBlock, (made(p_in, start, center, ccw, c[8], c[9], c[10],
+                                                (c[12], c[13], c[14], c[15])),
+                                           a_feed if a_feed < feed else feed, line, True)))
+                blends += 1
+                trim = True
+            a_seg, a_origin, a_end, a_start, a_m0, a_m1, a_feed, a_line, a_trim = \
+                seg, p0, p1, start, m0, m1, feed, line, trim
+        self.blends += blends
+        return [a_seg, a_origin, a_end, a_start, a_m0, a_m1, a_feed, a_line, a_trim]
 
-    def _corner(self, a: _Pending, b: _Pending) -> tuple[BlendedBlock | None, BlendedBlock] | None:
-        """Blend the kink between ``a`` (pending) and ``b`` (next): the trimmed ``a`` (None
-        if nothing is left of it) and the arc; ``b.start`` is trimmed. None: no blend."""
-        cross = a.ux * b.uy - a.uy * b.ux
-        dot = a.ux * b.ux + a.uy * b.uy
+
+def _flush(p: list) -> BlendedBlock:
+    """The pending line from its (trimmed) start to its end; untrimmed and not moved by the
+    fairing, the segment as programmed."""
+    seg, _, end, start, m0, m1, feed, line, trimmed = p
+    if trimmed or m0 or m1:
+        seg = Line.between(start, end)
+    return _new(BlendedBlock, (seg, feed, line, False))
+
+
+@numba.njit(cache=True)
+def _corners(points, moved, pend, tolerance):  # pragma: no cover - compiled
+    """The blends from a pending line through lines ``points[k] → points[k + 1]`` (m) in
+    turn: per line, [kind (0 none, 1 a blend before it, 2 a blend off its circle, −1 the line
+    has no length), whether the line before is left before the blend, the blend's start,
+    end and centre (x, y), its radius, start angle and |sweep|, its sense (±1), its end
+    tangents (`arc_span`)].
+
+    ``pend``: the pending line's origin, end and (trimmed) start, and its vertices' moves;
+    ``moved``: the points' moves (fairing). The arithmetic is the planner's `Line`
+    (CPython's `hypot`) and `Arc` (`arc_span`) own."""
+    ox, oy, ex, ey, sx, sy, m0, m1 = pend
+    length = hypot(ex - ox, ey - oy)
+    aux, auy, ahalf = (ex - ox) / length, (ey - oy) / length, 0.5 * length
+    n = len(points) - 1
+    out = np.zeros((n, 16))
+    for k in range(n):
+        bx0, by0 = points[k, 0], points[k, 1]
+        bx1, by1 = points[k + 1, 0], points[k + 1, 1]
+        dx, dy = bx1 - bx0, by1 - by0
+        length = hypot(dx, dy)
+        if length == 0.0:
+            out[k, 0] = -1.0
+            return out[:k + 1]
+        bux, buy, bhalf = dx / length, dy / length, 0.5 * length
+        bsx, bsy = bx0, by0
+        cross = aux * buy - auy * bux
+        dot = aux * bux + auy * buy
         angle = math.atan2(abs(cross), dot)
-        if angle < MIN_ANGLE or self.tolerance == 0.0:
-            return None
-        room = min(a.half, b.half)
-        # the vertices' own moves (fairing) come off the tolerance: within δ_b in all
-        tolerance = self.tolerance - max(a.moved[0], a.moved[1], b.moved[1])
-        radius = blend_radius(angle, room, tolerance)
-        if not radius >= MIN_RADIUS:
-            return None
-        reach = radius * math.tan(0.5 * angle)
-        vx, vy = a.end
-        # the tangent points; half a line exactly is its midpoint, computed once for both
-        # blends of that line so that they meet without a gap
-        p_in = _midpoint(a) if reach >= a.half else (vx - reach * a.ux, vy - reach * a.uy)
-        p_out = _midpoint(b) if reach >= b.half else (vx + reach * b.ux, vy + reach * b.uy)
-        trimmed = None
-        if math.dist(a.start, p_in) > _SNAP:
-            trimmed = BlendedBlock(Line.between(a.start, p_in), a.feed, a.line)
-        else:                               # the blends of this line meet
-            p_in = a.start
-        ccw = cross > 0.0
-        nx, ny = (-a.uy, a.ux) if ccw else (a.uy, -a.ux)
-        center = (p_in[0] + radius * nx, p_in[1] + radius * ny)
-        arc = Arc.between(p_in, p_out, center, ccw=ccw, tol=4.0 * _SNAP)
-        self.blends += 1
-        b.start = p_out
-        feed = a.feed if a.feed < b.feed else b.feed
-        return trimmed, BlendedBlock(arc, feed, b.line, blend=True)
-
-
-def _midpoint(p: _Pending) -> tuple[float, float]:
-    (x0, y0), (x1, y1) = p.origin, p.end
-    return (0.5 * (x0 + x1), 0.5 * (y0 + y1))
+        if not (angle < MIN_ANGLE or tolerance == 0.0):
+            room = min(ahalf, bhalf)
+            # the vertices' own moves (fairing) come off the tolerance: within δ_b in all
+            radius = blend_radius(angle, room, tolerance - max(m0, m1, moved[k + 1]))
+            if radius >= MIN_RADIUS:
+                reach = radius * math.tan(0.5 * angle)
+                # the tangent points; half a line exactly is its midpoint, computed once for
+                # both blends of that line so that they meet without a gap
+                if reach >= ahalf:
+                    px, py = 0.5 * (ox + ex), 0.5 * (oy + ey)
+                else:
+                    px, py = ex - reach * aux, ey - reach * auy
+                if reach >= bhalf:
+                    qx, qy = 0.5 * (bx0 + bx1), 0.5 * (by0 + by1)
+                else:
+                    qx, qy = ex + reach * bux, ey + reach * buy
+                left = hypot(sx - px, sy - py) > _SNAP
+                if not left:                # the blends of this line meet
+                    px, py = sx, sy
+                ccw = cross > 0.0
+                nx, ny = (-auy, aux) if ccw else (auy, -aux)
+                cx, cy = px + radius * nx, py + radius * ny
+                sign = 1.0 if ccw else -1.0
+                r, r_end, theta0, span, tangents = arc_span(px, py, qx, qy, cx, cy, sign, 0,
+                                                            _ARC_TOL)
+                out[k, 0] = 1.0 if r != 0.0 and abs(r_end - r) <= _ARC_TOL else 2.0
+                out[k, 1] = 1.0 if left else 0.0
+                out[k, 2], out[k, 3], out[k, 4], out[k, 5] = px, py, qx, qy
+                out[k, 6], out[k, 7], out[k, 8], out[k, 9] = cx, cy, r, theta0
+                out[k, 10], out[k, 11] = span, sign
+                out[k, 12], out[k, 13], out[k, 14], out[k, 15] = tangents
+                bsx, bsy = qx, qy
+        ox, oy, ex, ey, sx, sy = bx0, by0, bx1, by1, bsx, bsy
+        m0, m1 = moved[k], moved[k + 1]
+        aux, auy, ahalf = bux, buy, bhalf
+    return out

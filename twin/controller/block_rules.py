@@ -11,7 +11,8 @@ jerk, the jerk that step shows), where the curvature jumps the step of the norma
 acceleration as the samples see it; ``BlockRules.follow`` lets a sliver of line between
 two curves carry the curvature across. ``BlockRules.joins`` says whether a block may join a
 run; ``open_run``, ``absorb`` and ``close_run`` grow a run and close it into one window
-block.
+block. ``BlockRules.slow`` caps a block or run below its cap with the tangential limits its
+arcs allow there (the stop zones of `twin.controller.stop_zones`).
 """
 
 from __future__ import annotations
@@ -36,6 +37,8 @@ most 1 − RUN_CAP_SHARE (5 %) of the time of the run with it at the lower cap, 
 view at the higher. So caps within about 5 % join, and so does a short block, or a short
 start of a run, whose cap is further off: a run cut at every scatter of the caps of a
 chorded curve would confine its changes of speed to pieces a few chords long."""
+
+_SLACK = 1.0 - RUN_CAP_SHARE
 
 RUN_LIMIT_SHARE = 0.6
 """A block joins a run only if its tangential acceleration and jerk limits agree with the
@@ -71,8 +74,9 @@ class WindowBlock:
     length their sum, its caps their lowest (``acc``, ``jerk``: the tangential limits).
     """
 
-    __slots__ = ("acc", "blend", "feed", "index", "jerk", "k0", "k1", "length", "limits",
-                 "line", "members", "rapid", "segment", "t0x", "t0y", "t1x", "t1y", "v_nom")
+    __slots__ = ("acc", "blend", "feed", "from_k", "from_x", "from_y", "index", "jerk", "k0",
+                 "k1", "length", "limits", "line", "members", "node", "rapid", "segment", "t0x",
+                 "t0y", "t1x", "t1y", "v_nom")
 
 
 class BlockRules:
@@ -134,25 +138,35 @@ class BlockRules:
         # a sliver: ℓ·√(A·|κ|) ≤ SLIVER_JERK·J·T², written ℓ·√|κ| ≤ SLIVER_JERK·J·T²/√A
         self._sliver = None if self._jerk_step is None else (
             SLIVER_JERK * j_total * period * period / math.sqrt(limits.max_acceleration))
+        self.slivers = self._sliver is not None     # whether `follow` can change a block
         self._curve_step = float(curve_step)
         self._view = view
         self._limits_cache: dict[tuple[float, float, float], Limits] = {}
+        self._top = limits.max_velocity
         self.count = 0
 
     def full_speed(self, feed: float | None) -> float:
         """A block's speed before any other cap (m/s): rapid, or the feed within the
         contour limit."""
-        return self.rapid_velocity if feed is None else min(feed, self.limits.max_velocity)
+        top = self._top
+        return self.rapid_velocity if feed is None else (top if top < feed else feed)
 
-    def block(self, seg: Segment, feed: float | None, line: int, blend: bool = False
-               ) -> WindowBlock:
-        v_cap = self.full_speed(feed)
+    def block(self, seg: Segment, feed: float | None, line: int, blend: bool = False,
+              index: int | None = None) -> WindowBlock:
+        """The window block of ``seg``: its caps, tangential limits, end tangents and
+        curvatures; numbered ``count`` (counted), or ``index`` (a part of a block already
+        numbered: `twin.controller.stop_zones` splits blocks next to stops)."""
+        top = self._top                     # full_speed, inlined (once per block)
+        v_cap = self.rapid_velocity if feed is None else (top if top < feed else feed)
         b = WindowBlock()
         b.segment, b.feed, b.line, b.blend = seg, feed, line, blend
         b.rapid = feed is None
         b.length = seg.length
-        b.index = self.count
-        self.count += 1
+        if index is None:
+            b.index = self.count
+            self.count += 1
+        else:
+            b.index = index
         if type(seg) is Line:
             ux, uy = seg._ux, seg._uy      # float fast path (same package)
             b.t0x = b.t1x = ux
@@ -161,26 +175,69 @@ class BlockRules:
             v_nom, acc, jerk = self._caps.line_caps(abs(ux), abs(uy), v_cap)
         else:
             if type(seg) is Arc:
-                b.t0x, b.t0y, b.t1x, b.t1y = seg.end_tangents()
+                b.t0x, b.t0y, b.t1x, b.t1y = seg._ends_t   # end_tangents (same package)
                 b.k0 = b.k1 = seg._k
             else:
                 _, _, b.t0x, b.t0y, b.k0, _ = seg.frame(0.0)
                 _, _, b.t1x, b.t1y, b.k1, _ = seg.frame(seg.length)
             v_nom, acc, jerk = self._caps.curve_caps(seg, v_cap, blend)
-        b.v_nom = v_nom
-        if b.k0 != 0.0:                     # a curve's caps are its own: no reuse
-            lim = tangential_limits(v_nom, acc, jerk)
-        else:                               # lines of one direction and feed share theirs
-            key = (v_nom, acc, jerk)
-            lim = self._limits_cache.get(key)
-            if lim is None:
-                if len(self._limits_cache) > 256:
-                    self._limits_cache.clear()
-                lim = self._limits_cache[key] = tangential_limits(v_nom, acc, jerk)
-        b.limits = lim
-        b.acc, b.jerk = acc, jerk
+        b.v_nom, b.acc, b.jerk = v_nom, acc, jerk
+        b.limits = None                     # made when needed (`limits_of`)
         b.members = None
+        b.from_x = math.nan                 # no node limit kept yet (`node_cap`)
         return b
+
+    def limits_of(self, b: WindowBlock) -> Limits:
+        """``b``'s tangential limits (``b.limits``), made on first use: a block that joins
+        a run never needs its own. Lines of one direction and feed share theirs."""
+        lim = b.limits
+        if lim is not None:
+            return lim
+        if type(b.segment) is not Line:     # a curve's caps are its own: no reuse
+            lim = b.limits = tangential_limits(b.v_nom, b.acc, b.jerk)
+            return lim
+        key = (b.v_nom, b.acc, b.jerk)
+        lim = self._limits_cache.get(key)
+        if lim is None:
+            if len(self._limits_cache) > 256:
+                self._limits_cache.clear()
+            lim = self._limits_cache[key] = tangential_limits(*key)
+        b.limits = lim
+        return lim
+
+    def curve_limits(self, seg: Arc, v: float) -> tuple[float, float]:
+        """Tangential acceleration (m/s²) and jerk (m/s³) of the arc ``seg`` at speeds up
+        to ``v`` (m/s; within its caps): `SegmentLimits.tangential`, as its caps give them
+        at its cap."""
+        return self._caps.tangential(v, 1.0 / seg.radius)
+
+    def slow(self, b: WindowBlock, v: float) -> None:
+        """Cap ``b`` (a block or a run) at ``v`` (m/s) and raise its tangential limits to
+        what its arcs allow up to that speed (a curve's limits are computed at its cap:
+        below it the centripetal acceleration and the curvature's jerk leave more of the
+        budgets to the tangent). Nothing changes for ``v ≥ b.v_nom``, for a block without
+        an arc (a line's limits do not depend on the speed), or with a curve other than an
+        arc (a spline's caps are sampled: left as they are)."""
+        if not v < b.v_nom:
+            return
+        acc = jerk = math.inf
+        arc = False
+        for m in b.members or (b,):
+            seg = m.segment
+            if type(seg) is Arc:
+                a, j = self.curve_limits(seg, v if v < m.v_nom else m.v_nom)
+                arc = True
+            elif type(seg) is Line:
+                a, j = m.acc, m.jerk
+            else:
+                return
+            if a < acc:
+                acc = a
+            if j < jerk:
+                jerk = j
+        if arc:
+            b.v_nom, b.acc, b.jerk = v, acc, jerk
+            b.limits = tangential_limits(v, acc, jerk)
 
     def follow(self, prev: WindowBlock, b: WindowBlock) -> None:
         """Note that ``b`` follows ``prev`` (consecutive feed blocks): a sliver of line after
@@ -199,8 +256,22 @@ class BlockRules:
     def node_cap(self, prev: WindowBlock, b: WindowBlock) -> float:
         """The speed limit of the node from ``prev`` to ``b`` (m/s): both segments' caps,
         and at a kink the corner model and the velocity step, where the curvature jumps the
-        step of the normal acceleration (module doc)."""
+        step of the normal acceleration (module doc); ``prev`` and ``b`` are blocks, not
+        runs. A node is asked for up to three times: its own part (`node_limit`) is kept on
+        ``b`` (``b.node``) with the end of ``prev`` it was computed for (``b.from_*``)."""
         emax = prev.v_nom if prev.v_nom < b.v_nom else b.v_nom
+        if b.from_x != prev.t1x or b.from_y != prev.t1y or b.from_k != prev.k1:
+            b.from_x, b.from_y, b.from_k = prev.t1x, prev.t1y, prev.k1
+            b.node = self.node_limit(prev, b)
+        node = b.node
+        return node if node < emax else emax
+
+    def node_limit(self, prev: WindowBlock, b: WindowBlock) -> float:
+        """The node's limit from its geometry alone (m/s; inf where nothing limits it): the
+        corner model and the velocity step at a kink, the step of the normal acceleration
+        where the curvature jumps. Blocks' ends are fixed once made (`follow` sets a
+        sliver's curvature before any node of it is asked for)."""
+        emax = math.inf
         cross = prev.t1x * b.t0y - prev.t1y * b.t0x
         dot = prev.t1x * b.t0x + prev.t1y * b.t0y
         angle = math.atan2(abs(cross), dot)
@@ -235,23 +306,25 @@ class BlockRules:
         (`slow_node`), neither the node nor the run's higher limits keep ``b`` apart."""
         if b.rapid or run.rapid:
             return APART
-        cap = run.v_nom
-        lo, hi = (b.v_nom, cap) if b.v_nom < cap else (cap, b.v_nom)
-        slowed = run.length if b.v_nom < cap else b.length      # what the lower cap slows
-        if slowed * (1.0 / lo - 1.0 / hi) > (1.0 - RUN_CAP_SHARE) * max(
-                (run.length + b.length) / lo, self._view / hi):
+        cap, v, length = run.v_nom, b.v_nom, run.length
+        if v < cap:                     # the lower cap slows the run so far
+            lo, hi, slowed = v, cap, length
+        else:                           # or the block
+            lo, hi, slowed = cap, v, b.length
+        both = length + b.length
+        time, view = both / lo, self._view / hi
+        if slowed * (1.0 / lo - 1.0 / hi) > _SLACK * (view if view > time else time):
             return APART
-        start = rest and self.slow_node(run, b, run.length)
-        share, short = RUN_LIMIT_SHARE, (1.0 - RUN_CAP_SHARE) * (run.length + b.length)
-        if ((b.acc < share * run.acc or b.jerk < share * run.jerk) and run.length > short
+        start = rest and self.slow_node(run, b, length)
+        share, short = RUN_LIMIT_SHARE, _SLACK * both
+        if ((b.acc < share * run.acc or b.jerk < share * run.jerk) and length > short
                 and not start):
             return APART                # the run's changes would be slowed
         if (b.acc * share > run.acc or b.jerk * share > run.jerk) and b.length > short:
             return APART                # the block's would
-        last = run.members[-1] if run.members else run
-        if not start and self.node_cap(last, b) < (cap if cap < b.v_nom else b.v_nom):
+        if not start and self.node_cap(run.members[-1], b) < lo:
             return APART
-        return TOO_LONG if run.length >= self._view else JOINS
+        return TOO_LONG if length >= self._view else JOINS
 
     def slow_node(self, run: WindowBlock, b: WindowBlock, length: float) -> bool:
         """Whether the node from ``run`` to ``b`` cannot bind because it lies ``length``

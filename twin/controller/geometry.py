@@ -22,7 +22,7 @@ import numpy as np
 
 from twin.errors import PlanningError
 
-__all__ = ["Arc", "Line", "Segment", "frozen"]
+__all__ = ["Arc", "Line", "Segment", "arc_span", "frozen", "hypot"]
 
 TAU = 2.0 * math.pi
 
@@ -39,6 +39,86 @@ def arc_point(cx: float, cy: float, r: float, theta0: float, k: float, sign: flo
     return cx + r * c, cy + r * sn, -sign * sn, sign * c
 
 
+_TINY = 2.2250738585072014e-308
+"""The smallest normal double."""
+
+
+@numba.njit(cache=True, inline="always")
+def _product(x: float, y: float) -> tuple[float, float]:
+    """x·y and its rounding error, exactly (Dekker's product of Veltkamp's halves)."""
+    t = x * 134217729.0
+    xh = t - (t - x)
+    t = y * 134217729.0
+    yh = t - (t - y)
+    xl, yl = x - xh, y - yh
+    p = xh * yh
+    q = xh * yl + xl * yh
+    z = p + q
+    return z, p - z + q + xl * yl
+
+
+@numba.njit(cache=True)
+def hypot(x: float, y: float) -> float:
+    """``math.hypot(x, y)`` as CPython computes it (its ``vector_norm``: a power-of-two
+    scaling, exact squares, a compensated sum and one correction of the square root), bit
+    for bit, compiled: the C library's ``hypot`` (NumPy's, numba's) differs from it in the
+    last bit now and then, and the planner's segments take their lengths from CPython's."""
+    ax, ay = abs(x), abs(y)
+    if math.isinf(ax) or math.isinf(ay):
+        return math.inf
+    if math.isnan(ax) or math.isnan(ay):
+        return math.nan
+    top = ax if ax > ay else ay
+    if top == 0.0:
+        return top
+    e = math.frexp(top)[1]
+    if e < -1023:               # subnormal: 2**-e would overflow
+        return _TINY * hypot(ax / _TINY, ay / _TINY)
+    scale = math.ldexp(1.0, -e)
+    total, frac1, frac2 = 1.0, 0.0, 0.0
+    for v in (ax * scale, ay * scale):
+        hi, lo = _product(v, v)
+        s = total + hi
+        frac2 += (total - s) + hi
+        total = s
+        frac1 += lo
+    h = math.sqrt(total - 1.0 + (frac1 + frac2))
+    hi, lo = _product(-h, h)
+    s = total + hi
+    frac2 += (total - s) + hi
+    total = s
+    frac1 += lo
+    h += (total - 1.0 + (frac1 + frac2)) / (2.0 * h)
+    return h / scale
+
+
+@numba.njit(cache=True)
+def arc_span(x0: float, y0: float, x1: float, y1: float, cx: float, cy: float, sign: float,
+             turns: int, tol: float) -> tuple[float, float, float, float, tuple[float, float,
+                                                                                  float, float]]:
+    """(radius, end's distance from the centre, start angle, |sweep|, end tangents) of the
+    arc about (cx, cy) from (x0, y0) to (x1, y1) (m, rad), ``sign`` +1 counter-clockwise,
+    with ``turns`` extra full turns; an end within ``tol`` of the start is a full circle.
+    The end tangents (t0x, t0y, t1x, t1y) are those of ``arc_point`` at 0 and at the
+    length (`Arc.end_tangents`). The one computation of an arc's shape: ``Arc`` and the
+    blender's compiled corners."""
+    sx, sy, ex, ey = x0 - cx, y0 - cy, x1 - cx, y1 - cy
+    theta0 = math.atan2(sy, sx)
+    if hypot(ex - sx, ey - sy) <= tol:
+        span = TAU
+    else:
+        span = ((math.atan2(ey, ex) - theta0) * sign) % TAU
+    if span == 0.0:
+        span = TAU
+    span += TAU * turns
+    radius = hypot(sx, sy)
+    # θ0 + κ·length, as Arc has them (no arc without a radius: Arc's error, not ours)
+    phi = theta0 + sign / radius * (radius * span) if radius != 0.0 else theta0
+    tangents = (-sign * math.sin(theta0), sign * math.cos(theta0), -sign * math.sin(phi),
+                sign * math.cos(phi))
+    return radius, hypot(ex, ey), theta0, span, tangents
+
+
 class Segment(ABC):
     """A piece of a planar path, parameterised by arc length.
 
@@ -53,6 +133,8 @@ class Segment(ABC):
     length : float
         Arc length (m), > 0.
     """
+
+    __slots__ = ()
 
     start: np.ndarray
     end: np.ndarray
@@ -174,6 +256,9 @@ class Segment(ABC):
 class Line(Segment):
     """Straight segment from ``start`` to ``end`` (m); they must differ."""
 
+    # slots: the planner makes and reads several per programmed line
+    __slots__ = ("_arrays", "_ends", "_ux", "_uy", "length")
+
     def __init__(self, start, end):
         # floats only: the planner builds one per block; the arrays come when asked
         self._set(_pair(start, "start"), _pair(end, "end"))
@@ -188,10 +273,10 @@ class Line(Segment):
 
     def _set(self, p0: tuple[float, float], p1: tuple[float, float]) -> None:
         dx, dy = p1[0] - p0[0], p1[1] - p0[1]
-        self.length = math.hypot(dx, dy)
-        if self.length == 0.0:
+        self.length = length = math.hypot(dx, dy)
+        if length == 0.0:
             raise PlanningError(f"line of zero length: start = end = {list(p0)}")
-        self._ux, self._uy = dx / self.length, dy / self.length
+        self._ux, self._uy = dx / length, dy / length
         self._ends = (p0, p1)
         self._arrays: tuple[np.ndarray, np.ndarray, np.ndarray] | None = None
 
@@ -277,6 +362,9 @@ class Arc(Segment):
         Zero radius, end off the circle, bad ``ccw``/``turns``/``tol``.
     """
 
+    __slots__ = ("_arrays", "_ends_t", "_k", "_sign", "_theta0", "_xy", "ccw", "length",
+                 "radius", "sweep", "turns")
+
     def __init__(self, start, end, center, *, ccw: bool, turns: int = 0, tol: float = 1e-9):
         if not isinstance(ccw, bool | np.bool_):
             raise PlanningError(f"ccw must be a bool, got {ccw!r}")
@@ -297,29 +385,41 @@ class Arc(Segment):
         arc._set(p0, p1, c, ccw, 0, tol)
         return arc
 
+    @classmethod
+    def made(cls, p0: tuple[float, float], p1: tuple[float, float], c: tuple[float, float],
+             ccw: bool, radius: float, theta0: float, span: float,
+             tangents: tuple[float, float, float, float]) -> Arc:
+        """The arc of less than a turn between points already given as finite floats whose
+        radius, start angle, |sweep| and end tangents `arc_span` has given and whose end
+        the caller has checked on the circle (the blender's compiled corners)."""
+        arc = cls.__new__(cls)
+        arc._fill(p0, p1, c, ccw, 0, radius, theta0, span, tangents)
+        return arc
+
     def _set(self, p0: tuple[float, float], p1: tuple[float, float], c: tuple[float, float],
              ccw: bool, turns: int, tol: float) -> None:
-        sx, sy, ex, ey = p0[0] - c[0], p0[1] - c[1], p1[0] - c[0], p1[1] - c[1]
-        self.radius = math.hypot(sx, sy)
-        end_radius = math.hypot(ex, ey)
-        if self.radius == 0.0:
+        radius, end_radius, theta0, span, tangents = arc_span(
+            p0[0], p0[1], p1[0], p1[1], c[0], c[1], 1.0 if ccw else -1.0, turns, tol)
+        if radius == 0.0:
             raise PlanningError(f"arc of zero radius: start = center = {list(p0)}")
-        if abs(end_radius - self.radius) > tol:
+        if abs(end_radius - radius) > tol:
             raise PlanningError(
                 f"arc end point is not on the circle: |end − center| = {end_radius!r} m, "
-                f"|start − center| = {self.radius!r} m, difference "
-                f"{abs(end_radius - self.radius):.3g} m > tol = {tol:.3g} m")
-        self.ccw = bool(ccw)
-        self._sign = 1.0 if ccw else -1.0
-        self._theta0 = math.atan2(sy, sx)
-        full = math.hypot(ex - sx, ey - sy) <= tol
-        span = TAU if full else ((math.atan2(ey, ex) - self._theta0) * self._sign) % TAU
-        span = (span or TAU) + TAU * int(turns)
+                f"|start − center| = {radius!r} m, difference "
+                f"{abs(end_radius - radius):.3g} m > tol = {tol:.3g} m")
+        self._fill(p0, p1, c, ccw, turns, radius, theta0, span, tangents)
+
+    def _fill(self, p0: tuple[float, float], p1: tuple[float, float], c: tuple[float, float],
+              ccw: bool, turns: int, radius: float, theta0: float, span: float,
+              tangents: tuple[float, float, float, float]) -> None:
+        sign = 1.0 if ccw else -1.0
+        self.radius, self.ccw, self._sign, self._theta0 = radius, bool(ccw), sign, theta0
         self.turns = int(turns)
-        self.sweep = self._sign * span
-        self.length = self.radius * span
-        self._k = self._sign / self.radius
+        self.sweep = sign * span
+        self.length = radius * span
+        self._k = sign / radius
         self._xy = (*c, *p0, *p1)
+        self._ends_t = tangents
         self._arrays: tuple[np.ndarray, np.ndarray, np.ndarray] | None = None
 
     @property
@@ -354,10 +454,7 @@ class Arc(Segment):
         """Unit tangents at the start and at the end, (t0x, t0y, t1x, t1y): those of
         ``frame(0)`` and ``frame(length)``, in the same arithmetic as ``arc_point``, for
         the planner's blocks without two compiled calls."""
-        sign, th0 = self._sign, self._theta0
-        phi = th0 + self._k * self.length
-        return -sign * math.sin(th0), sign * math.cos(th0), -sign * math.sin(phi), \
-            sign * math.cos(phi)
+        return self._ends_t                 # `arc_span` computed them with the arc
 
     def _points(self, s):
         phi = self._theta0 + self._k * s

@@ -89,9 +89,13 @@ class SegmentLimits:
             raise ValueError(f"axis_limits: two axes (x, y), got {len(self._axis_caps)}")
         lx, ly = self.axis_limits
         # the acceleration and jerk a curve may use in total (normal and tangential)
-        self._curve_totals = (
+        self._curve_totals = a_tot, j_tot = (
             min(limits.max_acceleration, lx.max_acceleration, ly.max_acceleration),
             min(limits.max_jerk, lx.max_jerk, ly.max_jerk))
+        # the budgets' shares, per segment: computed once (the same products)
+        self._centripetal = min(CENTRIPETAL * a_tot, self.curve_acceleration)
+        self._a_tot2 = a_tot * a_tot
+        self._jerk_shares = (CRUISE_JERK * j_tot, JERK_NORMAL * j_tot, JERK_TANGENTIAL * j_tot)
 
     def caps(self, segment: Segment, v_cap: float) -> tuple[float, float, float]:
         """(speed cap (m/s), tangential acceleration (m/s²), tangential jerk (m/s³))."""
@@ -123,9 +127,11 @@ class SegmentLimits:
         """Caps of an arc (exact) or any other curved segment (sampled); ``blend``: the
         arc rounds a kink (``twin.controller.blend``)."""
         lx, ly = self.axis_limits
-        a_tot, j_tot = self._curve_totals
         if type(seg) is Arc:
-            mx, my = _arc_tangent_extent(seg)
+            if v_cap <= lx.max_velocity and v_cap <= ly.max_velocity:
+                mx = my = 0.0          # a tangent component ≤ 1: no axis can cap the speed
+            else:
+                mx, my = _arc_tangent_extent(seg)
             kappa, dkappa = 1.0 / seg.radius, 0.0
         else:
             mx, my, kappa, dkappa = _sampled_extent(seg)
@@ -135,27 +141,40 @@ class SegmentLimits:
         if my * v > ly.max_velocity:
             v = ly.max_velocity / my
         if kappa > 0.0:
-            a_cap = CENTRIPETAL * a_tot
             if self.curve_quartic > 0.0:
                 # compensated: the shapers' fourth-order error on a curve; a blend is a
                 # corner, shorter than the shapers, which the compensation cannot reach
-                a_cap = min(a_cap, 1.0 / math.sqrt(self.curve_quartic * kappa))
+                a_cap = min(CENTRIPETAL * self._curve_totals[0],
+                            1.0 / math.sqrt(self.curve_quartic * kappa))
                 if blend:
                     a_cap = min(a_cap, self.curve_acceleration)
             else:
-                a_cap = min(a_cap, self.curve_acceleration)
-            v = min(v, math.sqrt(a_cap / kappa))
+                a_cap = self._centripetal
+            cap = math.sqrt(a_cap / kappa)
+            if cap < v:
+                v = cap
             if self.jerk:
-                v = min(v, (CRUISE_JERK * j_tot / math.hypot(kappa * kappa, dkappa))
-                        ** (1.0 / 3.0))
+                cap = (self._jerk_shares[0] / math.hypot(kappa * kappa, dkappa)) ** (1.0 / 3.0)
+                if cap < v:
+                    v = cap
+        return (v, *self.tangential(v, kappa, dkappa))
+
+    def tangential(self, v: float, kappa: float, dkappa: float = 0.0) -> tuple[float, float]:
+        """Tangential acceleration (m/s²) and jerk (m/s³) a curve of largest curvature
+        ``kappa`` (1/m) and curvature rate ``dkappa`` (1/m²) allows at speeds up to ``v``
+        (m/s, within its speed cap): the split of the budgets in the module doc."""
         a_n = v * v * kappa
-        a_t = math.sqrt(a_tot * a_tot - a_n * a_n)
+        a_t2 = self._a_tot2 - a_n * a_n
+        a_t = math.sqrt(0.0 if 0.0 > a_t2 else a_t2)
         if not self.jerk:
-            return v, a_t, j_tot
+            return a_t, self._curve_totals[1]
+        _, normal, tangential = self._jerk_shares
         v3 = v * v * v
         if kappa > 0.0:
-            a_t = min(a_t, (JERK_NORMAL * j_tot - v3 * dkappa) / (3.0 * v * kappa))
-        return v, a_t, JERK_TANGENTIAL * j_tot - v3 * kappa * kappa
+            cap = (normal - v3 * dkappa) / (3.0 * v * kappa)
+            if cap < a_t:
+                a_t = cap
+        return a_t, tangential - v3 * kappa * kappa
 
 
 def _max_abs_sin(a: float, b: float) -> float:

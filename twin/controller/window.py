@@ -102,6 +102,33 @@ def _commit(w: np.ndarray, head: int, n: int, kind: int, ka: float,
     return entry, v_end
 
 
+KIND, KA, KJ, HEAD, COUNT = range(5)
+"""The window's state vector: its law's code (`law_code`), its first row and its number of
+blocks; the compiled entry points read it, so a call passes few arguments (each costs the
+dispatch ~0.04 us)."""
+
+
+@numba.njit(cache=True)
+def _push(w: np.ndarray, st: np.ndarray, length: float, v_max: float, acc: float,
+          jerk: float, emax: float, linked: bool, commit: bool) -> tuple[float, float]:
+    """`_append`, then `_commit` when ``commit`` (else (-1, -1)), on the state ``st``."""
+    head, n, kind, ka, kj = int(st[HEAD]), int(st[COUNT]), int(st[KIND]), st[KA], st[KJ]
+    _append(w, head, n, kind, ka, kj, length, v_max, acc, jerk, emax, linked)
+    if not commit:
+        st[COUNT] = n + 1
+        return -1.0, -1.0
+    st[HEAD] = (head + 1) % w.shape[0]
+    return _commit(w, head, n + 1, kind, ka, kj)
+
+
+@numba.njit(cache=True)
+def _pop(w: np.ndarray, st: np.ndarray) -> tuple[float, float]:
+    """`_commit` on the state ``st``."""
+    head, n = int(st[HEAD]), int(st[COUNT])
+    st[HEAD], st[COUNT] = (head + 1) % w.shape[0], n - 1
+    return _commit(w, head, n, int(st[KIND]), st[KA], st[KJ])
+
+
 class Window:
     """The speeds of a look-ahead window of at most ``size`` blocks (compiled passes).
 
@@ -115,36 +142,38 @@ class Window:
 
     def __init__(self, law: str, size: int):
         self._law = law
-        self._kind, self._ka, self._kj = law_code(law)
         self._w = np.zeros((size + 1, len(COLUMNS)))
-        self._head = 0
+        self._st = np.array([*law_code(law), 0.0, 0.0])
         self._n = 0
 
     def __len__(self) -> int:
         return self._n
 
-    def append(self, length: float, limits: Limits, emax: float, linked: bool) -> None:
+    def append(self, length: float, limits: Limits, emax: float, linked: bool,
+               commit: bool = False) -> tuple[float, float] | None:
         """Add a block of ``length`` (m) and tangential ``limits``; ``emax`` caps its start
         (m/s: its node's cap, 0 at an exact stop), and, when ``linked``, so does how fast
-        the block before it can end. Runs the backward pass."""
+        the block before it can end. Runs the backward pass. ``commit``: then `commit`
+        (one compiled call), returning what it returns."""
         if not length >= 0.0:
             max_end_speed(self._law, 0.0, length, limits)       # raises, naming it
-        _append(self._w, self._head, self._n, self._kind, self._ka, self._kj, length,
-                limits.max_velocity, limits.max_acceleration, limits.max_jerk, emax, linked)
+        ends = _push(self._w, self._st, length, limits.max_velocity, limits.max_acceleration,
+                     limits.max_jerk, emax, linked, commit)
+        if commit:
+            return ends
         self._n += 1
+        return None
 
     def commit(self) -> tuple[float, float]:
         """Take out the oldest block: (its entry speed, its end speed) (m/s), the end
         speed being its successor's entry (0 with none); runs the forward pass."""
-        entry, v_end = _commit(self._w, self._head, self._n, self._kind, self._ka, self._kj)
-        self._head = (self._head + 1) % self._w.shape[0]
         self._n -= 1
-        return entry, v_end
+        return _pop(self._w, self._st)
 
     def rows(self) -> np.ndarray:
         """The window's rows, oldest first (a copy; see `COLUMNS`)."""
-        size = self._w.shape[0]
-        return self._w[[(self._head + k) % size for k in range(self._n)]].copy()
+        size, head = self._w.shape[0], int(self._st[HEAD])
+        return self._w[[(head + k) % size for k in range(self._n)]].copy()
 
 
 class PythonWindow:
@@ -158,7 +187,12 @@ class PythonWindow:
     def __len__(self) -> int:
         return len(self._rows)
 
-    def append(self, length: float, limits: Limits, emax: float, linked: bool) -> None:
+    def append(self, length: float, limits: Limits, emax: float, linked: bool,
+               commit: bool = False) -> tuple[float, float] | None:
+        self._append(length, limits, emax, linked)
+        return self.commit() if commit else None
+
+    def _append(self, length: float, limits: Limits, emax: float, linked: bool) -> None:
         floor = python_reach_floor(self._law, length, limits)
         rows = self._rows
         if linked:

@@ -530,12 +530,13 @@ def _chord_table(circles: Mapping[str, Any], before: Mapping[str, Any]) -> list[
             f"{cb} | {100 * c['radii'][r]['spread']:.1f} %"
             for cb, r in zip(cells, radii, strict=True)) + " |")
     worst = max(circles.items(), key=lambda kv: kv[1]["worst_spread"])
-    out += ["", "What remains is at the smallest radii and is the start and end of the "
-            "contour, not the chords' curvature: a contour whose first and last chord are "
-            "long enough to be a straight lead (0.1 mm and more at r = 0.5 mm) accelerates "
-            "on them at the line's limits, while an arc's tangential limits are set at its "
-            "speed cap for the whole block, also when it speeds up from rest (worst: "
-            f"{worst[0]}, {100 * worst[1]['worst_spread']:.1f} %)."]
+    out += ["", "The start and end of a contour were what remained (a straight lead "
+            "chord accelerating at a line's limits, an arc keeping the tangential limits of "
+            "its speed cap also when it speeds up from rest): the curves next to a stop now "
+            "take the limits of the speed reachable there, in zones of rising speed caps "
+            "(`twin.controller.stop_zones`), and a contour's lead chords join the first zone. "
+            f"Worst now: {worst[0]}, {100 * worst[1]['worst_spread']:.1f} %, at the "
+            "smallest radius."]
     return out
 
 

@@ -222,9 +222,12 @@ class Profile:
     _starts: tuple[float, ...] = field(init=False, repr=False)
 
     def __post_init__(self) -> None:
-        last = self.segments[-1] if self.segments else None
-        object.__setattr__(self, "duration", last.start + last.duration if last else 0.0)
-        object.__setattr__(self, "_starts", tuple(seg.start for seg in self.segments))
+        segments = self.segments
+        last = segments[-1] if segments else None
+        # the slots' own setters (the frozen class's __setattr__ is not called): one
+        # profile per block the interpolator reaches
+        _set_duration(self, last.start + last.duration if last else 0.0)
+        _set_starts(self, tuple([seg.start for seg in segments]))
 
     def at(self, t: float) -> tuple[float, float, float, float]:
         """Path state at time ``t`` (s).
@@ -326,3 +329,6 @@ class Profile:
             s_end, v_end = 0.0, v_start
         peak = max((max(p.at(0.0)[1], p.end()[1]) for p in pieces), default=v_start)
         return Profile(self.law, s_end, v_start, v_end, peak, tuple(pieces))
+
+
+_set_duration, _set_starts = (Profile.__dict__[name].__set__ for name in ("duration", "_starts"))
