@@ -341,3 +341,42 @@ def test_a_profile_flat_then_steep_ends_closed_and_not_inside_the_flat_part(seed
         assert math.isfinite(got.low) and math.isfinite(got.high), (a, got)
         assert got.low <= exact[0] + 0.01 and got.high >= exact[1] - 0.01, (a, got, exact)
         assert -2.5 <= got.low and got.high <= 2.5
+
+
+@pytest.mark.parametrize("seed", range(3))
+def test_a_joint_fit_its_caller_will_declare_takes_no_profile(seed, start):
+    """``joint_fit(unprofiled=…)``: where the caller says of the first least squares'
+    solution that it will keep BASE's values there, that solution comes back unprofiled (NaN
+    intervals, nothing held, no profile replayed) with each axis' systematic variance;
+    where it does not, the fit is the one without the callback, bit for bit. The solution
+    is the ordinary least squares one of these linear problems (numpy's ``lstsq``)."""
+    from twin.identify.lsq import BOUNDS
+    from twin.identify.profile import systematic_variance
+
+    def problem() -> MisfitProblem:
+        rng = np.random.default_rng(200 + seed)
+        n = 2 * int(rng.integers(150, 400))
+        return MisfitProblem(rng, n, start, float(rng.uniform(0.1, 0.5)))
+
+    prob = problem()
+    mask = np.ones(len(prob.y["x"]), dtype=bool)
+    seen = []
+    joint = joint_fit(prob, dict(start), NAMES, mask, start, max_nfev=6,
+                      unprofiled=lambda sol: seen.append(sol) or True)
+    assert len(seen) == 1 and not joint.profiled
+    for a in prob.axes:
+        assert joint.params[a] == seen[0].params[a]
+        assert all(math.isnan(v) for ends in joint.intervals[a].values() for v in ends)
+        assert not joint.held[a] and not joint.given[a]
+        assert joint.misfit[a] == systematic_variance(seen[0].res[a]) > 0.0
+        ols = np.linalg.lstsq(prob.A[a], prob.y[a], rcond=None)[0]
+        assert all(BOUNDS[n][0] < v < BOUNDS[n][1] for n, v in zip(NAMES, ols, strict=True))
+        np.testing.assert_allclose(prob.theta(joint.params[a], a), ols, atol=1e-6)
+    spent = prob.replays
+    profiled, plain = problem(), problem()
+    full = joint_fit(profiled, dict(start), NAMES, mask, start, max_nfev=6,
+                     unprofiled=lambda sol: False)
+    want = joint_fit(plain, dict(start), NAMES, mask, start, max_nfev=6)
+    assert full.profiled and profiled.replays == plain.replays > spent
+    assert (full.params, full.held, full.given) == (want.params, want.held, want.given)
+    np.testing.assert_equal(full.intervals, want.intervals)

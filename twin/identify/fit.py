@@ -34,7 +34,9 @@ carries its parameters, then all of them together:
 7. **Together** (``joint``): everything the replay carries in one last least squares on all
    replayed experiments, then each parameter's profile-likelihood interval (``profile``).
    What the data cannot separate is held at BASE's value and said so; what trades off with
-   it is reported as identified only given it.
+   it is reported as identified only given it. Where every axis already keeps a systematic
+   residual above ``MISFIT`` after the least squares, while the held-out experiment is
+   predicted within ``QUALITY``, no profile is taken: those axes keep BASE's values anyway.
 
 The axes are uncoupled, so each replay moves both: a finite-difference column of x and the
 same column of y come from one simulation. The held-out experiment (``ramps``, closed loop)
@@ -64,7 +66,14 @@ from twin.identify.direct import coast_regression, limit_inertia, lost_motion, r
 from twin.identify.drive_fit import CURRENT_LOOP, SPEED_LOOP, DcmDecision, fit_speed_loop
 from twin.identify.joint import TOLERANCE, joint_fit
 from twin.identify.log import IdentLog
-from twin.identify.lsq import BOUNDS, coordinate, scan_mains_phase, solve, with_coordinate
+from twin.identify.lsq import (
+    BOUNDS,
+    Solution,
+    coordinate,
+    scan_mains_phase,
+    solve,
+    with_coordinate,
+)
 from twin.identify.parallel import cpu_time
 from twin.identify.plan import FIT_EXPERIMENTS, HELD_OUT
 from twin.identify.profile import systematic_variance
@@ -229,7 +238,9 @@ class Identification:
     conduction, as the model selection decided."""
     misfit: dict[str, float] = field(default_factory=dict)
     """Per excited axis: the systematic part of the fit experiments' residual variance at
-    the end (``MISFIT``)."""
+    the end (``MISFIT``); where every axis was already above ``MISFIT`` after the joint
+    least squares (no profile taken: ``joint.Joint.profiled``), the larger of that and the
+    end's."""
     linear: dict[str, dict[str, float]] = field(default_factory=dict)
     """Per axis and replayed parameter: the linearised 95 % half-interval at the optimum
     (in the fitted coordinate), what the Jacobian alone would have said."""
@@ -310,8 +321,14 @@ def fit(base: MachineConfig, log: IdentLog, *,
         names = [n for n in names if n not in CURRENT_LOOP]
     say("joint fit: " + ", ".join(names) + " (least squares on the replayed experiments, "
         "then each one's profile interval) …")
-    joint = joint_fit(problem, params, names, fit_mask, start)
+    joint = joint_fit(problem, params, names, fit_mask, start,
+                      unprofiled=lambda sol: _declared(problem, {**params, **sol.params},
+                                                       sol, fit_mask))
     params = {**params, **joint.params}
+    if not joint.profiled:
+        say("no profile intervals: every axis stays above the misfit limit after the "
+            "least squares (" + ", ".join(f"{a} {_misfit_text(joint.misfit[a])}"
+                                          for a in axes) + ")")
     if any(joint.held[a] for a in axes):
         say("not pinned down by these experiments: " + "; ".join(
             f"{a} {', '.join(sorted(joint.held[a]))}" for a in axes if joint.held[a])
@@ -386,6 +403,8 @@ def fit(base: MachineConfig, log: IdentLog, *,
         f"{cpu_time() - cpu0:.0f} s CPU)")
     res = problem.residuals(final, fit_mask)   # the replay just run: kept, not re-run
     misfit = {a: systematic_variance(res[a]) for a in axes}
+    if not joint.profiled:   # above the limit already after the least squares, unprofiled
+        misfit = {a: max(misfit[a], joint.misfit[a]) for a in axes}
     if worst > QUALITY:   # the twin does not replay this machine: no value to trust
         why = (f"the fitted twin predicts the held-out {HELD_OUT} with a normalised RMS "
                f"error of {100 * worst:.1f} % (above {100 * QUALITY:.0f} %): it does not "
@@ -410,6 +429,22 @@ def fit(base: MachineConfig, log: IdentLog, *,
     result.cpu_time = cpu_time() - cpu0
     result.misfit = misfit
     return result
+
+
+def _declared(problem: Problem, params: dict[str, AxisParams], sol: Solution,
+              fit_mask: np.ndarray) -> bool:
+    """Every excited axis of the joint least squares' solution ``sol`` (``params``) would
+    keep BASE's values for its residual's systematic part (above ``MISFIT``), while the
+    held-out experiment is predicted within ``QUALITY``: profiles would be thrown away.
+    (A prediction worse than that is given the profiles: a point of theirs below the
+    optimum restarts the fit.) The held-out replay is the one the fit's end reuses."""
+    if not all(systematic_variance(sol.res[a]) > MISFIT for a in problem.axes):
+        return False
+    try:
+        _, _, nrmse = _held_out(problem, params, fit_mask)
+    except FitError:
+        return False
+    return max(max(v.values()) for v in nrmse.values()) <= QUALITY
 
 
 def _keep_base(estimates: dict[str, dict[str, Estimate]], final: dict[str, AxisParams],

@@ -23,13 +23,13 @@ decision of what the data cannot separate.
 from __future__ import annotations
 
 import math
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 
 import numpy as np
 
 from twin.identify.lsq import BOUNDS, Solution, coordinate, solve, with_coordinate
-from twin.identify.profile import QUANTITY, Profile, own_coordinate, profile
+from twin.identify.profile import QUANTITY, Profile, own_coordinate, profile, systematic_variance
 from twin.identify.replay import AxisParams, Problem
 
 __all__ = ["ANCHORS", "TOLERANCE", "Joint", "joint_fit"]
@@ -73,6 +73,12 @@ class Joint:
         The linearised half-interval at the optimum (what the Jacobian alone says).
     restarts : int
         Fits run again from a profile point below the optimum.
+    misfit : dict of str to float
+        The systematic part of each axis' residual variance after the first least squares
+        (``profile.systematic_variance``).
+    profiled : bool
+        False where ``unprofiled`` said so after the first least squares: no profile was
+        taken (the intervals are NaN, nothing is held).
     """
 
     params: dict[str, AxisParams]
@@ -81,6 +87,8 @@ class Joint:
     given: dict[str, dict[str, tuple[str, ...]]] = field(default_factory=dict)
     linear: dict[str, dict[str, float]] = field(default_factory=dict)
     restarts: int = 0
+    misfit: dict[str, float] = field(default_factory=dict)
+    profiled: bool = True
 
 
 def _wide(name: str, prof: Profile, x: float) -> bool:
@@ -94,14 +102,25 @@ def _reach(names: Sequence[str]) -> dict[str, float]:
 
 
 def joint_fit(problem: Problem, params: dict[str, AxisParams], names: Sequence[str],
-              mask: np.ndarray, start: dict[str, AxisParams], *, max_nfev: int = 2) -> Joint:
+              mask: np.ndarray, start: dict[str, AxisParams], *, max_nfev: int = 2,
+              unprofiled: Callable[[Solution], bool] | None = None) -> Joint:
     """Fit the quantities ``names`` together on the ticks of ``mask`` (in the coordinates
     ``profile.own_coordinate`` gives them), profile them and hold what the data cannot
-    separate (see the module docstring). Intervals are in ``lsq.coordinate`` units."""
+    separate (see the module docstring). Intervals are in ``lsq.coordinate`` units.
+
+    ``unprofiled``: where it says so of the first least squares' solution (the caller will
+    keep BASE's values for every axis there), that solution is returned without a profile
+    (``Joint.profiled`` False): the profiles, most of this stage's replays, would be thrown
+    away."""
     names = list(names)
     coords = [own_coordinate(n) for n in names]
     axes = problem.axes
     sol = solve(problem, params, coords, mask, start, max_nfev=max_nfev)
+    smooth = {a: systematic_variance(sol.res[a]) for a in axes}
+    if unprofiled is not None and unprofiled(sol):
+        none = {a: {n: (math.nan, math.nan) for n in names} for a in axes}
+        return Joint(dict(sol.params), none, {a: {} for a in axes}, {a: {} for a in axes},
+                     {a: {n: math.nan for n in names} for a in axes}, 0, smooth, False)
     prof = profile(problem, sol, mask, start, names, _reach(names))
     restarts = 0
     better = {a: [p.better for p in prof[a].values() if p.better is not None] for a in axes}
@@ -165,7 +184,7 @@ def joint_fit(problem: Problem, params: dict[str, AxisParams], names: Sequence[s
             moved = abs(x - coordinate(optimum.params[a], start[a], n))
             if not lo - 1e-12 <= x <= hi + 1e-12 or max(2.0 * moved, lean.get(n, 0.0)) > half:
                 given[a][n] = tuple(held[a])
-    return Joint(current, intervals, held, given, linear, restarts)
+    return Joint(current, intervals, held, given, linear, restarts, smooth)
 
 
 def _leaning(sol: Solution, axis: str, names: Sequence[str], held: Sequence[str]
