@@ -364,7 +364,8 @@ def fit(base: MachineConfig, log: IdentLog, *,
                 hi = max(hi, x) if math.isfinite(hi) else hi
             est[name] = Estimate(getattr(p, name), _value(p, start[a], name, lo),
                                  _value(p, start[a], name, hi),
-                                 held is None and name not in joint.given[a], _SOURCE[name],
+                                 held is None and name not in joint.given[a]
+                                 and joint.profiled, _SOURCE[name],
                                  held or "fit", joint.given[a].get(name, ()))
         for name in REPLAYED_PARAMS:
             if name not in names:   # not fitted: the chosen drive model does not show it
