@@ -17,6 +17,9 @@ import uuid
 os.environ.setdefault("RERUN_ANALYTICS", "0")
 os.environ.setdefault("RERUN_DISABLE_ANALYTICS", "1")
 os.environ.setdefault("MPLBACKEND", "Agg")
+# the identification fit's replays in one process (twin.identify.parallel): the suite's two
+# workers already use both cores
+os.environ.setdefault("XY_TWIN_FIT_PROCESSES", "1")
 os.environ.pop("DISPLAY", None)           # CI has none; a viewer must never open on a desk
 os.environ.pop("WAYLAND_DISPLAY", None)
 

@@ -2,14 +2,21 @@
 
 Each unseen machine is BASE (tomsk_xy) with its physical parameters drawn at random
 (``twin.identify.perturb``: tacho gain ±20 %, rotor inertia ×0.7-1.5, friction ×0.5-3, R and
-L ±30 %, lost motion 0-20 µm). Here one is served by a real ``twin hil-server`` subprocess
+L ±30 %, lost motion 0-20 µm, DAC errors) and, here, a speed regulator set by hand: gain
+×0.5-1.5 and integral time ×0.5-2 of the design (the drive's digital current loop keeps its
+DCM adaptation; the analog drives without it are in ``bench/identify.py --drive
+as_built``). Here one is served by a real ``twin hil-server`` subprocess
 and identified over Modbus/TCP on loopback by the ``twin identify`` command, and bad logs
 are refused; the lock-step ones (``--driver sim:FILE``) are in ``test_identify_lockstep.py``,
 a file of its own so that the two run on different test workers. The fitted values are
-judged against the machine's own file: K_H within 1 %, rotor inertia within 10 %, Coulomb
-friction within 20 %, lost motion within 2 µm, the held-out ramps predicted within 2 %
-NRMSE. Then the calibrated file as the controller's model must do on the machine what the
-machine's own file does (within 1.25×).
+judged against the machine's own file (``unseen.assert_identified``): K_H within 1 %, lost
+motion within 2 µm, and every value called identified right (rotor inertia, speed gain and
+integral time within 10 %, Coulomb friction within 20 %), the others flagged; the truth
+inside the 95 % intervals of ≥ 90 % of the fields called identified; where the held-out
+ramps are predicted worse than 5 % NRMSE, or an axis keeps a systematic residual, nothing
+replayed called identified there. Then the calibrated file
+as the controller's model must do on the machine what the machine's own file does (within
+1.25×).
 """
 
 from __future__ import annotations
@@ -30,16 +37,19 @@ from twin.hardware.hil_process import spawn_hil_server
 def over_modbus(tmp_path_factory):
     """An unseen machine served by ``twin hil-server``, identified over Modbus/TCP."""
     where = tmp_path_factory.mktemp("modbus")
-    true, path = unseen(11, where)
+    true, path = unseen(11, where, drive="mistuned")   # a hand-set speed regulator
     out = where / "calibrated.toml"
     # both ends under SCHED_FIFO where the OS grants it, as on a real-time controller
     for attempt in range(2):
-        with spawn_hil_server("--machine", str(path), "--rt-priority", "10") as server:
-            # one re-send of a request unanswered within its 20 ms: a 2-core CI machine
-            # running the suite's other worker beside both ends once left the server silent
-            # that long
+        # a loaded machine may compile the kernel first: a generous start-up time
+        with spawn_hil_server("--machine", str(path), "--rt-priority", "10",
+                              ready_timeout=300.0) as server:
+            # a request unanswered within 50 ms is sent again, twice: a 2-core machine
+            # running the suite's other worker (or other jobs) beside both ends left the
+            # server silent for more than the default 20 ms; a phase whose ticks were late
+            # all the same is run again by the client (``experiments.disturbed``)
             proc = twin_cli("identify", "--machine", BASE, "--driver",
-                            f"modbus://127.0.0.1:{server.info['port']}?retries=1",
+                            f"modbus://127.0.0.1:{server.info['port']}?timeout=0.05&retries=2",
                             "--rt-priority", "10", "-o", str(out), "--out",
                             str(where / "runs"), "--json")
         # The client repeats a phase its own loop saw disturbed; a stall of the server
@@ -53,6 +63,9 @@ def over_modbus(tmp_path_factory):
     return true, path, out, json.loads(proc.stdout)
 
 
+# the fixture's set-up (a HIL server started, paced experiments, the fit) counts towards
+# this first test's time: on a loaded machine more than the suite's 600 s
+@pytest.mark.timeout(1500)
 def test_an_unseen_machine_is_identified_over_modbus(over_modbus):
     true, _path, out, result = over_modbus
     assert_identified(result, true)
@@ -89,12 +102,14 @@ def test_the_calibrated_model_does_on_the_machine_what_its_own_file_does(over_mo
         assert errors["calibrated"] <= 1.25 * errors["oracle"], builtin
 
 
+# a whole fit in a subprocess: on a loaded 2-core machine more than the suite's 600 s
+@pytest.mark.timeout(1500)
 def test_fitting_the_recorded_experiments_again_gives_the_same_machine(over_modbus,
                                                                        tmp_path):
     _true, _path, out, result = over_modbus
     again = tmp_path / "again.toml"
     proc = twin_cli("identify", "--machine", BASE, "--from-log", result["record"], "-o",
-                 str(again), "--json")
+                 str(again), "--json", timeout=1400.0)
     assert proc.returncode == 0, proc.stderr
     # piped, not on a terminal: the fit still says where it is, stage by stage
     stages = [ln.split(":")[0] for ln in proc.stderr.splitlines() if ":" in ln]

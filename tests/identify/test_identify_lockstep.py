@@ -3,11 +3,16 @@ than the Modbus one, one axis at a time, and whether tuning on the calibrated fi
 to the machine (at least half of what tuning on the machine itself gains). Split from
 ``test_identify.py`` so that the two halves can run on different test workers.
 
-Slow parts run a shorter version in CI (CI=true): one machine instead of two.
+Slow parts run a shorter version in CI (CI=true): one identification serves the file, the
+one-axis one at amplitude 1 of a machine whose y is BASE's own: it is the machine judged in
+place of four at 0.3, 0.5 and 1, and, its calibrated file then standing for the whole
+machine, the one tuning is transferred from (one identification in this file instead of
+six; ``bench/identify.py`` runs the coverage study at 0.3, 0.5 and 1).
 """
 
 from __future__ import annotations
 
+import dataclasses
 import json
 import math
 
@@ -16,28 +21,61 @@ import pytest
 
 from tests.identify.unseen import BASE, CI, assert_identified, sim_to_real, unseen
 from twin.config import load_machine
+from twin.config.writer import machine_to_toml
 from twin.errors import ConfigError
 from twin.identify import identify
 from twin.identify.replay import axis_figures
 
 
 @pytest.fixture(scope="module")
-def in_lockstep(tmp_path_factory):
+def in_lockstep(tmp_path_factory, request):
     """The same unseen machine as ``over_modbus``, identified in lock-step: no timing of a
-    loaded machine in its experiments, so what is tuned on it does not depend on the load."""
+    loaded machine in its experiments, so what is tuned on it does not depend on the load.
+    In CI the one-axis identification (``x_alone``: y is BASE's there, so its calibrated
+    file stands for the whole machine)."""
+    if CI:
+        return request.getfixturevalue("x_alone")[:3]
     where = tmp_path_factory.mktemp("lockstep")
-    true, path = unseen(11, where)
+    true, path = unseen(11, where, drive="mistuned")
     out = where / "calibrated.toml"
     identify(BASE, out, driver=f"sim:{path}", out_dir=where / "runs")
     return true, path, out
 
 
+@pytest.fixture(scope="module")
+def x_alone(tmp_path_factory):
+    """Axis x of an unseen machine with a hand-set speed regulator identified while y is
+    held (``--axes x``); y without a DAC offset: with one, the position loop holds it a few
+    counts off (offset·K_H/K_v), which is not what this is about. In CI, where it stands
+    for ``test_more_unseen_machines_lock_step`` and ``in_lockstep`` too (one
+    identification instead of three), y is BASE's own axis: the calibrated file, x
+    identified and y BASE's, is then a model of the whole machine."""
+    where = tmp_path_factory.mktemp("x_alone")
+    true, path = unseen(21, where, drive="mistuned")
+    true = true.with_overrides({"axes.y.dac.offset": 0.0})
+    if CI:
+        true = dataclasses.replace(true, axes={**true.axes, "y": load_machine(BASE).axes["y"]})
+    path.write_text(machine_to_toml(true), encoding="utf-8")
+    out = where / "calibrated.toml"
+    result = identify(BASE, out, driver=f"sim:{path}", out_dir=where / "runs", axes="x")
+    return true, path, out, result
+
+
 @pytest.mark.slow
-@pytest.mark.parametrize("seed", [21] if CI else [21, 37])
-def test_more_unseen_machines_lock_step(seed, tmp_path):
-    true, path = unseen(seed, tmp_path)
-    out = tmp_path / "calibrated.toml"
-    result = identify(BASE, out, driver=f"sim:{path}", out_dir=tmp_path / "runs")
+@pytest.mark.parametrize(("seed", "amplitude"),
+                         [(21, 1.0)] if CI else [(21, 0.3), (37, 0.5), (37, 1.0), (21, 1.0)])
+def test_more_unseen_machines_lock_step(seed, amplitude, tmp_path, request):
+    """Hand-set speed regulators, identified at reduced amplitude too: the truth inside the
+    intervals or the field declared (``bench/identify.py`` runs the coverage study on
+    many machines at 0.3, 0.5 and 1). In CI the one-axis identification (``x_alone``,
+    the same machine's x) is the one judged."""
+    if CI:
+        true, path, out, result = request.getfixturevalue("x_alone")
+    else:
+        true, path = unseen(seed, tmp_path, drive="mistuned")
+        out = tmp_path / "calibrated.toml"
+        result = identify(BASE, out, driver=f"sim:{path}", out_dir=tmp_path / "runs",
+                          amplitude=amplitude)
     assert_identified(result, true)
     if not CI:
         table = sim_to_real(path, out, tmp_path)
@@ -46,23 +84,23 @@ def test_more_unseen_machines_lock_step(seed, tmp_path):
             assert errors["calibrated"] <= 1.25 * errors["oracle"], builtin
 
 
-def test_one_axis_is_identified_while_the_other_is_held(tmp_path):
+def test_one_axis_is_identified_while_the_other_is_held(x_alone, tmp_path):
     """``--axes x``: only x is excited and fitted; y is held still by the position loop and
     keeps BASE's values, which the header and the JSON say."""
-    from twin.identify.fit import NOT_EXCITED
+    from twin.identify.fit import NOT_EXCITED, QUALITY
     from twin.identify.log import IdentLog
 
-    true, path = unseen(21, tmp_path)
-    out = tmp_path / "calibrated.toml"
-    result = identify(BASE, out, driver=f"sim:{path}", out_dir=tmp_path / "runs", axes="x")
+    true, path, out, result = x_alone
     assert result["axes"] == ["x"] and set(result["nrmse"]) == {"x"}
     truth, base = axis_figures(true)["x"], load_machine(BASE)
     assert result["derived"]["x"]["K_H"] == pytest.approx(truth["K_H"], rel=0.01)
-    assert result["estimates"]["x"]["inertia"]["value"] == pytest.approx(truth["inertia"],
-                                                                          rel=0.10)
-    assert result["derived"]["x"]["coulomb_at_motor"] == pytest.approx(
-        truth["coulomb_at_motor"], rel=0.20)
-    assert max(result["nrmse"]["x"].values()) <= 0.02
+    inertia = result["estimates"]["x"]["inertia"]
+    if inertia["identifiable"]:   # else flagged, which the header and the JSON say
+        assert inertia["value"] == pytest.approx(truth["inertia"], rel=0.10)
+    if result["estimates"]["x"]["coulomb"]["identifiable"]:
+        assert result["derived"]["x"]["coulomb_at_motor"] == pytest.approx(
+            truth["coulomb_at_motor"], rel=0.20)
+    assert max(result["nrmse"]["x"].values()) <= QUALITY
     log = IdentLog.load(result["record"])
     assert log.axes == ["x"]
     assert np.ptp(log.data["counts_y"]) <= 2       # held: a count or two at most

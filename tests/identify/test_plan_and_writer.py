@@ -66,6 +66,55 @@ def test_the_excursion_bounds_the_positions_including_a_coast():
     assert hi == pytest.approx(0.015) and lo == 0.0
 
 
+@pytest.mark.parametrize("seed", range(8))
+def test_the_coast_bound_holds_a_machine_with_less_friction_and_more_inertia(seed):
+    """The room a coast-down is given (``experiments._coast_bound``) bounds the coast of
+    any machine within ``SPREAD`` of the model's inertia and frictions: against a
+    solve_ivp integration of J·dω/dt = −(T_c + B·ω) to rest, for random such machines
+    (and equals it at the envelope's corner)."""
+    from scipy.integrate import solve_ivp
+
+    from twin.drive.design import axis_inertia
+    from twin.identify.experiments import SPREAD, _coast_bound
+
+    rng = np.random.default_rng(seed)
+    base = load_machine("tomsk_xy")
+    a = AXES[seed % 2]
+    # a model with friction and inertia of its own: viscous-heavy, Coulomb-heavy or none
+    f = {"rotor_coulomb": rng.uniform(0.2, 3.0), "slide_coulomb": rng.uniform(0.2, 3.0),
+         "rotor_viscous": rng.choice([0.0, rng.uniform(0.2, 5.0)]),
+         "slide_viscous": rng.uniform(0.2, 5.0), "rotor_inertia": rng.uniform(0.5, 2.0)}
+    m = base.axes[a].mechanics
+    model = base.with_overrides({f"axes.{a}.mechanics.{k}": v * getattr(m, k)
+                                 for k, v in f.items()})
+    ax = model.axes[a]
+    r = ax.transmission.ratio
+    bound = _coast_bound(model, a)
+    v = rng.uniform(1e-3, 0.02)
+
+    def coast(j: float, tc: float, b: float) -> float:
+        def rhs(_t, y):
+            return [y[1], -(tc + b * y[1]) / j if y[1] > 0.0 else 0.0]
+
+        stop = lambda _t, y: y[1]   # noqa: E731 (at rest)
+        stop.terminal = True
+        sol = solve_ivp(rhs, (0.0, 1e3), [0.0, v / r], events=stop, rtol=1e-10,
+                        atol=1e-12)
+        return r * float(sol.y[0, -1])
+
+    j0 = axis_inertia(ax, model.moving_masses()[a])
+    tc0 = ax.mechanics.rotor_coulomb + r * ax.mechanics.slide_coulomb
+    b0 = ax.mechanics.rotor_viscous + r * r * ax.mechanics.slide_viscous
+    corner = coast(SPREAD * j0, tc0 / SPREAD, b0 / SPREAD)
+    assert bound(v) == pytest.approx(corner, rel=1e-6)
+    for _ in range(5):   # machines inside the envelope coast less
+        j = j0 * rng.uniform(1.0, SPREAD)
+        tc, b = tc0 / rng.uniform(1.0, SPREAD), b0 / rng.uniform(1.0, SPREAD)
+        assert coast(j, tc, b) <= bound(v) * (1.0 + 1e-6)
+    # BASE's own machine coasts less than half the bound
+    assert coast(j0, tc0, b0) < 0.5 * bound(v)
+
+
 class _Recording(SimDriver):
     """The lock-step twin, keeping what was last written."""
 

@@ -1,5 +1,7 @@
 """The plant's per-period fast paths give exactly what the checked paths give."""
 
+import os
+
 import numpy as np
 import pytest
 
@@ -103,3 +105,75 @@ def test_compiled_loop_reports_a_nan_like_the_python_loop():
     plant.data.qvel[:] = np.nan                  # rotor speed not finite
     with pytest.raises(SimulationError, match="not finite"):
         plant.step(np.array([1.0, 0.0]), plant.config.controller.period)
+
+
+def _open_loop_case(seed: int):
+    """A random machine (a preset, or tomsk_xy with every passive force and random R, J,
+    friction) and a random open-loop sequence: each axis starting within a millimetre of a
+    switch edge (home or the lower limit) and driven across it, the enable dropped for
+    random stretches, ticks of 1-3 drive intervals."""
+    from twin.config import load_machine
+
+    rng = np.random.default_rng(seed)
+    kind = ("tomsk_xy", "laser_belt", "faulty")[seed % 3]
+    cfg = load_machine("laser_belt" if kind == "laser_belt" else "tomsk_xy")
+    if kind == "faulty":
+        cfg = cfg.with_overrides({**_FAULTY, "axes.*.motor.armature_resistance":
+                                  float(rng.uniform(1.5, 3.0)),
+                                  "axes.*.mechanics.rotor_inertia":
+                                  float(rng.uniform(0.7e-3, 1.5e-3))})
+    n = int(rng.integers(150, 300))
+    starts, dac = [], np.empty((n, 2))
+    for k, a in enumerate(("x", "y")):
+        sw = cfg.axes[a].switches
+        edge = sw.home if rng.random() < 0.5 else sw.limit_min
+        side = rng.choice([-1.0, 1.0])
+        starts.append(max(edge - side * rng.uniform(1e-4, 1e-3), sw.limit_min / 2))
+        walk = np.cumsum(rng.normal(0.0, 0.2, n))
+        dac[:, k] = np.clip(side * (2.0 + walk), -9.0, 9.0)
+    enable = np.ones(n, bool)
+    for _ in range(int(rng.integers(0, 3))):
+        k0 = int(rng.integers(1, n - 5))
+        enable[k0:k0 + int(rng.integers(1, 20))] = False
+    return cfg, np.array(starts), dac, enable, rng.integers(1, 4, n)
+
+
+@pytest.mark.parametrize("seed", range(3) if os.environ.get("CI") else range(9))
+def test_an_open_loop_run_is_its_ticks_one_by_one(seed):
+    """``Plant.run_open_loop`` (the compiled ticks) against the same ticks run here one by
+    one through ``read_into``, ``enable`` and ``step``: the samples, the state, the
+    switches, the drive-rate samples and the clock, bit for bit."""
+    cfg, starts, dac, enable, intervals = _open_loop_case(seed)
+    fast, slow = Plant(cfg, noise=False), Plant(cfg, noise=False)
+    for p in (fast, slow):
+        p.reset(positions=starts)
+    counts, tacho = fast.run_open_loop(dac, enable, intervals)
+    inputs = Inputs()
+    for k in range(len(dac)):
+        slow.read_into(inputs)
+        np.testing.assert_array_equal(counts[k], inputs.encoder_counts)
+        np.testing.assert_array_equal(tacho[k], inputs.tacho_volts)
+        if enable[k] != slow.drives.enabled:
+            slow.enable(bool(enable[k]))
+        slow.step(dac[k], int(intervals[k]) * slow.drive_dt)
+    np.testing.assert_array_equal(fast.data.qpos, slow.data.qpos)
+    np.testing.assert_array_equal(fast.data.qvel, slow.data.qvel)
+    np.testing.assert_array_equal(fast.drives.snapshot(), slow.drives.snapshot())
+    np.testing.assert_array_equal(fast.fine, slow.fine)
+    np.testing.assert_array_equal(fast.drain_fine(), slow.drain_fine())
+    assert fast.time == slow.time and fast.drives.time == slow.drives.time
+    a, b = fast.read(), slow.read()
+    for name in ("encoder_counts", "tacho_volts", "limit_min", "limit_max", "home"):
+        np.testing.assert_array_equal(getattr(a, name), getattr(b, name))
+    assert [m.pending for m in fast._monitors] == [m.pending for m in slow._monitors]
+
+
+def test_an_open_loop_run_stops_on_a_request_that_is_not_finite_as_a_step_does():
+    from twin.errors import SimulationError
+
+    plant = Plant.from_machine("tomsk_xy", noise=False)
+    dac = np.full((20, 2), 0.5)
+    dac[12, 1] = np.nan
+    with pytest.raises(SimulationError, match=r"dac_volts\[1\] \(y\) must be finite"):
+        plant.run_open_loop(dac, np.ones(20, bool), np.full(20, 5))
+    assert plant.time == pytest.approx(12 * plant.config.controller.period)

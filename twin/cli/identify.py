@@ -87,11 +87,14 @@ def identify(
                              else "right")
         for name, (_where, unit, scale) in FIELDS.items():
             e = result["estimates"][a][name]
-            interval = "—" if not (math.isfinite(e["low"]) and math.isfinite(e["high"])) \
-                else f"{scale * e['low']:.4g} … {scale * e['high']:.4g}"
+            lo = f"{scale * e['low']:.4g}" if math.isfinite(e["low"]) else "?"
+            hi = f"{scale * e['high']:.4g}" if math.isfinite(e["high"]) else "?"
+            interval = "—" if lo == hi == "?" else f"{lo} … {hi}"
             value = f"{scale * e['value']:.5g}" + ("" if e["identifiable"] else
                                                  " (BASE)" if e["kept"] == "base" else
-                                                 " (loose)")
+                                                 " (bound)" if e["kept"] == "bound" else
+                                                 " (given " + ", ".join(e["given"]) + ")"
+                                                 if e["given"] else " (?)")
             table.add_row(name.replace("_", " "), value, interval, unit)
         d = result["derived"][a]
         table.add_row("K_H (derived)", f"{1e3 * d['K_H']:.5g}", "", "mm/(s·V)")

@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import copy
 import dataclasses
+import functools
 import math
 import re
 import types
@@ -126,6 +127,13 @@ def _coerce(tp: Any, value: Any, path: str, unit_of: UnitOf | None) -> Any:
     return value
 
 
+@functools.cache
+def _type_hints(cls: type) -> dict[str, Any]:
+    """``typing.get_type_hints`` of a config dataclass, evaluated once per class (a
+    machine file builds about a hundred of them; the hints never change). Read only."""
+    return typing.get_type_hints(cls)
+
+
 def from_dict(cls: type, data: dict[str, Any], path: str = "",
               unit_of: UnitOf | None = None) -> Any:
     """Build dataclass ``cls`` from a plain dict, naming the dotted field on any error.
@@ -133,7 +141,7 @@ def from_dict(cls: type, data: dict[str, Any], path: str = "",
     A float field given as a string with a unit (``"900 mm/min"``) is converted to the
     unit ``unit_of(dotted path)`` names (SI); without ``unit_of`` such a string is refused
     as not a number."""
-    hints = typing.get_type_hints(cls)
+    hints = _type_hints(cls)
     names = {f.name for f in dataclasses.fields(cls) if f.init}
     prefix = f"{path}." if path else ""
     for key in data:

@@ -17,6 +17,7 @@ Positions are the encoder counts over the model's counts per metre, taken as abs
 
 from __future__ import annotations
 
+import math
 import time
 from collections.abc import Callable, Sequence
 
@@ -215,18 +216,36 @@ def _room(base: MachineConfig, part: Sequence[Piece], here: np.ndarray,
     return target, window
 
 
+SPREAD = 2.0
+"""How far a machine of BASE's design may be from the model where it decides how far a
+coast runs: up to ``SPREAD`` times the model's inertia and down to 1/``SPREAD`` of its
+Coulomb and viscous friction, each (the fit's own inertia scan spans 0.5 … 2 times)."""
+
+
 def _coast_bound(base: MachineConfig, axis: str) -> Callable[[float], float]:
     """How far axis ``axis``'s table may coast from table speed v (m/s) with its drive
-    disabled: the rotor's energy against the model's Coulomb friction alone (viscous
-    friction only shortens it), J·v²/(2·T_c·r), doubled for a machine whose friction is half
-    the model's."""
+    disabled: J·dω/dt = −(T_c + B·ω) from ω_0 = v/r runs the rotor through
+    (J/B)·(ω_0 − (T_c/B)·ln(1 + B·ω_0/T_c)) (J·ω_0²/(2·T_c) without viscous friction),
+    for a machine with ``SPREAD`` times the model's inertia and 1/``SPREAD`` of each of
+    its frictions."""
     ax = base.axes[axis]
     m, r = ax.mechanics, ax.transmission.ratio
-    inertia = axis_inertia(ax, base.moving_masses()[axis])
-    torque = m.rotor_coulomb + r * m.slide_coulomb
-    if torque <= 0.0:
+    inertia = SPREAD * axis_inertia(ax, base.moving_masses()[axis])
+    torque = (m.rotor_coulomb + r * m.slide_coulomb) / SPREAD
+    viscous = (m.rotor_viscous + r * r * m.slide_viscous) / SPREAD
+    if torque <= 0.0 and viscous <= 0.0:
         return lambda v: 0.5 * float(np.diff(m.travel)[0])
-    return lambda v: 2.0 * inertia * v * v / (2.0 * torque * r)
+
+    def travel(v: float) -> float:
+        w = abs(v) / r
+        if viscous <= 0.0:
+            return r * inertia * w * w / (2.0 * torque)
+        if torque <= 0.0:
+            return r * inertia * w / viscous
+        return r * inertia / viscous * (w - torque / viscous * math.log1p(viscous * w
+                                                                          / torque))
+
+    return travel
 
 
 def run_plan(driver: MachineIO, base: MachineConfig, plan: Sequence[Piece], *,

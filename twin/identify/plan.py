@@ -16,14 +16,17 @@ axis left out is held in position meanwhile):
 ``prbs``
     A pseudo-random binary sequence (7-bit maximal length, 20 ms bits) of ±6.7 % about
     ±13 % of the speed limit, on the speed reference: the speed loop's dynamics.
+``reversals``
+    Slow open-loop reversals (0.55 % of the limit, 0.5 s each way): at each, the motor
+    crosses the lost motion before it takes the table's friction again. At these speeds a
+    thyristor drive conducts in short pulses: without an adaptation to discontinuous
+    conduction its current loop's gain collapses and the speed loop limit-cycles, which
+    decides the current regulator's model (``drive_fit``).
 ``coast``
     The axis runs at ±60 % of the speed limit, then its drive is disabled and the rotor
     coasts to rest against friction alone: dω/dt = −(T_c·sign ω + B·ω)/J. With J from the
     current-limited reversals, the coast's shape separates Coulomb and viscous friction
     and its end shows the break-away, which the speed loop otherwise hides.
-``reversals``
-    Slow open-loop reversals (0.55 % of the limit, 0.5 s each way): at each, the motor
-    crosses the lost motion before it takes the table's friction again.
 ``ramps`` (held out of the fit)
     Closed-loop position ramps of ±13 % of the speed limit through the controller's own
     regulator: the experiment the fitted twin is judged on.
@@ -139,13 +142,13 @@ def default_plan(max_velocity: float, *, amplitude: float = 1.0,
     for sign in (1.0, -1.0):
         plan += [Piece("prbs", "speed", 0.02, sign * (0.13 + 0.067 * b) * v) for b in prbs()]
     plan.append(Piece("prbs", "speed", 0.3, 0.0))
-    for sign in (1.0, -1.0):
-        plan += [Piece("coast", "speed", 0.6, sign * 0.6 * v),
-                 Piece("coast", "coast", 2.0, 0.0)]
-    for k in range(6):
+    for k in range(6):   # before the coasts: the drive model's choice replays them
         plan.append(Piece("reversals", "speed", 0.5, (1.0 if k % 2 == 0 else -1.0)
                           * 0.0055 * v))
     plan.append(Piece("reversals", "speed", 0.3, 0.0))
+    for sign in (1.0, -1.0):
+        plan += [Piece("coast", "speed", 0.6, sign * 0.6 * v),
+                 Piece("coast", "coast", 2.0, 0.0)]
     plan += [Piece("ramps", "ramp", 1.0, 0.13 * v), Piece("ramps", "ramp", 0.3, 0.0),
              Piece("ramps", "ramp", 1.0, -0.13 * v), Piece("ramps", "ramp", 0.3, 0.0)]
     cross = (home_width + 2.0 * CROSSING_RUN) / CROSSING_SPEED

@@ -18,7 +18,7 @@ import numpy as np
 
 from twin.config import AXES, MachineConfig
 from twin.controller.encoder import EncoderUnwrapper
-from twin.controller.io import Inputs
+from twin.drive.design import design
 from twin.identify.log import IdentLog
 from twin.plant import Plant
 
@@ -48,6 +48,25 @@ class AxisParams:
         Lost motion of gear and nut (m).
     resistance, inductance : float
         Armature R (Ω) and L (H).
+    speed_kp, speed_ti : float
+        The drive's speed regulator: gain (A/V) and integral time (s).
+    reference_filter : float
+        The drive's speed-reference filter T1 (s).
+    current_kp, current_ti : float
+        The drive's current regulator: gain (V/A) and integral time (s).
+    dcm_compensation : float
+        1: the current regulator adapts to discontinuous conduction; 0: it does not (a
+        model choice the fit makes by comparing both, never a fitted coordinate).
+    analog : float
+        1: analog regulators; 0: digital (a model choice as well).
+    brush_drop : float
+        The brushes' contact drop (V): at feed speeds, in discontinuous conduction, it is
+        of the order of the whole driving margin.
+    current_designed : float
+        1: the current regulator is the modulus optimum for the candidate's own R and L
+        (as a drive's current loop is set for its motor at commissioning), while the fit
+        does not fit it (a drive with the adaptation, whose current loop does not show);
+        0: ``current_kp`` and ``current_ti`` are written as they are.
     """
 
     tacho_gain: float
@@ -60,6 +79,15 @@ class AxisParams:
     backlash: float
     resistance: float
     inductance: float
+    speed_kp: float
+    speed_ti: float
+    reference_filter: float
+    current_kp: float
+    current_ti: float
+    dcm_compensation: float
+    analog: float
+    brush_drop: float
+    current_designed: float
 
     def to_dict(self) -> dict[str, float]:
         """Plain dict."""
@@ -75,26 +103,48 @@ NAMES = tuple(f.name for f in fields(AxisParams))
 
 
 def base_params(base: MachineConfig) -> dict[str, AxisParams]:
-    """The parameters BASE has (the fit's starting point)."""
+    """The parameters BASE has (the fit's starting point); its drive's settings are what
+    ``design`` gives for it (the file's, or the derived ones where the file has none)."""
     out = {}
+    moved = base.moving_masses()
     for a in AXES:
         ax = base.axes[a]
         m = ax.mechanics
+        d = design(ax, moving_mass=moved[a])
         ratio = m.breakaway("rotor") / m.rotor_coulomb if m.rotor_coulomb > 0 else 1.0
         out[a] = AxisParams(tacho_gain=ax.tacho.gain, gain_error=ax.dac.gain_error,
                             offset=ax.dac.offset, inertia=m.rotor_inertia, coulomb=1.0,
                             viscous=1.0, breakaway=max(ratio, 1.0),
                             backlash=ax.transmission.backlash,
                             resistance=ax.motor.armature_resistance,
-                            inductance=ax.motor.armature_inductance)
+                            inductance=ax.motor.armature_inductance,
+                            speed_kp=d.speed_kp, speed_ti=d.speed_ti,
+                            reference_filter=d.reference_filter, current_kp=d.current_kp,
+                            current_ti=d.current_ti,
+                            dcm_compensation=1.0 if ax.converter.dcm_compensation else 0.0,
+                            analog=1.0 if ax.regulators.implementation == "analog" else 0.0,
+                            brush_drop=ax.motor.brush_drop,
+                            current_designed=1.0 if d.current_regulator_designed else 0.0)
     return out
 
 
-def candidate(base: MachineConfig, params: dict[str, AxisParams]) -> MachineConfig:
-    """BASE with every field ``params`` sets replaced (validated as any machine file)."""
-    sets: dict[str, float] = {}
+def candidate(base: MachineConfig, params: dict[str, AxisParams], *,
+              mains_phase: float | None = None) -> MachineConfig:
+    """BASE with every field ``params`` sets replaced (validated as any machine file), and
+    the thyristor drives' ``mains_phase`` (rad) when given (as :func:`replay` sets it).
+
+    The drive's speed regulator and reference filter are written out, never derived again
+    from the candidate's inertia: the drive on a machine is set once, at commissioning, and
+    does not retune itself to a different motor (a mistuned drive is then one the fit can
+    represent, and the inertia shows in the speed loop's response). The current regulator
+    is written out too, unless ``current_designed``: then it is the modulus optimum for the
+    candidate's R and L, as BASE's is for its own."""
+    sets: dict[str, float | bool] = {}
+    own = base_params(base)
     for a in AXES:
         p, m = params[a], base.axes[a].mechanics
+        if p == own[a]:   # BASE's own values (an axis not excited): BASE's axis as it is
+            continue
         pre = f"axes.{a}"
         rotor_c, slide_c = p.coulomb * m.rotor_coulomb, p.coulomb * m.slide_coulomb
         sets.update({
@@ -113,19 +163,32 @@ def candidate(base: MachineConfig, params: dict[str, AxisParams]) -> MachineConf
             f"{pre}.transmission.backlash": p.backlash,
             f"{pre}.motor.armature_resistance": p.resistance,
             f"{pre}.motor.armature_inductance": p.inductance,
+            f"{pre}.regulators.speed_kp": p.speed_kp,
+            f"{pre}.regulators.speed_ti": p.speed_ti,
+            f"{pre}.speed_loop.reference_filter": p.reference_filter,
         })
+        if not p.current_designed:
+            sets[f"{pre}.regulators.current_kp"] = p.current_kp
+            sets[f"{pre}.regulators.current_ti"] = p.current_ti
+        if base.axes[a].converter.kind == "thyristor":
+            sets[f"{pre}.converter.dcm_compensation"] = bool(p.dcm_compensation)
+            sets[f"{pre}.regulators.implementation"] = "analog" if p.analog > 0.5 \
+                else "digital"
+            sets[f"{pre}.motor.brush_drop"] = p.brush_drop
+    if mains_phase is not None and _thyristor(base):
+        sets.update({f"axes.{a}.converter.mains_phase": float(mains_phase) for a in AXES})
     return base.with_overrides(sets)
+
+
+def _thyristor(cfg: MachineConfig) -> bool:
+    """A thyristor drive on some axis: the mains phase matters."""
+    return any(cfg.axes[a].converter.kind == "thyristor" for a in AXES)
 
 
 def measured(log: IdentLog, base: MachineConfig) -> tuple[np.ndarray, np.ndarray]:
     """The log's positions (relative to its first tick, m) and tacho volts, (ticks, 2)."""
-    enc = EncoderUnwrapper([base.axes[a].counts_per_metre for a in AXES],
-                           bits=[base.axes[a].encoder.bits for a in AXES])
     counts = np.column_stack([log.data["counts_x"], log.data["counts_y"]]).astype(np.int64)
-    pos = np.empty((len(counts), 2))
-    enc.reset(counts[0])
-    for k, c in enumerate(counts):
-        pos[k] = enc.update(c)
+    pos = _positions(base, counts)
     tacho = np.column_stack([log.data["tacho_x"], log.data["tacho_y"]])
     return pos, tacho
 
@@ -142,36 +205,31 @@ def replay(cfg: MachineConfig, log: IdentLog, *, until: int | None = None,
     unknown, and the fit estimates it (``fit.mains_phase``).
     """
     n = log.ticks if until is None else min(until, log.ticks)
-    if mains_phase is not None and any(cfg.axes[a].converter.kind == "thyristor"
-                                       for a in AXES):
+    if mains_phase is not None and _thyristor(cfg):
         cfg = cfg.with_overrides({"axes.*.converter.mains_phase": float(mains_phase)})
     plant = Plant(cfg, noise=False)  # the measurement has the noise; the replay is its mean
     mid = np.array([0.5 * sum(cfg.axes[a].mechanics.travel) for a in AXES])
     plant.reset(positions=mid)
+    t = log.data["t"]
+    steps = np.diff(t, append=t[-1] + cfg.controller.period)
+    intervals = np.maximum(np.round(steps / plant.drive_dt), 1).astype(np.int64)
+    dac = np.column_stack([log.data["dac_x"], log.data["dac_y"]])
+    counts, tacho = plant.run_open_loop(dac[:n], log.data["enable"][:n] != 0.0,
+                                        intervals[:n])
+    return _positions(cfg, counts), tacho
+
+
+def _positions(cfg: MachineConfig, counts: np.ndarray) -> np.ndarray:
+    """Encoder counter samples (ticks, 2) unwrapped to positions relative to the first
+    (m), as the controller's ``EncoderUnwrapper`` reads them."""
     enc = EncoderUnwrapper([cfg.axes[a].counts_per_metre for a in AXES],
                            bits=[cfg.axes[a].encoder.bits for a in AXES])
-    period = cfg.controller.period
-    dt = plant.drive_dt
-    t = log.data["t"]
-    steps = np.diff(t, append=t[-1] + period)
-    steps = np.maximum(np.round(steps / dt), 1) * dt
-    dac = np.column_stack([log.data["dac_x"], log.data["dac_y"]])
-    enable = log.data["enable"] != 0.0
-    inputs = Inputs()
-    pos = np.empty((n, 2))
-    tacho = np.empty((n, 2))
-    plant.read_into(inputs)
-    enc.reset(inputs.encoder_counts)
-    enabled = True
-    for k in range(n):
-        plant.read_into(inputs)
-        pos[k] = enc.update(inputs.encoder_counts)
-        tacho[k] = inputs.tacho_volts
-        if enable[k] != enabled:
-            enabled = bool(enable[k])
-            plant.enable(enabled)
-        plant.step(dac[k], float(steps[k]))
-    return pos, tacho
+    pos = np.empty((len(counts), 2))
+    if len(counts):
+        enc.reset(counts[0])
+    for k, c in enumerate(counts.tolist()):
+        pos[k] = enc.update(c)
+    return pos
 
 
 def finite_params(params: dict[str, AxisParams]) -> bool:
@@ -197,25 +255,56 @@ class Problem:
         self.excited = [(k, a) for k, a in enumerate(AXES) if a in self.axes]
         """(column, axis) of each excited axis, in the machine's axis order."""
         self.pos, self.tacho = measured(log, base)
+        pieces = log.data["piece"].astype(int)
+        starts = np.flatnonzero(np.diff(pieces, prepend=pieces[0] - 1))
+        self.piece_start = starts[np.searchsorted(starts, np.arange(len(pieces)),
+                                                  side="right") - 1]
+        """Per tick: the first tick of its piece of the plan."""
         self.replays = 0
         self.mains_phase: float | None = None
+        self._recent: dict[tuple, tuple[np.ndarray, np.ndarray]] = {}
+
+    RECENT = 48
+    """Replays kept (the latest): the same parameters at the same mains phase again (the
+    models' coarse phase screen, 3 × 12 replays of the steps, in a kept model's full scan;
+    a fit's own start) are not replayed. At most 48 × 120 kB on tomsk_xy."""
 
     def simulate(self, params: dict[str, AxisParams], until: int
                  ) -> tuple[np.ndarray, np.ndarray]:
+        """The replay of ``params`` (positions, tacho volts) over the first ``until``
+        ticks; one of the same parameters and mains phase over as many ticks or more is
+        reused (a replay's first ticks do not depend on its later ones)."""
+        key = (self.mains_phase, tuple(tuple(asdict(params[a]).values())
+                                       for a in AXES if a in params))
+        kept = self._recent.get(key)
+        if kept is not None and len(kept[0]) >= until:
+            return kept[0][:until], kept[1][:until]
         self.replays += 1
-        return replay(candidate(self.base, params), self.log, until=until,
-                      mains_phase=self.mains_phase)
+        pos, tacho = replay(candidate(self.base, params, mains_phase=self.mains_phase),
+                            self.log, until=until)
+        pos.flags.writeable = tacho.flags.writeable = False
+        self._recent.pop(key, None)
+        self._recent[key] = (pos, tacho)
+        while len(self._recent) > self.RECENT:
+            self._recent.pop(next(iter(self._recent)))
+        return pos, tacho
 
     def residuals(self, params: dict[str, AxisParams], mask: np.ndarray
                   ) -> dict[str, np.ndarray]:
         """Per excited axis: scaled position and tacho residuals over the ticks of
-        ``mask``."""
+        ``mask``. Positions are compared as the travel since the start of each piece of
+        the plan: a replay that parts from the machine in one piece (a drive that
+        limit-cycles at feed speed does so wherever its current pulses fall) is not charged
+        for it again in every later one."""
         until = int(np.flatnonzero(mask)[-1]) + 1
         pos, tacho = self.simulate(params, until)
         m = mask[:until]
+        first = self.piece_start[:until]
         out = {}
         for k, a in self.excited:
-            dp = (pos[m, k] - self.pos[:until][m, k]) / SIGMA_POSITION
+            travel = pos[:, k] - pos[first, k]
+            seen = self.pos[:until, k] - self.pos[first, k]
+            dp = (travel[m] - seen[m]) / SIGMA_POSITION
             dt = (tacho[m, k] - self.tacho[:until][m, k]) / SIGMA_TACHO
             out[a] = np.concatenate([dp, dt])
         return out

@@ -23,11 +23,17 @@ import numpy as np
 
 from twin.config import AXES, MachineConfig
 from twin.config.writer import machine_to_toml
-from twin.identify.fit import NOT_IDENTIFIABLE, Estimate, Identification
+from twin.identify.fit import (
+    NOT_EXCITED,
+    NOT_IDENTIFIABLE,
+    UNSEEN_CURRENT_LOOP,
+    Estimate,
+    Identification,
+)
 from twin.identify.log import IdentLog
 from twin.identify.plan import HELD_OUT, REPLAYED
 
-__all__ = ["FIELDS", "calibrated_toml", "plot_report", "record", "summary"]
+__all__ = ["FIELDS", "calibrated_toml", "not_identified", "plot_report", "record", "summary"]
 
 FIELDS = {
     "tacho_gain": ("tacho.gain", "V·s/rad", 1.0),
@@ -40,6 +46,12 @@ FIELDS = {
     "backlash": ("transmission.backlash", "µm", 1e6),
     "resistance": ("motor.armature_resistance", "Ω", 1.0),
     "inductance": ("motor.armature_inductance", "mH", 1e3),
+    "speed_kp": ("regulators.speed_kp", "A/V", 1.0),
+    "speed_ti": ("regulators.speed_ti", "ms", 1e3),
+    "reference_filter": ("speed_loop.reference_filter", "ms", 1e3),
+    "current_kp": ("regulators.current_kp", "V/A", 1.0),
+    "current_ti": ("regulators.current_ti", "ms", 1e3),
+    "brush_drop": ("motor.brush_drop", "V", 1.0),
 }
 """Per fitted parameter: the machine-file field(s) it sets, the unit it is quoted in and the
 factor from SI to that unit."""
@@ -49,6 +61,24 @@ def _quote(e: Estimate, scale: float) -> str:
     lo = "?" if not math.isfinite(e.low) else f"{scale * e.low:.5g}"
     hi = "?" if not math.isfinite(e.high) else f"{scale * e.high:.5g}"
     return f"{scale * e.value:.5g}  [{lo}, {hi}]"
+
+
+def not_identified(e: Estimate) -> str:
+    """Why a value is not identified, and what was kept (one line)."""
+    if e.source == UNSEEN_CURRENT_LOOP:
+        return "not fitted"
+    if e.source == NOT_EXCITED or "does not replay" in e.source:
+        return e.source
+    if e.given:
+        return (f"NOT SEPARABLE from {', '.join(e.given)}: identified given "
+                f"{'its' if len(e.given) == 1 else 'their'} held value, right only "
+                f"relative to it")
+    if e.kept == "bound":
+        return ("NOT IDENTIFIABLE from these experiments: the data reject BASE's value, "
+                "the nearest one they allow kept")
+    if e.kept == "base":
+        return "NOT IDENTIFIABLE from these experiments: BASE's value kept"
+    return "NOT IDENTIFIABLE"
 
 
 def header_lines(result: Identification, base: MachineConfig, log: IdentLog,
@@ -69,10 +99,13 @@ def header_lines(result: Identification, base: MachineConfig, log: IdentLog,
         lines.append(f"axis {a}:")
         for name, (where, unit, scale) in FIELDS.items():
             e = result.estimates[a][name]
-            mark = "" if e.identifiable else (
-                "   NOT IDENTIFIABLE: BASE's value kept" if e.kept == "base" else
-                "   LOOSE: the fit's value kept (the data reject BASE's)")
+            mark = "" if e.identifiable else "   WARNING: " + not_identified(e)
             lines.append(f"  {where} = {_quote(e, scale)} {unit}  <- {e.source}{mark}")
+        if a in result.dcm:
+            d = result.dcm[a]
+            lines.append(f"  regulators.implementation, converter.dcm_compensation = {d.model}"
+                         f"  <- steps, prbs (model selection, BIC over the best: "
+                         + d.bic_text() + (")" if d.decided else "; UNDECIDED, BASE's model kept)"))
         d = derived[a]
         lines.append(f"  => K_H {1e3 * d['K_H']:.5g} mm/(s·V), Coulomb at the motor "
                      f"{d['coulomb_at_motor']:.4g} N·m, viscous at the motor "
@@ -82,8 +115,10 @@ def header_lines(result: Identification, base: MachineConfig, log: IdentLog,
     lines.append("Fit quality: held-out " + HELD_OUT + " normalised RMS error " + ", ".join(
         f"{a} position {100 * result.nrmse[a]['position']:.2f} % tacho "
         f"{100 * result.nrmse[a]['tacho']:.2f} %" for a in result.nrmse) + ".")
-    lines.append("Intervals are the fit's own (linearised, widened for correlated "
-                 "residuals); a model error of the twin itself is not in them.")
+    lines.append("Intervals: the profile likelihood of the recorded data (each parameter "
+                 "moved, the others re-fitted, replayed; F threshold on the residuals' "
+                 "effective sample size); '?' is an end the data do not bound. A model "
+                 "error of the twin itself is not in them.")
     return lines
 
 
@@ -104,16 +139,21 @@ def summary(result: Identification, base: MachineConfig, log: IdentLog) -> dict[
         "axes": list(log.axes),
         "estimates": {a: {k: {"value": e.value, "low": e.low, "high": e.high,
                               "identifiable": e.identifiable, "source": e.source,
-                              "kept": e.kept}
+                              "kept": e.kept, "given": list(e.given)}
                           for k, e in result.estimates[a].items()} for a in AXES},
         "derived": result.derived(),
+        "dcm_compensation": {a: {"present": d.present, "model": d.model, "bic": d.bic,
+                                 "screened": list(d.screened),
+                                 "decided": d.decided} for a, d in result.dcm.items()},
         "nrmse": result.nrmse,
         "residual": result.residual,
+        "misfit": result.misfit,
         "mains_phase_rad": result.mains_phase,
         "not_identifiable": dict(NOT_IDENTIFIABLE),
         "machine_time_s": log.ticks * base.controller.period,
         "experiments_wall_time_s": log.notes.get("wall_time_s"),
         "fit_wall_time_s": result.wall_time,
+        "fit_cpu_time_s": result.cpu_time,
         "replays": result.replays,
     }
 

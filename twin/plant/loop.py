@@ -39,9 +39,10 @@ from numba import types
 from twin.drive.kernel import drive_step
 from twin.drive.layout import S_ADC, S_CONDUCT, S_FAULT, S_I, S_VOUT
 
-__all__ = ["NCHAIN", "NPASSIVE", "NREADOUT", "addresses", "apply_forces", "available",
+__all__ = ["NCHAIN", "NPASSIVE", "NREADOUT", "TICK_CHECK", "TICK_DONE", "TICK_ENABLE",
+           "TICK_ERROR", "addresses", "apply_forces", "available",
            "chain_springs", "passive_forces", "quantise", "readout", "record_interval",
-           "step_intervals"]
+           "step_intervals", "ticks"]
 
 NREADOUT = 8
 """The drive state a period's readers need, per axis pair: tacho as the ADC reads it (V),
@@ -60,6 +61,10 @@ varies with the nut (1/0), a₀ (m) and s (±1) of the nut distance a = a₀ + s
 tendon's id, lost motion (1/0), the travel (min, max) (m), the screw body's qpos and dof
 address (−1: none)."""
 
+
+TICK_DONE, TICK_ENABLE, TICK_ERROR, TICK_CHECK = range(4)
+"""Why :func:`ticks` returned: all ticks run; the drive enable changes at the tick; the
+kernel or the DAC refused the tick; the tick needs ``Plant.step``'s checks."""
 
 MJ_STEP_SYMBOL = "xy_twin_mj_step"
 """The name the compiled loop calls MuJoCo's ``mj_step`` by (registered with LLVM)."""
@@ -273,6 +278,71 @@ if _MJ_STEP is not None:
                             spring_ratio, samples, extent, ring, ring_n)
         readout(state, out)
         return n, 0, clipped
+
+
+    @numba.njit(cache=True)
+    def _ticks(first, intervals, dac_in, enable, enabled, cpr, offset, mask, free, warnings,
+               warnings_seen, clock, timestep, counts, tacho, m_addr, d_addr, substeps,
+               params, state, tables, dac, u, noise, log, n0, dt, passive, has_passive,
+               chain, has_chain, torque, sub_torque, scratch, rotor_frc, slide_frc,
+               table_pos, table_vel, rotor_pos, rotor_vel, qpos, qvel, qfrc, ten_stiffness,
+               ten_damping, spring_adr, spring_ratio, samples, steps, extent, ring, ring_n,
+               out):
+        done = 0
+        for k in range(first, intervals.shape[0]):
+            clock[0] = clock[1]
+            for a in range(2):   # Plant.read_into without noise
+                counts[k, a] = (math.floor(rotor_pos[a] * cpr[a]) + offset[a]) & mask[a]
+                tacho[k, a] = out[a]
+            if enable[k] != enabled:
+                return k, done, TICK_ENABLE, 0, 0
+            n, status, clip = _intervals(
+                m_addr, d_addr, intervals[k], substeps, params, state, tables, dac_in[k], dac,
+                u, noise, log, n0 + done, dt, enabled, passive, has_passive, chain,
+                has_chain, torque, sub_torque, scratch, rotor_frc, slide_frc, table_pos,
+                table_vel, rotor_pos, rotor_vel, qpos, qvel, qfrc, ten_stiffness,
+                ten_damping, spring_adr, spring_ratio, samples, steps, extent, ring,
+                ring_n + done, out)
+            done += n
+            for _ in range(n * substeps):   # MuJoCo's own sum: time += timestep per step
+                clock[1] += timestep
+            if status != 0 or clip < 0:
+                return k, done, TICK_ERROR, status, clip
+            check = False
+            for a in range(2):
+                check |= not (free[a, 0] < extent[2 * a] and extent[2 * a + 1] < free[a, 1])
+            for w in range(warnings.shape[0]):
+                check |= warnings[w] != warnings_seen[w]
+            if check:
+                return k, done, TICK_CHECK, 0, clip
+        return intervals.shape[0], done, TICK_DONE, 0, 0
+
+
+def ticks(first: int, intervals: np.ndarray, dac_in: np.ndarray, enable: np.ndarray,
+          enabled: bool, cpr: np.ndarray, offset: np.ndarray, mask: np.ndarray,
+          free: np.ndarray, warnings: np.ndarray, warnings_seen: np.ndarray,
+          clock: np.ndarray, timestep: float, counts: np.ndarray, tacho: np.ndarray,
+          *loop: object) -> tuple[int, int, int, int, int]:
+    """Ticks ``first``… of an open-loop run, each as ``Plant.read_into`` then
+    ``Plant.step``: the sensors sampled (without noise) into ``counts[k]`` (the counters,
+    ``floor(θ·cpr) + offset`` masked to their width) and ``tacho[k]`` (V), then
+    ``intervals[k]`` drive intervals of :func:`step_intervals` under ``dac_in[k]`` (``loop``
+    is that function's arguments after ``dac_in``, with ``n0`` and ``ring_n`` those of tick
+    ``first``).
+
+    It stops, for the caller to finish in Python, before a tick whose ``enable[k]`` differs
+    from ``enabled`` (``TICK_ENABLE``, the tick read but not stepped), at a tick the kernel
+    refused (``TICK_ERROR``, as :func:`step_intervals` returns it) and after a tick that
+    ``Plant.step``'s checks must see (``TICK_CHECK``): a table sample outside the axis'
+    ``free`` row (the open interval where no switch can change, ``AxisMonitor.free``; NaN
+    is outside) or a MuJoCo warning counter that moved from ``warnings_seen``.
+    ``clock[0]`` is then the plant time at the start of that tick, ``clock[1]`` now, summed
+    step by step as MuJoCo sums it (``clock[1]`` is the time at ``first`` on entry).
+
+    Returns (tick, intervals done, reason, kernel status, DAC clip mask).
+    """
+    return _ticks(first, intervals, dac_in, enable, enabled, cpr, offset, mask, free,
+                  warnings, warnings_seen, clock, timestep, counts, tacho, *loop)
 
 
 def addresses(model: mujoco.MjModel, data: mujoco.MjData) -> tuple[int, int]:

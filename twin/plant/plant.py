@@ -363,9 +363,16 @@ class Plant:
                                            samples, extent, self._ring, self._ring_n)
             self._ring_n += n
             plant_loop.readout(state, self._out)
-        saturated = FLAGS[2 * (clip & 1) + (clip >> 1 & 1)]  # x then y
         if len(steps):
             self.accelerometer.feed(t0, self.model.opt.timestep, steps)  # type: ignore[union-attr]
+        return self._checked(t0, samples, clip)
+
+    def _checked(self, t0: float, samples: np.ndarray, clip: int) -> StepStatus:
+        """The end of a step that started at ``t0`` and left the drive-rate ``samples``
+        (their extent in ``self._extent``): the readers' drive state, the MuJoCo warnings
+        and the divergence check (raises ``SimulationError``), the switches, the status."""
+        d, extent = self.data, self._extent
+        saturated = FLAGS[2 * (clip & 1) + (clip >> 1 & 1)]  # x then y
         self._ro = ro = self._out.tolist()
         self._fine = samples
         warnings = () if self._warning_count.tobytes() == self._warnings_seen \
@@ -384,6 +391,100 @@ class Plant:
                                                                self.drive_dt)
         return StepStatus(saturated, FLAGS[2 * hit_x + hit_y], FLAGS[2 * end_x + end_y],
                           FLAGS[2 * fault_x + fault_y], warnings, d.time)
+
+    def run_open_loop(self, dac_volts: np.ndarray, enable: np.ndarray,
+                      intervals: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Run a recorded open-loop sequence of ticks: each tick k samples the sensors
+        (:meth:`read_into`), sets the drive enable to ``enable[k]`` (:meth:`enable`), then
+        applies ``dac_volts[k]`` for ``intervals[k]`` drive intervals (:meth:`step`).
+
+        The result is that of those calls, bit for bit (``tests/plant/test_fast_paths.py``);
+        without sensor noise, the accelerometer or the Python loop (``loop.available()``)
+        it is those calls. Otherwise the ticks run in the compiled loop
+        (``loop.ticks``), which hands back to :meth:`step`'s own checks (switches near
+        an edge, MuJoCo warnings, divergence) and :meth:`enable` the ticks that need them;
+        the step statuses are not returned (an open loop does not act on them).
+
+        Parameters
+        ----------
+        dac_volts : ndarray, shape (n, 2)
+            Each tick's requested speed references (V).
+        enable : ndarray, shape (n,)
+            Each tick's drive enable (bool).
+        intervals : ndarray, shape (n,)
+            Each tick's duration in drive intervals (≥ 1).
+
+        Returns
+        -------
+        counts : ndarray, shape (n, 2), int64
+            The encoder counters at each tick's start (counts).
+        tacho : ndarray, shape (n, 2)
+            The tacho volts at each tick's start (V).
+
+        Raises
+        ------
+        SimulationError
+            As :meth:`step`.
+        """
+        n = len(intervals)
+        counts, tacho = np.empty((n, 2), np.int64), np.empty((n, 2))
+        lengths = np.ascontiguousarray(intervals, dtype=np.int64)
+        if n and lengths.min() < 1:
+            raise ValueError("every tick must last at least one drive interval")
+        if not self._compiled or self._noisy_counts or self.drives.noisy \
+                or self.accelerometer is not None:
+            inputs = Inputs()
+            for k in range(n):
+                self.read_into(inputs)
+                counts[k], tacho[k] = inputs.encoder_counts, inputs.tacho_volts
+                if bool(enable[k]) != self.drives.enabled:
+                    self.enable(bool(enable[k]))
+                self.step(dac_volts[k], int(lengths[k]) * self.drive_dt)
+            return counts, tacho
+        self._run_compiled(np.ascontiguousarray(dac_volts, dtype=np.float64),
+                           np.ascontiguousarray(enable, dtype=np.bool_), lengths, counts,
+                           tacho)
+        return counts, tacho
+
+    def _run_compiled(self, dac: np.ndarray, enable: np.ndarray, lengths: np.ndarray,
+                      counts: np.ndarray, tacho: np.ndarray) -> None:
+        """:meth:`run_open_loop` in the compiled loop (no noise, no accelerometer)."""
+        if len(self._samples) < lengths.max(initial=1):
+            self._samples = np.empty((int(lengths.max()), FINE_WIDTH))
+        drives, d, k = self.drives, self.data, 0
+        params, state, tables, _, log, sub, scratch = drives.kernel_arrays()
+        cpr = np.array(self._cpr)
+        mask = np.array(self._mask, np.int64)
+        clock = np.array([d.time, d.time])
+        seen = np.frombuffer(self._warnings_seen, dtype=self._warning_count.dtype)
+        while k < len(lengths):
+            free = np.array([mon.free for mon in self._monitors])
+            k, done, reason, _status, clip = plant_loop.ticks(
+                k, lengths, dac, enable, drives.enabled, cpr,
+                np.array(self._offset, np.int64), mask, free, self._warning_count, seen,
+                clock, self.model.opt.timestep, counts, tacho, *self._addresses,
+                self._substeps, params, state, tables, self._dac, self._u, self._noise_block,
+                log, drives.n_step, drives.dt, self._passive, self._has_passive,
+                self._chain, self._has_chain, self._drive_torque, sub, scratch, self._torque,
+                self._slide_force, self._table_pos, self._table_vel, self._rotor_pos,
+                self._rotor_vel, *self._mj_arrays, self._spring_adr, self._spring_ratio,
+                self._samples, self._no_steps, self._extent, self._ring, self._ring_n,
+                self._out)
+            drives.advance(done)
+            self._ring_n += done
+            if reason == plant_loop.TICK_ENABLE:
+                self.enable(bool(enable[k]))
+                continue
+            if reason == plant_loop.TICK_ERROR:
+                if clip < 0:
+                    self._not_finite(dac[k])
+                drives.step(self._u, self._rotor_vel, self._rotor_pos)  # raises, named
+            if reason in (plant_loop.TICK_ERROR, plant_loop.TICK_CHECK):
+                self._checked(float(clock[0]), self._samples[:int(lengths[k])], clip)
+                seen = np.frombuffer(self._warnings_seen, dtype=self._warning_count.dtype)
+                k += 1
+        self._ro = self._out.tolist()
+        self._fine = self._samples[:int(lengths[-1])] if len(lengths) else self._fine
 
     def _diverged(self, extent: np.ndarray) -> str:
         """Which axis and which quantity left the finite numbers first (for the message)."""
