@@ -208,8 +208,10 @@ def test_overlay_is_framed_on_the_whole_path_and_the_data_time_span(compared):
     views = layout_views(path)
     scalars = _rrd_scalars(path)
     (paths,) = [v for v in views if v["kind"] == "2D"]
-    pts = np.vstack([_rrd_points(path, f"laws/{law}/path/actual")
+    pts = np.vstack([_rrd_points(path, f"laws/{law}/path/table")
                      for law in compared["profiles"]])
+    assert not _rrd_points(path, "laws/trapezoid/path/actual").size   # the table's, only
+    assert "the table, " in paths["name"]
     (x0, x1), (y0, y1) = paths["bounds"]["x_range"], paths["bounds"]["y_range"]
     assert x0 < pts[:, 0].min() and pts[:, 0].max() < x1
     assert y0 < -pts[:, 1].max() and -pts[:, 1].min() < y1

@@ -187,6 +187,6 @@ def test_a_simulated_run_shows_the_table_s_true_path_and_its_contour_error(squar
     assert table_um.max() == pytest.approx(square.summary["table_max_contour_error_um"],
                                            abs=0.05)
     (view,) = [v for v in layout_views(path) if v["kind"] == "2D"]
-    assert "/path/table" in view["contents"] and "table's true path a teal halo" in view["name"]
+    assert "/path/table" in view["contents"] and "table: teal halo" in view["name"]
     (plot,) = [v for v in layout_views(path) if v["name"].startswith("Contour error")]
     assert "/errors/table_contour_um" in plot["contents"] and "table teal" in plot["name"]

@@ -65,8 +65,6 @@ FIGURES = (
     ("cycle time", "cycle_time_s", "s"),
     ("max contour error", "max_contour_error_um", "µm"),
     ("RMS contour error", "rms_contour_error_um", "µm"),
-    ("max contour error, table", "table_max_contour_error_um", "µm"),
-    ("RMS contour error, table", "table_rms_contour_error_um", "µm"),
     ("max coordinate error X", ("max_coordinate_error_um", "x"), "µm"),
     ("max coordinate error Y", ("max_coordinate_error_um", "y"), "µm"),
     ("max velocity error X", ("max_velocity_error_um_s", "x"), "µm/s"),
@@ -340,13 +338,15 @@ class _LawSink:
 
     def points(self, t: np.ndarray, columns: Mapping[str, np.ndarray], *,
                colors: Mapping[str, np.ndarray] | None = None) -> None:
-        """The law's actual path in its colour (the overlay's, not the error's); its
-        reference path is not drawn (the programmed path is)."""
-        if "path/actual" in columns:
-            values = columns["path/actual"]
+        """The law's path in its colour (the overlay's, not the error's): the table's true
+        path (the twin's truth, which the laws are judged by), the encoder's where there is
+        none; its reference path is not drawn (the programmed path is)."""
+        entity = "path/table" if "path/table" in columns else "path/actual"
+        if entity in columns:
+            values = columns[entity]
             rgb = np.broadcast_to(np.array(self.colour, dtype=np.uint8), (len(values), 3))
-            self.shared.points(t, {self.prefix + "path/actual": values},
-                               colors={self.prefix + "path/actual": rgb})
+            self.shared.points(t, {self.prefix + entity: values},
+                               colors={self.prefix + entity: rgb})
 
     def event(self, t: float, text: str, *, level: str = "INFO") -> None:
         self.shared.event(t, f"{self.law}: {text}", level=level)

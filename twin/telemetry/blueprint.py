@@ -262,7 +262,7 @@ def path_view(extents: Extents | None = None, *, name: str | None = None,
     return rrb.Spatial2DView(
         name=name or "Path (mm, Y up; grid and scale bar in mm): programmed grey; actual "
                      "(encoder) green → yellow at the contour tolerance → red at twice it"
-                     + ("; the table's true path a teal halo" if table else ""),
+                     + ("; table: teal halo" if table else ""),
         origin=origin, contents=list(contents), time_ranges=_WHOLE_RUN,
         visual_bounds=_visual_bounds(frame_bounds(extents, *frame)))
 
@@ -309,16 +309,22 @@ def overlay_blueprint(laws: Mapping[str, str], extents: Extents | None = None
         return _series(title, entities, extents, names=names)
 
     programmed = ", ".join(f"{law} {colour}" for law, colour in laws.items())
+    # a simulated comparison shows the table's true paths and contour errors (the laws are
+    # judged by them), else the encoder's
+    table = extents is not None and any(e.endswith("errors/table_contour_um")
+                                        for e in extents.values)
     overlay = rrb.Horizontal(
         rrb.Vertical(
             path_view(extents, name=f"Paths (mm, Y up; grid and scale bar in mm): "
-                                    f"programmed grey; {programmed}",
+                                    f"programmed grey; "
+                                    f"{'the table, ' if table else ''}{programmed}",
                       origin="/", contents=["/laws/**"], frame=("laws/**",)),
             rrb.TextLogView(name="Events", origin="/events"),
             row_shares=[4, 1],
         ),
         rrb.Vertical(
-            plot("Contour error (µm)", "errors/contour_um"),
+            plot("Contour error of the table (µm)" if table else "Contour error (µm)",
+                 "errors/table_contour_um" if table else "errors/contour_um"),
             *(plot(f"{a.upper()} velocity (mm/min)", f"axes/{a}/velocity/actual")
               for a in AXES),
             *(plot(f"{a.upper()} screw deflection (µm)", f"axes/{a}/screw_deflection_um")
