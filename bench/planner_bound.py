@@ -198,60 +198,55 @@ def _feed_cap(cfg, b: PlannedBlock) -> float:
     return cfg.controller.rapid_velocity if b.rapid else min(b.feed, contour.max_velocity)
 
 
-def rule_caps(cfg, law: str, blocks: list[PlannedBlock]) -> list[tuple[float, float]]:
-    """Per block of a piece, the planner's own caps for ``law`` (m/s): the block's speed cap
-    (`BlockRules.block`: feed, axes, a curve's acceleration and jerk) and its start node's
-    (`BlockRules.node_cap`: corner model, velocity and curvature steps)."""
-    rules = Planner.from_settings(cfg.controller, cfg.axes, law=law, work_zone=None)._rules
-    out, prev = [], None
+def planner_rules(cfg, law: str):
+    """The rules of blocks and nodes of a planner of ``law`` on ``cfg`` (`BlockRules`)."""
+    return Planner.from_settings(cfg.controller, cfg.axes, law=law, work_zone=None)._rules
+
+
+def _followed(rules, blocks: list[PlannedBlock]):
+    """Each block of a piece as the planner sees it (a `WindowBlock`) with the one before it
+    (None for the first), after `BlockRules.follow` (a sliver takes its curve's curvature)."""
+    prev = None
     for b in blocks:
         wb = rules.block(b.segment, b.feed, b.line, b.blend)
-        node = 0.0
         if prev is not None:
             rules.follow(prev, wb)
-            node = rules.node_cap(prev, wb)
-        out.append((wb.v_nom, node))
+        yield b, wb, prev
         prev = wb
-    return out
 
 
-def jerk_caps(cfg, law: str, blocks: list[PlannedBlock]) -> list[tuple[float, float]]:
+def rule_caps(cfg, rules, blocks: list[PlannedBlock]) -> list[tuple[float, float]]:
+    """Per block of a piece, the planner's own caps (m/s; ``rules``: `planner_rules`): the
+    block's speed cap (`BlockRules.block`: feed, axes, a curve's acceleration and jerk) and
+    its start node's (`BlockRules.node_cap`: corner model, velocity and curvature steps)."""
+    return [(wb.v_nom, 0.0 if prev is None else rules.node_cap(prev, wb))
+            for _, wb, prev in _followed(rules, blocks)]
+
+
+def jerk_caps(cfg, rules, blocks: list[PlannedBlock]) -> list[tuple[float, float]]:
     """Per block of a piece, the speed caps jerk itself sets on its path (m/s): on the block
     ``v³κ² ≤ J`` (κ its largest curvature) and at its start node ``v²·|Δκ| ≤ J·T`` (module
     doc), the curvatures at the node as the planner sees them (a sliver of line between two
     curves, passed within a fraction of a period, takes the curve's: `BlockRules.follow`);
     ``inf`` where nothing caps."""
-    rules = Planner.from_settings(cfg.controller, cfg.axes, law=law, work_zone=None)._rules
     j, period = cfg.controller.limits.max_jerk, cfg.controller.period
-    out, prev = [], None
-    for b in blocks:
+    out = []
+    for b, wb, prev in _followed(rules, blocks):
         kappa = _max_curvature(b.segment)
-        wb = rules.block(b.segment, b.feed, b.line, b.blend)
         node = math.inf
-        if prev is not None:
-            rules.follow(prev, wb)
-            if wb.k0 != prev.k1:
-                node = math.sqrt(j * period / abs(wb.k0 - prev.k1))
+        if prev is not None and wb.k0 != prev.k1:
+            node = math.sqrt(j * period / abs(wb.k0 - prev.k1))
         out.append(((j / kappa**2) ** (1.0 / 3.0) if kappa > 0.0 else math.inf, node))
-        prev = wb
     return out
 
 
-def bound_time(blocks: list[PlannedBlock], cfg, mean: float | None = None,
-               caps: list[tuple[float, float]] | None = None) -> float:
-    """TOPP-RA's time for one piece that starts and ends at rest (s). With ``mean`` the
-    path acceleration is also held to |s̈| ≤ mean (m/s²): a law's mean acceleration over a
-    speed change (its peak stays within the same limits as above). With ``caps``
-    (`rule_caps`) the speed is also held to the planner's caps of blocks and nodes."""
-    import toppra
-    import toppra.algorithm as algo
-    from toppra.constraint import DiscretizationType, LinearConstraint
-
+def _path_data(blocks: list[PlannedBlock], cfg, caps) -> tuple[np.ndarray, ...]:
+    """The bound's grid (`_grid`) and per grid point the tangent (tx, ty), κ·n̂ (nx, ny) and
+    the speed cap (m/s): the feed, the axes' velocities along the tangent, ``caps``."""
     grid, where = _grid(blocks)
     n = len(grid)
     tx, ty, nx, ny, cap = (np.zeros(n) for _ in range(5))
     axes = [cfg.axes[a].limits for a in "xy"]
-    contour = cfg.controller.limits
     for i, (k, u) in enumerate(where):
         b = blocks[k]
         _, _, t0, t1, kappa, _ = b.segment.frame(u)
@@ -270,9 +265,25 @@ def bound_time(blocks: list[PlannedBlock], cfg, mean: float | None = None,
     for i in range(1, n):
         if where[i][0] != where[i - 1][0]:
             cap[i] = min(cap[i], cap[i - 1])
+    return grid, tx, ty, nx, ny, cap
+
+
+def bound_time(blocks: list[PlannedBlock], cfg, mean: float | None = None,
+               caps: list[tuple[float, float]] | None = None) -> float:
+    """TOPP-RA's time for one piece that starts and ends at rest (s). With ``mean`` the
+    path acceleration is also held to |s̈| ≤ mean (m/s²): a law's mean acceleration over a
+    speed change (its peak stays within the same limits as above). With ``caps``
+    (`rule_caps`) the speed is also held to the planner's caps of blocks and nodes."""
+    import toppra
+    import toppra.algorithm as algo
+    from toppra.constraint import DiscretizationType, LinearConstraint
+
+    grid, tx, ty, nx, ny, cap = _path_data(blocks, cfg, caps)
+    n = len(grid)
+    axes = [cfg.axes[a].limits for a in "xy"]
     angles = np.arange(POLYGON) * 2.0 * math.pi / POLYGON
     rows = [[1, 0], [-1, 0], [0, 1], [0, -1]] + [[math.cos(a), math.sin(a)] for a in angles]
-    limit_c = contour.max_acceleration          # the circumscribed 16-gon: apothem A
+    limit_c = cfg.controller.limits.max_acceleration   # the circumscribed 16-gon: apothem A
     g = np.array([axes[0].max_acceleration] * 2 + [axes[1].max_acceleration] * 2
                  + [limit_c] * POLYGON)
 
@@ -342,9 +353,11 @@ def yardstick_acceleration(cfg, law: str, blocks: list[PlannedBlock]) -> float |
 
 def yardstick(cfg, law: str, parts: list, dwell: float, caps=None) -> float:
     """A law's yardstick for a whole plan (s): its pieces' bounds and the dwells; ``caps``
-    (`rule_caps`, `jerk_caps`): also under those caps of blocks and nodes."""
+    (`rule_caps`, `jerk_caps`): also under those caps of blocks and nodes, by one planner's
+    rules for every piece."""
+    rules = planner_rules(cfg, law) if caps is not None else None
     return sum(bound_time(p, cfg, yardstick_acceleration(cfg, law, p),
-                          caps(cfg, law, p) if caps is not None else None)
+                          caps(cfg, rules, p) if caps is not None else None)
                for p in parts) + dwell
 
 
