@@ -250,6 +250,13 @@ class PathGrid:
         self.scale_label = f"{self.step:g} mm"
 
 
+def _table_shown(extents: Extents | None) -> bool:
+    """Whether a recording holds the table's true contour error (a simulated run: the twin's
+    truth; of every law in a comparison) and so its true path."""
+    return extents is not None and any(e.endswith("errors/table_contour_um")
+                                       for e in extents.values)
+
+
 def path_view(extents: Extents | None = None, *, name: str | None = None,
               origin: str = "/", contents: Sequence[str] = (f"/{PROGRAMMED}", "/path/actual",
                                                             "/path/table", "/path/grid/**"),
@@ -258,7 +265,7 @@ def path_view(extents: Extents | None = None, *, name: str | None = None,
     ``frame`` (the whole programmed and actual path). ``origin`` must lie above the
     entity that carries ``PATH_TRANSFORM`` (a view's origin frame is its own, untransformed).
     A simulated run adds the table's true path (``path/table``)."""
-    table = extents is not None and extents.point_bounds("path/table") is not None
+    table = _table_shown(extents)
     return rrb.Spatial2DView(
         name=name or "Path (mm, Y up; grid and scale bar in mm): programmed grey; actual "
                      "(encoder) green → yellow at the contour tolerance → red at twice it"
@@ -276,8 +283,7 @@ def default_blueprint(extents: Extents | None = None) -> rrb.Blueprint:
             path_view(ext),
             rrb.Vertical(
                 _series("Contour error (µm)", ["/errors/contour_um"] + (
-                    ["/errors/table_contour_um"] if ext is not None and ext.value_range(
-                        "errors/table_contour_um") is not None else []), ext),
+                    ["/errors/table_contour_um"] if _table_shown(ext) else []), ext),
                 _series("Feed (mm/min)", ["/feed/programmed", "/feed/commanded",
                                           "/feed/actual"], ext),
                 rrb.TextLogView(name="Events", origin="/events"),
@@ -311,8 +317,7 @@ def overlay_blueprint(laws: Mapping[str, str], extents: Extents | None = None
     programmed = ", ".join(f"{law} {colour}" for law, colour in laws.items())
     # a simulated comparison shows the table's true paths and contour errors (the laws are
     # judged by them), else the encoder's
-    table = extents is not None and any(e.endswith("errors/table_contour_um")
-                                        for e in extents.values)
+    table = _table_shown(extents)
     overlay = rrb.Horizontal(
         rrb.Vertical(
             path_view(extents, name=f"Paths (mm, Y up; grid and scale bar in mm): "
