@@ -325,6 +325,38 @@ def fit(base: MachineConfig, log: IdentLog, *,
                       unprofiled=lambda sol: _declared(problem, {**params, **sol.params},
                                                        sol, fit_mask))
     params = {**params, **joint.params}
+    _report_joint(joint, axes, say)
+    estimates, final = _estimates(problem, params, start, names, joint, gain_halfs, lost,
+                                  say)
+    if not all(math.isfinite(v) for p in final.values() for v in p.to_dict().values()):
+        raise FitError("the fit ran away: a parameter is not finite")
+    calibrated = candidate(base, final)
+    masses = calibrated.moving_masses()
+    for a in axes:   # the current regulator not fitted: what the calibrated drive has
+        d = design(calibrated.axes[a], moving_mass=masses[a])
+        for name in ("current_kp", "current_ti"):
+            if estimates[a][name].source == UNSEEN_CURRENT_LOOP:
+                estimates[a][name] = dataclasses.replace(estimates[a][name],
+                                                         value=getattr(d, name))
+    (pos, tacho), residual, nrmse, misfit = _judge(problem, estimates, final, start, names,
+                                                   joint, fit_mask, say, cpu0)
+    n = len(pos)
+    calibrated = candidate(base, final)
+    curves = {"t": log.data["t"][:n], "pos_meas": problem.pos[:n], "pos_fit": pos,
+              "tacho_meas": problem.tacho[:n], "tacho_fit": tacho}
+    result = Identification(final, estimates, calibrated, nrmse, residual, problem.replays,
+                            time.perf_counter() - t0, curves)
+    result.mains_phase = problem.mains_phase
+    result.linear = joint.linear
+    result.dcm = {a: dcm[a] for a in axes}
+    result.cpu_time = cpu_time() - cpu0
+    result.misfit = misfit
+    return result
+
+
+def _report_joint(joint, axes: tuple[str, ...], say: Callable[[str], None]) -> None:
+    """Say what the joint fit could not pin down: no profiles (every axis above the misfit
+    limit), the values held and how, the values identified only given others."""
     if not joint.profiled:
         say("no profile intervals: every axis stays above the misfit limit after the "
             "least squares (" + ", ".join(f"{a} {_misfit_text(joint.misfit[a])}"
@@ -342,6 +374,16 @@ def fit(base: MachineConfig, log: IdentLog, *,
         for n, held in joint.given[a].items():
             say(f"warning: axis {a}: {n} is identified only given {', '.join(held)} "
                 f"(held): its value is right relative to it, not on its own")
+
+
+def _estimates(problem: Problem, params: dict[str, AxisParams],
+               start: dict[str, AxisParams], names: list[str], joint, gain_halfs: dict,
+               lost: dict, say: Callable[[str], None]
+               ) -> tuple[dict[str, dict[str, Estimate]], dict[str, AxisParams]]:
+    """Per axis the estimates of a fit (the regressions' halves, the joint fit's profile
+    intervals, the lost motion's) and its final parameters: an axis held still keeps
+    BASE's, a lost motion the home switch does not pin down keeps BASE's (and says so)."""
+    axes = problem.axes
     estimates: dict[str, dict[str, Estimate]] = {}
     final = {}
     for a in AXES:
@@ -386,19 +428,19 @@ def fit(base: MachineConfig, log: IdentLog, *,
                                    "fit" if ok else "base")
         estimates[a] = est
         final[a] = p
-    if not all(math.isfinite(v) for p in final.values() for v in p.to_dict().values()):
-        raise FitError("the fit ran away: a parameter is not finite")
-    calibrated = candidate(base, final)
-    masses = calibrated.moving_masses()
-    for a in axes:   # the current regulator not fitted: what the calibrated drive has
-        d = design(calibrated.axes[a], moving_mass=masses[a])
-        for name in ("current_kp", "current_ti"):
-            if estimates[a][name].source == UNSEEN_CURRENT_LOOP:
-                estimates[a][name] = dataclasses.replace(estimates[a][name],
-                                                         value=getattr(d, name))
+    return estimates, final
+
+
+def _judge(problem: Problem, estimates: dict[str, dict[str, Estimate]],
+           final: dict[str, AxisParams], start: dict[str, AxisParams], names: list[str],
+           joint, fit_mask: np.ndarray, say: Callable[[str], None], cpu0: float):
+    """The fit's quality: the held-out prediction and each axis' misfit; every replayed
+    parameter keeps BASE's value, flagged, where the twin does not replay the machine
+    (``QUALITY``) or an axis of it (``MISFIT``). Returns the held-out replay (position,
+    tacho), the fit experiments' residual, the NRMSE and the misfit per axis."""
+    axes = problem.axes
     # fit quality: the fit experiments' residual, and the held-out prediction
     (pos, tacho), residual, nrmse = _held_out(problem, final, fit_mask)
-    n = len(pos)
     worst = max(max(v.values()) for v in nrmse.values())
     say(f"held out: NRMSE {100 * worst:.2f} % ({problem.replays} replays, "
         f"{cpu_time() - cpu0:.0f} s CPU)")
@@ -419,17 +461,7 @@ def fit(base: MachineConfig, log: IdentLog, *,
                "where an interval would not hold the truth; BASE's value kept")
         say(f"warning: axis {a}: {why}, for every replayed parameter")
         _keep_base(estimates, final, start, [a], names, why)
-    calibrated = candidate(base, final)
-    curves = {"t": log.data["t"][:n], "pos_meas": problem.pos[:n], "pos_fit": pos,
-              "tacho_meas": problem.tacho[:n], "tacho_fit": tacho}
-    result = Identification(final, estimates, calibrated, nrmse, residual, problem.replays,
-                            time.perf_counter() - t0, curves)
-    result.mains_phase = problem.mains_phase
-    result.linear = joint.linear
-    result.dcm = {a: dcm[a] for a in axes}
-    result.cpu_time = cpu_time() - cpu0
-    result.misfit = misfit
-    return result
+    return (pos, tacho), residual, nrmse, misfit
 
 
 def _declared(problem: Problem, params: dict[str, AxisParams], sol: Solution,
