@@ -42,9 +42,8 @@ from typing import Any
 import numpy as np
 
 from twin.analysis.compare import law_figures, true_contour_error
-from twin.analysis.studies.common import run_items
+from twin.analysis.studies.common import gcode_program, run_items
 from twin.config import AXES, MachineConfig
-from twin.controller.gcode import parse
 from twin.controller.shaped_corner import SHAPER_SHARE
 from twin.controller.shaping import SHAPERS, believed_mode, design, residual_vibration
 from twin.session.run import RunSpec
@@ -153,13 +152,10 @@ def _run(spec: RunSpec, gcode: str, name: str, modes: Sequence[Mode], accelerati
          ) -> dict[str, float]:
     """One closed-loop run of the test path: contour errors of corners and circle (m),
     residual vibration (m), cycle time (s)."""
-    def build(cfg, start):
-        return list(parse(gcode, start=tuple(start.tolist())))
-
     overrides = {**dict(spec.overrides), **_overrides(name, modes, acceleration)}
     result = run_items(RunSpec(machine=spec.machine, controller_model=spec.controller_model,
                                profile="trapezoid", overrides=overrides, max_time=600.0),
-                       build, keep_fine=True)
+                       gcode_program(gcode), keep_fine=True)
     contour = true_contour_error(result)
     circle = result.record["line"] == CIRCLE_LINE
     corners = np.isin(result.record["line"], CORNER_LINES)
